@@ -1,0 +1,151 @@
+// nanobind bindings: the only place the core meets Python. C++ exceptions become Python
+// exceptions (std::invalid_argument -> ValueError, others -> RuntimeError).
+#include "render/session.h"
+
+#include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/vector.h>
+
+namespace nb = nanobind;
+using namespace nb::literals;
+
+namespace {
+
+nb::ndarray<nb::numpy, float> to_numpy(std::vector<float>&& data, std::vector<size_t> shape) {
+    auto* owned = new std::vector<float>(std::move(data));
+    nb::capsule owner(owned, [](void* p) noexcept { delete static_cast<std::vector<float>*>(p); });
+    return nb::ndarray<nb::numpy, float>(owned->data(), shape.size(), shape.data(), owner);
+}
+
+px::RenderParams make_params(uint32_t method, uint32_t heuristic, uint32_t spp, uint32_t max_depth, uint32_t leeway,
+                             uint32_t rr, uint32_t light_samples, uint32_t seed) {
+    px::RenderParams p;
+    p.method = method;
+    p.mis_heuristic = heuristic;
+    p.samples_per_frame = spp;
+    p.max_depth = max_depth;
+    p.depth_leeway = leeway;
+    p.rr_start_depth = rr;
+    p.light_samples = light_samples;
+    p.seed = seed;
+    return p;
+}
+
+}  // namespace
+
+NB_MODULE(_native, m) {
+    m.doc() = "Parallax native core: Vulkan ray-tracing path tracer";
+
+    m.def("devices", [] {
+        auto reports = px::Context::enumerate();
+        uint32_t chosen = UINT32_MAX;
+        try {
+            chosen = px::Context::choose(reports, "auto");
+        } catch (const std::exception&) {
+        }
+        nb::list out;
+        for (const auto& r : reports) {
+            nb::dict d;
+            d["index"] = r.index;
+            d["name"] = r.name;
+            d["type"] = r.type;
+            d["ray_tracing"] = r.ray_tracing;
+            d["missing"] = r.missing;
+            d["chosen"] = r.index == chosen;
+            out.append(d);
+        }
+        return out;
+    }, "Every Vulkan device: name, type, whether it can ray-trace (and what it lacks), and "
+       "which one device='auto' picks.");
+
+    m.attr("METHODS") = nb::make_tuple("pt", "nee", "mis");
+
+    nb::class_<px::Session>(m, "Session")
+        .def(nb::init<uint32_t, uint32_t, const std::string&>(), "width"_a, "height"_a, "device"_a = "auto",
+             nb::call_guard<nb::gil_scoped_release>())
+        .def("_update",
+             [](px::Session& s, nb::dict arrays, bool spatial_order) {
+                 px::SceneArrays views;
+                 std::vector<nb::ndarray<nb::c_contig, nb::device::cpu>> keep;
+                 for (auto [key, value] : arrays) {
+                     std::string name = nb::cast<std::string>(key);
+                     nb::ndarray<nb::c_contig, nb::device::cpu> a;
+                     if (!nb::try_cast(value, a))
+                         throw nb::type_error(("scene array '" + name + "' must be a C-contiguous numpy array").c_str());
+                     px::ArrayView v;
+                     v.data = a.data();
+                     for (size_t i = 0; i < a.ndim(); ++i) v.shape.push_back(a.shape(i));
+                     auto dt = a.dtype();
+                     v.kind = dt.code == uint8_t(nb::dlpack::dtype_code::Float) ? 'f'
+                              : dt.code == uint8_t(nb::dlpack::dtype_code::UInt) ? 'u'
+                              : dt.code == uint8_t(nb::dlpack::dtype_code::Int)  ? 'i'
+                                                                                 : '?';
+                     v.itemsize = dt.bits / 8;
+                     views[name] = v;
+                     keep.push_back(a);
+                 }
+                 nb::gil_scoped_release release;
+                 return s.update(views, spatial_order);
+             },
+             "arrays"_a, "spatial_order"_a = true,
+             "Replace the scene with SceneData.flatten() arrays; returns warnings.")
+        .def("_set_params",
+             [](px::Session& s, uint32_t method, uint32_t heuristic, uint32_t spp, uint32_t max_depth,
+                uint32_t leeway, uint32_t rr, uint32_t light_samples, uint32_t seed) {
+                 s.set_params(make_params(method, heuristic, spp, max_depth, leeway, rr, light_samples, seed));
+             },
+             "method"_a, "mis_heuristic"_a, "samples_per_frame"_a, "max_depth"_a, "depth_leeway"_a,
+             "rr_start_depth"_a, "light_samples"_a, "seed"_a)
+        .def("render", &px::Session::render, "frames"_a = 1, nb::call_guard<nb::gil_scoped_release>(),
+             "Render `frames` frames of samples_per_frame samples each (GIL released).")
+        .def("read",
+             [](px::Session& s, const std::string& pass) {
+                 uint32_t channels = 0;
+                 std::vector<float> data;
+                 {
+                     nb::gil_scoped_release release;
+                     data = s.read(pass, channels);
+                 }
+                 return to_numpy(std::move(data), {s.height(), s.width(), channels});
+             },
+             "name"_a, "Accumulated pass as float32 (height, width, channels), row 0 = top.")
+        .def("reset", &px::Session::reset, nb::call_guard<nb::gil_scoped_release>())
+        .def("stats",
+             [](px::Session& s) {
+                 px::SessionStats st;
+                 {
+                     nb::gil_scoped_release release;
+                     st = s.stats();
+                 }
+                 nb::dict d;
+                 d["samples"] = st.samples;
+                 d["rays"] = st.rays;
+                 d["milliseconds"] = st.milliseconds;
+                 d["frames"] = st.frames;
+                 d["device"] = s.device().name;
+                 return d;
+             })
+        .def_static("pass_names",
+                    [] {
+                        std::vector<std::string> names;
+                        for (const auto& p : px::pass_table()) names.push_back(p.name);
+                        return names;
+                    })
+        .def("_test_sampling",
+             [](px::Session& s, uint32_t routine, std::vector<float> params, uint32_t count, uint32_t seed,
+                std::vector<float> input) {
+                 std::vector<float> out;
+                 {
+                     nb::gil_scoped_release release;
+                     out = s.test_sampling(routine, params, count, seed, input);
+                 }
+                 return to_numpy(std::move(out), {count, 2, 4});
+             },
+             "routine"_a, "params"_a, "count"_a, "seed"_a = 0, "input"_a = std::vector<float>())
+        .def_prop_ro("width", &px::Session::width)
+        .def_prop_ro("height", &px::Session::height)
+        .def_prop_ro("device", [](px::Session& s) { return s.device().name; })
+        .def_prop_ro("device_type", [](px::Session& s) { return s.device().type; })
+        .def_prop_ro("triangle_count", &px::Session::triangle_count);
+}

@@ -1,0 +1,98 @@
+"""Parallax native core: a Vulkan ray-tracing path tracer.
+
+    from parallax_core import Session, SceneData
+    s = Session(256, 256)              # device: PARALLAX_DEVICE or "auto"
+    s.set_params(method="mis", samples_per_frame=4)
+    s.update(scene)                    # SceneData or its flatten() dict
+    s.render(16)                       # 16 frames, GIL released
+    image = s.read("combined")         # float32 (H, W, 4)
+"""
+from __future__ import annotations
+
+import dataclasses
+import os
+
+from ._native import METHODS, devices
+from ._native import Session as _NativeSession
+
+__all__ = ["Session", "RenderParams", "devices", "METHODS", "PASSES"]
+
+PASSES = tuple(_NativeSession.pass_names())
+HEURISTICS = ("balance", "power")
+
+
+@dataclasses.dataclass
+class RenderParams:
+    """Integrator settings; mirrors px::RenderParams (native/src/render/session.h)."""
+
+    method: str = "mis"             # pt | nee | mis
+    mis_heuristic: str = "power"    # balance | power
+    samples_per_frame: int = 1
+    max_depth: int = 8              # bounces (Cycles' "max bounces")
+    depth_leeway: int = 4           # delta bounces not counted towards max_depth
+    rr_start_depth: int = 3         # Russian roulette from this bounce on; 0 = off
+    light_samples: int = 1          # NEE samples per vertex
+    seed: int = 0
+
+    def validate(self) -> None:
+        if self.method not in METHODS:
+            raise ValueError(f"unknown method {self.method!r} (choose from {', '.join(METHODS)})")
+        if self.mis_heuristic not in HEURISTICS:
+            raise ValueError(f"unknown MIS heuristic {self.mis_heuristic!r} (balance or power)")
+        for name in ("samples_per_frame", "max_depth", "depth_leeway", "rr_start_depth", "light_samples", "seed"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or isinstance(value, bool) or value < 0 or value >= 2**32:
+                raise ValueError(f"{name} must be a non-negative integer, got {value!r}")
+
+
+class Session(_NativeSession):
+    """A render session on one Vulkan device (see the module docstring)."""
+
+    def __init__(self, width: int, height: int, device: str | None = None):
+        device = device or os.environ.get("PARALLAX_DEVICE", "auto")
+        super().__init__(int(width), int(height), str(device))
+        self._params = RenderParams()
+        self.warnings: list[str] = []
+
+    @property
+    def params(self) -> RenderParams:
+        return dataclasses.replace(self._params)
+
+    def set_params(self, **changes) -> None:
+        """Change integrator settings (RenderParams fields); resets accumulation if any differ."""
+        unknown = set(changes) - {f.name for f in dataclasses.fields(RenderParams)}
+        if unknown:
+            raise TypeError(f"unknown render parameter(s): {', '.join(sorted(unknown))}")
+        params = dataclasses.replace(self._params, **changes)
+        params.validate()
+        self._set_params(
+            METHODS.index(params.method), HEURISTICS.index(params.mis_heuristic), params.samples_per_frame,
+            params.max_depth, params.depth_leeway, params.rr_start_depth, params.light_samples, params.seed)
+        self._params = params
+
+    def update(self, scene, spatial_order: bool = True) -> list[str]:
+        """Upload a SceneData (or its flatten() dict). Returns and keeps the warnings."""
+        warnings: list[str] = []
+        if hasattr(scene, "flatten"):
+            warnings += list(scene.validate() or [])
+            scene = scene.flatten()
+        if not isinstance(scene, dict):
+            raise TypeError("update() takes a SceneData or a dict of arrays")
+        warnings += self._update(scene, spatial_order)
+        self.warnings = warnings
+        return warnings
+
+    def read_all(self) -> dict:
+        """Every pass, by name."""
+        return {name: self.read(name) for name in PASSES}
+
+    def test_sampling(self, routine: int, params, count: int, seed: int = 0, directions=None):
+        """Run shaders/tests/sampling_test.comp; returns float32 (count, 2, 4). Test use only."""
+        import numpy as np
+
+        data = []
+        if directions is not None:
+            d = np.zeros((count, 2, 4), np.float32)
+            d[:, 0, :3] = directions
+            data = d.ravel().tolist()
+        return self._test_sampling(routine, [float(x) for x in params], count, seed, data)

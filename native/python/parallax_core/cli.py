@@ -1,0 +1,182 @@
+"""The ``parallax`` console script (also ``python -m parallax_core``).
+
+  parallax info                              list Vulkan devices, say which one is used
+  parallax render SCENE.npz -o OUT.exr ...   render a saved SceneData to a multilayer EXR
+  parallax scene NAME -o SCENE.npz ...       write a procedural scene (see scenes.SCENES)
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+
+
+def _error(msg, code=2):
+    print(f"parallax: error: {msg}", file=sys.stderr)
+    return code
+
+
+def cmd_info(args):
+    from . import devices
+
+    devs = devices()
+    if not devs:
+        return _error("no Vulkan devices found", 1)
+    for i, d in enumerate(devs):
+        missing = ", ".join(d.get("missing") or ["?"])
+        rt = "yes" if d.get("ray_tracing") else f"no (missing {missing})"
+        mark = "  <- chosen" if d.get("chosen") else ""
+        print(f"[{i}] {d.get('name')} ({d.get('type')})  ray tracing: {rt}{mark}")
+    if not any(d.get("ray_tracing") for d in devs):
+        return _error("no Vulkan device supports ray tracing", 1)
+    chosen = [d for d in devs if d.get("chosen")]
+    if chosen:
+        print(f"using: {chosen[0].get('name')}")
+    return 0
+
+
+def _device_arg(value):
+    return int(value) if value.isdigit() else value
+
+
+_last_progress = [0.0]
+
+
+def _progress(done, total, rays_per_s, width=30):
+    now = time.perf_counter()
+    if done < total and now - _last_progress[0] < 0.1:  # at most 10 updates a second
+        return
+    _last_progress[0] = now
+    filled = int(width * done / total) if total else width
+    bar = "#" * filled + " " * (width - filled)
+    sys.stderr.write(f"\r[{bar}] {done}/{total} spp  {rays_per_s / 1e6:.1f} Mrays/s")
+    sys.stderr.flush()
+
+
+def cmd_render(args):
+    from .exr import write_exr, write_png
+    from .scene import SceneData
+
+    scene = SceneData.load(args.scene)
+    width, height = args.width, args.height
+    if width or height:
+        if scene.width and scene.height:
+            aspect = scene.width / scene.height
+            width = width or max(1, round(height * aspect))
+            height = height or max(1, round(width / aspect))
+        elif not (width and height):
+            raise ValueError("the scene has no resolution: give both --width and --height")
+        scene = scene.with_resolution(width, height)
+    width, height = scene.width or 512, scene.height or 512
+    for w in scene.validate():
+        print(f"parallax: warning: {w}", file=sys.stderr)
+
+    spp = max(1, args.spp)
+    per_frame = max(1, min(args.spp_per_frame, spp))
+    frames = math.ceil(spp / per_frame)
+    if frames * per_frame != spp:
+        print(f"parallax: note: {spp} spp is not a multiple of --spp-per-frame {per_frame}; "
+              f"rendering {frames * per_frame}", file=sys.stderr)
+
+    from . import Session
+
+    session = Session(width, height, device=_device_arg(args.device))
+    params = dict(method=args.method, samples_per_frame=per_frame)
+    for key in ("seed", "max_depth", "light_samples"):
+        if getattr(args, key) is not None:
+            params[key] = getattr(args, key)
+    session.set_params(**params)
+    session.update(scene)
+
+    start = time.perf_counter()
+    try:
+        for frame in range(frames):
+            session.render(1)
+            stats = session.stats()
+            seconds = stats.get("milliseconds", 0.0) / 1e3 or (time.perf_counter() - start)
+            _progress((frame + 1) * per_frame, frames * per_frame,
+                      stats.get("rays", 0) / seconds if seconds > 0 else 0.0)
+    finally:
+        sys.stderr.write("\n")
+
+    passes = {name: session.read(name) for name in session.pass_names()}
+    write_exr(args.output, passes)
+    if args.png:
+        write_png(args.png, passes["combined"])
+    stats = session.stats()
+    seconds = stats.get("milliseconds", 0.0) / 1e3
+    rays = stats.get("rays", 0)
+    rate = f", {rays / seconds / 1e6:.1f} Mrays/s" if seconds > 0 else ""
+    print(f"{stats.get('samples', frames * per_frame)} spp, {rays / 1e6:.1f} Mrays in "
+          f"{seconds:.2f} s{rate} on {stats.get('device', '?')} -> {args.output}"
+          + (f", {args.png}" if args.png else ""))
+    return 0
+
+
+def cmd_scene(args):
+    from .scenes import SCENES
+
+    build = SCENES[args.name]
+    kwargs = {}
+    if args.width:
+        kwargs["width"] = args.width
+    if args.height:
+        kwargs["height"] = args.height
+    if args.name == "triangle_soup":
+        kwargs.update(n_triangles=args.triangles, shuffle=args.shuffle, seed=args.seed)
+    scene = build(**kwargs)
+    scene.save(args.output)
+    tris = sum(len(m.indices) for m in scene.meshes)
+    print(f"{args.name}: {len(scene.meshes)} meshes, {tris} triangles, "
+          f"{len(scene.lights)} lights, {scene.width}x{scene.height} -> {args.output}")
+    return 0
+
+
+def build_parser():
+    from .scenes import SCENES
+
+    p = argparse.ArgumentParser(prog="parallax", description="Parallax Vulkan path tracer")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    sub.add_parser("info", help="list Vulkan devices and the one that would be used")
+
+    r = sub.add_parser("render", help="render a scene .npz to an EXR")
+    r.add_argument("scene", help="scene file written by SceneData.save")
+    r.add_argument("-o", "--output", required=True, help="output .exr")
+    r.add_argument("--spp", type=int, default=64, help="samples per pixel (default 64)")
+    r.add_argument("--method", choices=("pt", "nee", "mis"), default="mis")
+    r.add_argument("--device", default="auto", help="auto, cpu, gpu or a device index")
+    r.add_argument("--seed", type=int)
+    r.add_argument("--width", type=int, help="override the scene's resolution")
+    r.add_argument("--height", type=int)
+    r.add_argument("--max-depth", type=int)
+    r.add_argument("--spp-per-frame", type=int, default=1,
+                   help="samples per render() call (default 1)")
+    r.add_argument("--light-samples", type=int)
+    r.add_argument("--png", help="also write the combined pass as an sRGB PNG")
+
+    s = sub.add_parser("scene", help="write a procedural scene to .npz")
+    s.add_argument("name", choices=sorted(SCENES))
+    s.add_argument("-o", "--output", required=True)
+    s.add_argument("--width", type=int)
+    s.add_argument("--height", type=int)
+    s.add_argument("--triangles", type=int, default=100_000, help="triangle_soup only")
+    s.add_argument("--shuffle", action="store_true", help="triangle_soup only")
+    s.add_argument("--seed", type=int, default=0, help="triangle_soup shuffle seed")
+    return p
+
+
+def main(argv=None):
+    args = build_parser().parse_args(argv)
+    command = {"info": cmd_info, "render": cmd_render, "scene": cmd_scene}[args.command]
+    try:
+        return command(args)
+    except (ValueError, RuntimeError, OSError) as e:
+        return _error(e, 1 if args.command == "info" else 2)
+    except KeyboardInterrupt:
+        return _error("interrupted", 130)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,787 @@
+"""SceneData: the scene as numpy arrays and small dataclasses, in Cycles/Blender conventions.
+
+Blender's world is Z-up and right-handed; cameras look down their local -Z with +Y up;
+lights point along their local -Z. Units (light power, strength, roughness with
+alpha = roughness^2, IOR) are Cycles'. ``SceneData.flatten()`` turns a scene into the flat
+arrays the native core consumes; ``save``/``load`` store those arrays in one ``.npz``.
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = [
+    "Mesh", "Instance", "Material", "Texture", "Light", "World", "Camera", "SceneData",
+    "FLAT_KEYS", "MATERIAL_TYPES", "LIGHT_TYPES",
+    "direction_to_equirectangular", "equirectangular_to_direction",
+]
+
+MATERIAL_TYPES = {"diffuse": 0, "conductor": 1, "dielectric": 2, "emission": 3}
+LIGHT_TYPES = {"point": 1, "spot": 2, "sun": 3, "area": 4}
+AREA_SHAPES = {"square": 4, "rectangle": 4, "disk": 5, "ellipse": 5}
+CAMERA_TYPES = {"perspective": 0, "orthographic": 1}
+
+# Every key flatten() produces, with its dtype and shape (V vertices, T triangles, M meshes,
+# I instances, K materials, N texels, X textures, L lights).
+FLAT_KEYS = {
+    "positions": (np.float32, "(V,3)"),
+    "indices": (np.uint32, "(T,3)"),
+    "triangle_material": (np.uint32, "(T,)"),
+    "corner_normals": (np.float32, "(T,3,3) or (0,3,3)"),
+    "corner_uvs": (np.float32, "(T,3,2) or (0,3,2)"),
+    "mesh_first_triangle": (np.uint32, "(M,)"),
+    "mesh_triangle_count": (np.uint32, "(M,)"),
+    "mesh_has_normals": (np.uint32, "(M,)"),
+    "mesh_has_uvs": (np.uint32, "(M,)"),
+    "instance_transform": (np.float32, "(I,3,4)"),
+    "instance_mesh": (np.uint32, "(I,)"),
+    "material_type": (np.uint32, "(K,)"),
+    "material_base_color": (np.float32, "(K,3)"),
+    "material_roughness": (np.float32, "(K,)"),
+    "material_ior": (np.float32, "(K,)"),
+    "material_emission": (np.float32, "(K,3)"),
+    "material_texture": (np.int32, "(K,)"),
+    "texture_texels": (np.uint8, "(N,4)"),
+    "texture_info": (np.uint32, "(X,3)"),
+    "light_type": (np.uint32, "(L,)"),
+    "light_position": (np.float32, "(L,3)"),
+    "light_direction": (np.float32, "(L,3)"),
+    "light_axis_u": (np.float32, "(L,3)"),
+    "light_axis_v": (np.float32, "(L,3)"),
+    "light_radius": (np.float32, "(L,)"),
+    "light_color": (np.float32, "(L,3)"),
+    "light_spot_size": (np.float32, "(L,)"),
+    "light_spot_blend": (np.float32, "(L,)"),
+    "light_sun_angle": (np.float32, "(L,)"),
+    "world_color": (np.float32, "(3,)"),
+    "world_map": (np.float32, "(H,W,3) or (0,0,3)"),
+    "camera_to_world": (np.float32, "(3,4)"),
+    "camera_type": (np.uint32, "(1,)"),
+    "camera_window": (np.float32, "(4,)"),
+    "camera_clip": (np.float32, "(2,)"),
+}
+
+_META_KEY = "__meta__"
+
+
+# ---- helpers ------------------------------------------------------------------------------
+
+def _vec(v, n=3):
+    return np.asarray(v, dtype=np.float64).reshape(n)
+
+
+def _finite(*values):
+    return all(np.all(np.isfinite(np.asarray(v, dtype=np.float64))) for v in values)
+
+
+def _normalized(v):
+    """Unit vector in float64; leaves vectors already unit to float32 precision untouched,
+    so flatten(from_flat(flatten(s))) reproduces the same bits."""
+    v = np.asarray(v, dtype=np.float64).reshape(3)
+    n = float(np.linalg.norm(v))
+    if n == 0.0:
+        return None
+    return v if abs(n - 1.0) <= 1e-6 else v / n
+
+
+def _basis(n):
+    """Orthonormal u, v with u x v = n (Duff et al. 2017)."""
+    sign = math.copysign(1.0, n[2])
+    a = -1.0 / (sign + n[2])
+    b = n[0] * n[1] * a
+    u = np.array([1.0 + sign * n[0] * n[0] * a, sign * b, -sign * n[0]])
+    v = np.array([b, sign + n[1] * n[1] * a, -n[1]])
+    return u, v
+
+
+def _transform_3x4(m):
+    """(3,4) float64 from a (3,4) or (4,4) affine matrix; None if the shape is wrong."""
+    m = np.asarray(m, dtype=np.float64)
+    if m.shape == (4, 4):
+        return m[:3].copy()
+    if m.shape == (3, 4):
+        return m.copy()
+    return None
+
+
+def _label(kind, index, name):
+    return f"{kind} '{name}' ({kind} {index})" if name else f"{kind} {index}"
+
+
+def direction_to_equirectangular(d):
+    """Blender's ``direction_to_equirectangular``: world directions (...,3) -> (u, v) in [0,1].
+
+    u = -atan2(y, x) / (2 pi) + 0.5,  v = atan2(z, hypot(x, y)) / pi + 0.5.
+    In a World map, v = 1 is row 0 (the top, +Z); u = 0 is column 0.
+    """
+    d = np.asarray(d, dtype=np.float64)
+    u = -np.arctan2(d[..., 1], d[..., 0]) / (2.0 * np.pi) + 0.5
+    v = np.arctan2(d[..., 2], np.hypot(d[..., 0], d[..., 1])) / np.pi + 0.5
+    return u, v
+
+
+def equirectangular_to_direction(u, v):
+    """Inverse of ``direction_to_equirectangular``: unit directions (...,3)."""
+    phi = np.pi * (1.0 - 2.0 * np.asarray(u, dtype=np.float64))
+    theta = np.pi * (1.0 - np.asarray(v, dtype=np.float64))  # from +Z
+    phi, theta = np.broadcast_arrays(phi, theta)
+    s = np.sin(theta)
+    return np.stack([s * np.cos(phi), s * np.sin(phi), np.cos(theta)], axis=-1)
+
+
+# ---- scene parts --------------------------------------------------------------------------
+
+@dataclass
+class Mesh:
+    """Triangle mesh. ``normals``/``uvs`` are per corner; ``material_indices`` are global
+    indices into ``SceneData.materials`` (default 0)."""
+    positions: np.ndarray                  # (V,3) float
+    indices: np.ndarray                    # (T,3) int
+    normals: np.ndarray | None = None      # (T,3,3)
+    uvs: np.ndarray | None = None          # (T,3,2), Blender UVs (v = 0 at the bottom)
+    material_indices: np.ndarray | None = None  # (T,) int
+    name: str = ""
+
+
+@dataclass
+class Instance:
+    """One placement of ``meshes[mesh]``; ``transform`` is object-to-world, (3,4) or (4,4)."""
+    mesh: int
+    transform: np.ndarray = field(default_factory=lambda: np.eye(4))
+
+
+@dataclass
+class Material:
+    """Cycles-like material. Emitted radiance = emission * emission_strength; any type may emit.
+
+    type: "diffuse" (Lambert), "conductor" (GGX, colour = reflectance), "dielectric" (glass),
+    "emission" (emits only). roughness is clamped to [0,1] (alpha = roughness^2).
+    """
+    type: str = "diffuse"
+    base_color: tuple = (0.8, 0.8, 0.8)
+    roughness: float = 0.5
+    ior: float = 1.45
+    emission: tuple = (0.0, 0.0, 0.0)
+    emission_strength: float = 1.0
+    base_color_texture: int | None = None
+    name: str = ""
+
+
+@dataclass
+class Texture:
+    """uint8 sRGB image, (H,W,3|4) (or (H,W) grey); row 0 is the top of the image."""
+    pixels: np.ndarray
+    name: str = ""
+
+
+@dataclass
+class Light:
+    """Blender light. power: W for point/spot/area, W/m^2 ("strength") for sun.
+
+    direction: where the light points (the light object's local -Z). radius: point/spot
+    soft size. spot_size: full cone angle. angle: sun angular diameter. Area lights have
+    ``shape`` and ``size`` (and ``size_y`` for rectangle/ellipse) along ``axis_u``/``axis_v``
+    (the light's local X and Y, unit); if those are None a basis with u x v = -direction is
+    derived.
+    """
+    type: str = "point"
+    color: tuple = (1.0, 1.0, 1.0)
+    power: float = 10.0
+    position: tuple = (0.0, 0.0, 0.0)
+    direction: tuple = (0.0, 0.0, -1.0)
+    radius: float = 0.0
+    spot_size: float = math.pi / 4
+    spot_blend: float = 0.15
+    angle: float = 0.0
+    shape: str = "square"
+    size: float = 1.0
+    size_y: float = 1.0
+    axis_u: tuple | None = None
+    axis_v: tuple | None = None
+    name: str = ""
+
+
+@dataclass
+class World:
+    """Background: ``color * strength``, or ``map * strength`` when a map is given.
+
+    ``map`` is a linear float (H,W,3) equirectangular image with Blender's Environment
+    Texture mapping (``direction_to_equirectangular``): u = -atan2(y,x)/(2 pi) + 0.5,
+    v = atan2(z, hypot(x,y))/pi + 0.5, pixel (row, col) covers u = (col + 0.5)/W and
+    v = 1 - (row + 0.5)/H. So row 0 is the top (+Z, zenith), the image centre looks along +X
+    and u = 0.25 along +Y.
+    """
+    color: tuple = (0.05, 0.05, 0.05)
+    strength: float = 1.0
+    map: np.ndarray | None = None
+
+
+@dataclass
+class Camera:
+    """Camera looking down its local -Z with +Y up (Blender).
+
+    window = (left, right, bottom, top) of the image plane at distance 1 (perspective) or in
+    world units (orthographic). Default: 50 mm lens on a 36 mm sensor, square image.
+    Pixel (x, y) of a W x H image (row 0 at the top) has camera-space point
+    sx = left + (x + 0.5) / W * (right - left), sy = top - (y + 0.5) / H * (top - bottom):
+    perspective rays go from the origin along (sx, sy, -1); orthographic ones start at
+    (sx, sy, 0) and go along (0, 0, -1).
+    """
+    camera_to_world: np.ndarray = field(default_factory=lambda: np.eye(4)[:3].copy())
+    type: str = "perspective"
+    window: tuple = (-0.36, 0.36, -0.36, 0.36)
+    clip_start: float = 0.1
+    clip_end: float = 1000.0
+
+    @classmethod
+    def from_blender(cls, matrix_world, width, height, type="PERSP", lens=50.0,
+                     sensor_width=36.0, sensor_height=24.0, sensor_fit="AUTO",
+                     ortho_scale=7.0, shift_x=0.0, shift_y=0.0, clip_start=0.1,
+                     clip_end=1000.0, pixel_aspect=1.0):
+        """Blender camera data -> Camera (``BKE_camera_params_compute_viewplane``).
+
+        AUTO fits sensor_width to the larger of width*pixel_aspect and height; HORIZONTAL
+        fits sensor_width to the width; VERTICAL fits sensor_height to the height. Shift is
+        in units of the fitted dimension. pixel_aspect = pixel_aspect_x / pixel_aspect_y.
+        Scale in matrix_world is removed (as Cycles does).
+        """
+        kind = {"PERSP": "perspective", "ORTHO": "orthographic"}.get(str(type).upper())
+        if kind is None:
+            raise ValueError(f"camera: unsupported Blender camera type '{type}'")
+        fit = str(sensor_fit).upper()
+        if fit not in ("AUTO", "HORIZONTAL", "VERTICAL"):
+            raise ValueError(f"camera: unknown sensor_fit '{sensor_fit}'")
+        xratio, yratio = float(width) * float(pixel_aspect), float(height)
+        if fit == "AUTO":
+            fit = "HORIZONTAL" if xratio >= yratio else "VERTICAL"
+            sensor = sensor_width
+        else:
+            sensor = sensor_width if fit == "HORIZONTAL" else sensor_height
+        # Extent of the fitted dimension: at distance 1 (perspective) or in world units.
+        extent = ortho_scale if kind == "orthographic" else sensor / lens
+        if fit == "HORIZONTAL":
+            half_x, half_y = 0.5 * extent, 0.5 * extent * yratio / xratio
+        else:
+            half_x, half_y = 0.5 * extent * xratio / yratio, 0.5 * extent
+        dx, dy = shift_x * extent, shift_y * extent
+        m = _transform_3x4(matrix_world)
+        if m is None:
+            raise ValueError("camera: matrix_world must be (4,4) or (3,4)")
+        lengths = np.linalg.norm(m[:, :3], axis=0)
+        m[:, :3] /= np.where(lengths > 0, lengths, 1.0)
+        return cls(m, kind, (dx - half_x, dx + half_x, dy - half_y, dy + half_y),
+                   float(clip_start), float(clip_end))
+
+    @classmethod
+    def look_at(cls, eye, target, up=(0.0, 0.0, 1.0), fov_y_degrees=40.0, width=1, height=1,
+                clip_start=0.01, clip_end=1000.0):
+        """Perspective camera at ``eye`` looking at ``target`` with vertical field of view."""
+        eye, target, up = _vec(eye), _vec(target), _vec(up)
+        forward = target - eye
+        forward /= np.linalg.norm(forward)
+        right = np.cross(forward, up)
+        if np.linalg.norm(right) < 1e-9:  # looking along up: pick any perpendicular
+            right = _basis(forward)[0]
+        right /= np.linalg.norm(right)
+        cam_up = np.cross(right, forward)
+        m = np.column_stack([right, cam_up, -forward, eye])
+        top = math.tan(math.radians(fov_y_degrees) / 2.0)
+        half_x = top * width / height
+        return cls(m, "perspective", (-half_x, half_x, -top, top), clip_start, clip_end)
+
+
+@dataclass
+class SceneData:
+    """A whole scene. If ``instances`` is empty or None while meshes exist, every mesh gets
+    one identity instance. If ``materials`` is empty, one default ``Material()`` is used.
+    ``width``/``height`` are the intended resolution (None: unspecified)."""
+    meshes: list = field(default_factory=list)
+    instances: list | None = field(default_factory=list)
+    materials: list = field(default_factory=list)
+    textures: list = field(default_factory=list)
+    lights: list = field(default_factory=list)
+    world: World = field(default_factory=World)
+    camera: Camera = field(default_factory=Camera)
+    width: int | None = None
+    height: int | None = None
+
+    # -- derived lists --
+
+    def effective_instances(self):
+        if self.instances:
+            return list(self.instances)
+        return [Instance(i) for i in range(len(self.meshes))]
+
+    def effective_materials(self):
+        return list(self.materials) if self.materials else [Material()]
+
+    # -- validation --
+
+    def validate(self):
+        """Raise ValueError naming the first bad item; return a list of warning strings."""
+        return self._check()[0]
+
+    def _check(self):
+        """Returns (warnings, per-mesh boolean masks of the triangles to keep,
+        per-light keep flags)."""
+        warnings, keeps = [], []
+        materials = self.effective_materials()
+        K = len(materials)
+        for i, mesh in enumerate(self.meshes):
+            keep, n_bad = _check_mesh(mesh, i, K)
+            keeps.append(keep)
+            if n_bad:
+                warnings.append(f"{_label('mesh', i, mesh.name)}: "
+                                f"{n_bad} degenerate triangles skipped")
+        M = len(self.meshes)
+        for i, inst in enumerate(self.effective_instances()):
+            if not (0 <= int(inst.mesh) < M):
+                raise ValueError(f"instance {i}: mesh {inst.mesh} out of range ({M} meshes)")
+            t = np.asarray(inst.transform, dtype=np.float64)
+            if t.shape not in ((3, 4), (4, 4)):
+                raise ValueError(f"instance {i}: transform has shape {t.shape}, "
+                                 "expected (3,4) or (4,4)")
+            if not _finite(t):
+                raise ValueError(f"instance {i}: transform is NaN/Inf")
+            if t.shape == (4, 4) and not np.allclose(t[3], (0, 0, 0, 1)):
+                raise ValueError(f"instance {i}: transform is projective "
+                                 f"(last row {t[3].tolist()})")
+            if abs(np.linalg.det(t[:3, :3])) < 1e-30:
+                warnings.append(f"instance {i}: transform is singular")
+        X = len(self.textures)
+        for k, mat in enumerate(materials):
+            lbl = _label("material", k, mat.name)
+            if mat.type not in MATERIAL_TYPES:
+                raise ValueError(f"{lbl}: unknown type '{mat.type}'")
+            for attr in ("base_color", "roughness", "ior", "emission", "emission_strength"):
+                v = np.asarray(getattr(mat, attr), dtype=np.float64)
+                if v.shape != (() if attr in ("roughness", "ior", "emission_strength") else (3,)):
+                    raise ValueError(f"{lbl}: {attr} has shape {v.shape}")
+                if not _finite(v):
+                    raise ValueError(f"{lbl}: {attr} is NaN/Inf")
+            t = mat.base_color_texture
+            if t is not None and not (0 <= int(t) < X):
+                raise ValueError(f"{lbl}: base_color_texture {t} out of range ({X} textures)")
+        for x, tex in enumerate(self.textures):
+            _texture_rgba(tex.pixels, _label("texture", x, tex.name))
+        light_keep = []
+        for j, light in enumerate(self.lights):
+            ok = _check_light(light, _label("light", j, light.name))
+            if not ok:
+                warnings.append(f"{_label('light', j, light.name)}: "
+                                "zero-size area light skipped")
+            light_keep.append(ok)
+        self._check_world()
+        self._check_camera()
+        return warnings, keeps, light_keep
+
+    def _check_world(self):
+        w = self.world
+        if not _finite(w.color, w.strength) or np.shape(w.color) != (3,):
+            raise ValueError("world: color/strength must be finite, color 3 values")
+        if w.map is not None:
+            m = np.asarray(w.map)
+            if m.ndim != 3 or m.shape[2] not in (3, 4):
+                raise ValueError(f"world map: shape {m.shape}, expected (H,W,3) or (H,W,4)")
+            if m.shape[0] == 0 or m.shape[1] == 0:
+                raise ValueError("world map: zero-size image")
+            bad = ~np.isfinite(m[..., :3]).all(axis=2)
+            if bad.any():
+                r, c = np.argwhere(bad)[0]
+                raise ValueError(f"world map: pixel (row {r}, column {c}) is NaN/Inf")
+
+    def _check_camera(self):
+        cam = self.camera
+        if cam is None:
+            raise ValueError("camera: scene has no camera")
+        if cam.type not in CAMERA_TYPES:
+            raise ValueError(f"camera: unknown type '{cam.type}'")
+        m = _transform_3x4(cam.camera_to_world)
+        if m is None or not _finite(m):
+            raise ValueError("camera: camera_to_world must be a finite (3,4) or (4,4) matrix")
+        win = np.asarray(cam.window, dtype=np.float64)
+        if win.shape != (4,) or not _finite(win) or win[0] >= win[1] or win[2] >= win[3]:
+            raise ValueError(f"camera: bad window {tuple(win.tolist())}, "
+                             "expected left < right, bottom < top")
+        if not _finite(cam.clip_start, cam.clip_end) or not 0 <= cam.clip_start < cam.clip_end:
+            raise ValueError(f"camera: bad clip range ({cam.clip_start}, {cam.clip_end})")
+
+    # -- flat arrays --
+
+    def flatten(self, warnings=None):
+        """Validate and return the flat arrays (see FLAT_KEYS). Degenerate triangles and
+        zero-size area lights are dropped; their warnings are appended to ``warnings``."""
+        warns, keeps, light_keep = self._check()
+        if warnings is not None:
+            warnings.extend(warns)
+        out = {}
+        self._flatten_meshes(keeps, out)
+        insts = self.effective_instances()
+        out["instance_transform"] = np.array(
+            [_transform_3x4(i.transform) for i in insts], dtype=np.float32).reshape(-1, 3, 4)
+        out["instance_mesh"] = np.array([int(i.mesh) for i in insts], dtype=np.uint32)
+        self._flatten_materials(out)
+        self._flatten_lights(light_keep, out)
+        w = self.world
+        out["world_color"] = (_vec(w.color) * float(w.strength)).astype(np.float32)
+        if w.map is None:
+            out["world_map"] = np.zeros((0, 0, 3), np.float32)
+        else:
+            m = np.asarray(w.map, dtype=np.float64)[..., :3] * float(w.strength)
+            out["world_map"] = m.astype(np.float32)
+        cam = self.camera
+        out["camera_to_world"] = _transform_3x4(cam.camera_to_world).astype(np.float32)
+        out["camera_type"] = np.array([CAMERA_TYPES[cam.type]], dtype=np.uint32)
+        out["camera_window"] = np.array(cam.window, dtype=np.float32)
+        out["camera_clip"] = np.array([cam.clip_start, cam.clip_end], dtype=np.float32)
+        return {k: np.ascontiguousarray(out[k], dtype=FLAT_KEYS[k][0]) for k in FLAT_KEYS}
+
+    def _flatten_meshes(self, keeps, out):
+        pos, idx, mat, nrm, uvs = [], [], [], [], []
+        first, count, has_n, has_uv = [], [], [], []
+        any_n = any(m.normals is not None for m in self.meshes)
+        any_uv = any(m.uvs is not None for m in self.meshes)
+        v_off = t_off = 0
+        for mesh, keep in zip(self.meshes, keeps):
+            p = np.asarray(mesh.positions, dtype=np.float32).reshape(-1, 3)
+            tri = np.asarray(mesh.indices).reshape(-1, 3)[keep].astype(np.int64)
+            T = len(tri)
+            pos.append(p)
+            idx.append(tri + v_off)
+            mi = mesh.material_indices
+            mat.append(np.zeros(T, np.int64) if mi is None else np.asarray(mi).reshape(-1)[keep])
+            if any_n:
+                nrm.append(np.zeros((T, 3, 3), np.float32) if mesh.normals is None
+                           else np.asarray(mesh.normals, dtype=np.float32)[keep])
+            if any_uv:
+                uvs.append(np.zeros((T, 3, 2), np.float32) if mesh.uvs is None
+                           else np.asarray(mesh.uvs, dtype=np.float32)[keep])
+            first.append(t_off)
+            count.append(T)
+            has_n.append(mesh.normals is not None)
+            has_uv.append(mesh.uvs is not None)
+            v_off += len(p)
+            t_off += T
+        if v_off >= 2**32 or t_off >= 2**32:
+            raise ValueError(f"scene: too large ({v_off} vertices, {t_off} triangles)")
+        cat = lambda parts, shape, dt: (np.concatenate(parts).astype(dt, copy=False)
+                                        if parts else np.zeros(shape, dt))
+        out["positions"] = cat(pos, (0, 3), np.float32)
+        out["indices"] = cat(idx, (0, 3), np.uint32)
+        out["triangle_material"] = cat(mat, (0,), np.uint32)
+        out["corner_normals"] = cat(nrm, (0, 3, 3), np.float32)
+        out["corner_uvs"] = cat(uvs, (0, 3, 2), np.float32)
+        out["mesh_first_triangle"] = np.array(first, dtype=np.uint32)
+        out["mesh_triangle_count"] = np.array(count, dtype=np.uint32)
+        out["mesh_has_normals"] = np.array(has_n, dtype=np.uint32)
+        out["mesh_has_uvs"] = np.array(has_uv, dtype=np.uint32)
+
+    def _flatten_materials(self, out):
+        mats = self.effective_materials()
+        out["material_type"] = np.array([MATERIAL_TYPES[m.type] for m in mats], np.uint32)
+        out["material_base_color"] = np.array([_vec(m.base_color) for m in mats],
+                                              np.float32).reshape(-1, 3)
+        out["material_roughness"] = np.array(
+            [min(max(float(m.roughness), 0.0), 1.0) for m in mats], np.float32)
+        out["material_ior"] = np.array([max(float(m.ior), 1e-5) for m in mats], np.float32)
+        out["material_emission"] = np.array(
+            [_vec(m.emission) * float(m.emission_strength) for m in mats],
+            np.float32).reshape(-1, 3)
+        out["material_texture"] = np.array(
+            [-1 if m.base_color_texture is None else int(m.base_color_texture) for m in mats],
+            np.int32)
+        texels, info, first = [], [], 0
+        for tex in self.textures:
+            rgba = _texture_rgba(tex.pixels, "texture")
+            h, w = rgba.shape[:2]
+            texels.append(rgba.reshape(-1, 4))
+            info.append((first, w, h))
+            first += w * h
+        out["texture_texels"] = (np.concatenate(texels) if texels
+                                 else np.zeros((0, 4), np.uint8))
+        out["texture_info"] = np.array(info, np.uint32).reshape(-1, 3)
+
+    def _flatten_lights(self, light_keep, out):
+        rows = [_light_row(l) for l, ok in zip(self.lights, light_keep) if ok]
+        cols = ("type", "position", "direction", "axis_u", "axis_v", "radius", "color",
+                "spot_size", "spot_blend", "sun_angle")
+        shapes = {"position": 3, "direction": 3, "axis_u": 3, "axis_v": 3, "color": 3}
+        for c in cols:
+            dt = np.uint32 if c == "type" else np.float32
+            shape = (-1, shapes[c]) if c in shapes else (-1,)
+            out["light_" + c] = np.array([r[c] for r in rows], dtype=dt).reshape(shape)
+
+    # -- resolution --
+
+    def with_resolution(self, width, height):
+        """Copy with another resolution; the camera window keeps its vertical extent and
+        centre and widens/narrows horizontally so pixels stay square."""
+        import copy
+        s = copy.copy(self)
+        cam = copy.copy(self.camera)
+        if self.width and self.height and cam is not None:
+            l, r, b, t = (float(x) for x in cam.window)
+            scale = (width / height) / (self.width / self.height)
+            cx, hx = 0.5 * (l + r), 0.5 * (r - l) * scale
+            cam.window = (cx - hx, cx + hx, b, t)
+        s.camera, s.width, s.height = cam, int(width), int(height)
+        return s
+
+    # -- files --
+
+    def metadata(self):
+        first_vertex, v = [], 0
+        for m in self.meshes:
+            first_vertex.append(v)
+            v += len(np.asarray(m.positions).reshape(-1, 3))
+        return {
+            "version": 1, "width": self.width, "height": self.height,
+            "mesh_names": [m.name for m in self.meshes],
+            "mesh_first_vertex": first_vertex,
+            "material_names": [m.name for m in self.effective_materials()],
+            "texture_names": [t.name for t in self.textures],
+            "light_names": [l.name for l in self.lights if _check_light(l, "light")],
+        }
+
+    def save(self, path):
+        """Write the flat arrays and a JSON metadata string to one compressed ``.npz``."""
+        flat = self.flatten()
+        meta = np.array(json.dumps(self.metadata()))
+        np.savez_compressed(path, **flat, **{_META_KEY: meta})
+
+    @classmethod
+    def load(cls, path):
+        """Read a file written by ``save``."""
+        with np.load(path, allow_pickle=False) as f:
+            flat = {k: f[k] for k in f.files}
+        meta = json.loads(str(flat.pop(_META_KEY))) if _META_KEY in flat else {}
+        missing = [k for k in FLAT_KEYS if k not in flat]
+        if missing:
+            raise ValueError(f"scene file {path}: missing arrays {missing}")
+        return cls.from_flat(flat, meta)
+
+    @classmethod
+    def from_flat(cls, flat, meta=None):
+        """Rebuild a SceneData from flatten() output; flatten() of the result is identical."""
+        meta = meta or {}
+        a = {k: np.asarray(flat[k]) for k in FLAT_KEYS}
+        M = len(a["mesh_first_triangle"])
+        first_vertex = meta.get("mesh_first_vertex")
+        if first_vertex is None or len(first_vertex) != M:
+            first_vertex = _infer_first_vertex(a)
+        names = meta.get("mesh_names") or [""] * M
+        V = len(a["positions"])
+        meshes = []
+        for m in range(M):
+            t0 = int(a["mesh_first_triangle"][m])
+            t1 = t0 + int(a["mesh_triangle_count"][m])
+            v0 = int(first_vertex[m])
+            v1 = int(first_vertex[m + 1]) if m + 1 < M else V
+            meshes.append(Mesh(
+                positions=a["positions"][v0:v1].copy(),
+                indices=a["indices"][t0:t1].astype(np.int64) - v0,
+                normals=a["corner_normals"][t0:t1].copy() if a["mesh_has_normals"][m] else None,
+                uvs=a["corner_uvs"][t0:t1].copy() if a["mesh_has_uvs"][m] else None,
+                material_indices=a["triangle_material"][t0:t1].astype(np.int64),
+                name=names[m]))
+        instances = [Instance(int(mi), t.astype(np.float64))
+                     for mi, t in zip(a["instance_mesh"], a["instance_transform"])]
+        types = {v: k for k, v in MATERIAL_TYPES.items()}
+        mnames = meta.get("material_names") or [""] * len(a["material_type"])
+        materials = [
+            Material(type=types[int(a["material_type"][k])],
+                     base_color=tuple(a["material_base_color"][k].tolist()),
+                     roughness=float(a["material_roughness"][k]),
+                     ior=float(a["material_ior"][k]),
+                     emission=tuple(a["material_emission"][k].tolist()),
+                     emission_strength=1.0,
+                     base_color_texture=(None if a["material_texture"][k] < 0
+                                         else int(a["material_texture"][k])),
+                     name=mnames[k])
+            for k in range(len(a["material_type"]))]
+        tnames = meta.get("texture_names") or [""] * len(a["texture_info"])
+        textures = [Texture(a["texture_texels"][o:o + w * h].reshape(h, w, 4).copy(), tnames[x])
+                    for x, (o, w, h) in enumerate(a["texture_info"].astype(np.int64))]
+        lnames = meta.get("light_names") or [""] * len(a["light_type"])
+        lights = [_light_from_row(a, j, lnames[j]) for j in range(len(a["light_type"]))]
+        wm = a["world_map"]
+        world = World(color=tuple(a["world_color"].tolist()), strength=1.0,
+                      map=wm.copy() if wm.size else None)
+        camera = Camera(a["camera_to_world"].astype(np.float64),
+                        {v: k for k, v in CAMERA_TYPES.items()}[int(a["camera_type"][0])],
+                        tuple(a["camera_window"].tolist()),
+                        float(a["camera_clip"][0]), float(a["camera_clip"][1]))
+        return cls(meshes, instances, materials, textures, lights, world, camera,
+                   meta.get("width"), meta.get("height"))
+
+
+# ---- per-item checks and conversions -----------------------------------------------------
+
+def _check_mesh(mesh, i, K):
+    """Raise for bad data; return (mask of non-degenerate triangles, number degenerate)."""
+    lbl = _label("mesh", i, mesh.name)
+    p = np.asarray(mesh.positions)
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise ValueError(f"{lbl}: positions has shape {p.shape}, expected (V,3)")
+    if not np.issubdtype(p.dtype, np.number):
+        raise ValueError(f"{lbl}: positions must be numeric, got {p.dtype}")
+    bad = ~np.isfinite(p).all(axis=1)
+    if bad.any():
+        raise ValueError(f"{lbl}: vertex {int(np.argmax(bad))} is NaN/Inf")
+    V = len(p)
+    tri = np.asarray(mesh.indices)
+    if tri.size == 0:
+        tri = tri.reshape(0, 3).astype(np.int64)
+    if tri.ndim != 2 or tri.shape[1] != 3:
+        raise ValueError(f"{lbl}: indices has shape {tri.shape}, expected (T,3)")
+    if not np.issubdtype(tri.dtype, np.integer):
+        raise ValueError(f"{lbl}: indices must be integers, got {tri.dtype}")
+    T = len(tri)
+    if T and (tri.min() < 0 or tri.max() >= V):
+        out = (tri < 0) | (tri >= V)
+        if out.any():
+            t, c = np.argwhere(out)[0]
+            raise ValueError(f"{lbl}: triangle {t} index {tri[t, c]} out of range "
+                             f"({V} vertices)")
+    for attr, tail in (("normals", (3, 3)), ("uvs", (3, 2))):
+        a = getattr(mesh, attr)
+        if a is None:
+            continue
+        a = np.asarray(a)
+        if a.shape != (T,) + tail:
+            raise ValueError(f"{lbl}: {attr} has shape {a.shape}, expected "
+                             f"(T,{','.join(map(str, tail))}) with T={T}")
+        bad = ~np.isfinite(a).reshape(T, -1).all(axis=1)
+        if bad.any():
+            raise ValueError(f"{lbl}: {attr} of triangle {int(np.argmax(bad))} is NaN/Inf")
+    if mesh.material_indices is not None:
+        mi = np.asarray(mesh.material_indices)
+        if mi.shape != (T,) or (T and not np.issubdtype(mi.dtype, np.integer)):
+            raise ValueError(f"{lbl}: material_indices has shape {mi.shape} ({mi.dtype}), "
+                             f"expected integer (T,) with T={T}")
+        out = (mi < 0) | (mi >= K)
+        if out.any():
+            t = int(np.argmax(out))
+            raise ValueError(f"{lbl}: triangle {t} material {mi[t]} out of range "
+                             f"({K} materials)")
+    # Degenerate: zero area relative to the longest edge, on the float32 positions.
+    x, y, z = np.ascontiguousarray(p.astype(np.float32).T, dtype=np.float64)
+    i0, i1, i2 = np.ascontiguousarray(tri.T)
+    ax, ay, az = x[i1] - x[i0], y[i1] - y[i0], z[i1] - z[i0]
+    bx, by, bz = x[i2] - x[i0], y[i2] - y[i0], z[i2] - z[i0]
+    area2 = (ay * bz - az * by) ** 2 + (az * bx - ax * bz) ** 2 + (ax * by - ay * bx) ** 2
+    scale = np.maximum(ax * ax + ay * ay + az * az, bx * bx + by * by + bz * bz)
+    keep = area2 > 1e-24 * scale * scale
+    return keep, int(T - keep.sum())
+
+
+def _texture_rgba(pixels, lbl):
+    px = np.asarray(pixels)
+    if px.ndim == 2:
+        px = px[:, :, None]
+    if px.ndim != 3 or px.shape[2] not in (1, 3, 4):
+        raise ValueError(f"{lbl}: pixels has shape {px.shape}, expected (H,W,3) or (H,W,4)")
+    if px.shape[0] == 0 or px.shape[1] == 0:
+        raise ValueError(f"{lbl}: zero-size image")
+    if px.dtype != np.uint8:
+        raise ValueError(f"{lbl}: pixels must be uint8 sRGB, got {px.dtype}")
+    if px.shape[2] == 1:
+        px = np.repeat(px, 3, axis=2)
+    if px.shape[2] == 3:
+        px = np.concatenate([px, np.full(px.shape[:2] + (1,), 255, np.uint8)], axis=2)
+    return np.ascontiguousarray(px)
+
+
+def _check_light(light, lbl):
+    """Raise for bad data; return False for a zero-size area light (skipped)."""
+    if light.type not in LIGHT_TYPES:
+        raise ValueError(f"{lbl}: unknown type '{light.type}'")
+    if light.type == "area" and light.shape not in AREA_SHAPES:
+        raise ValueError(f"{lbl}: unknown area shape '{light.shape}'")
+    for attr in ("color", "position", "direction"):
+        v = np.asarray(getattr(light, attr), dtype=np.float64)
+        if v.shape != (3,) or not _finite(v):
+            raise ValueError(f"{lbl}: {attr} must be 3 finite numbers, got {getattr(light, attr)}")
+    for attr in ("power", "radius", "spot_size", "spot_blend", "angle", "size", "size_y"):
+        if not _finite(getattr(light, attr)) or np.ndim(getattr(light, attr)) != 0:
+            raise ValueError(f"{lbl}: {attr} is NaN/Inf or not a number")
+    if _normalized(light.direction) is None:
+        raise ValueError(f"{lbl}: direction has zero length")
+    for attr in ("axis_u", "axis_v"):
+        v = getattr(light, attr)
+        if v is not None:
+            v = np.asarray(v, dtype=np.float64)
+            if v.shape != (3,) or not _finite(v) or _normalized(v) is None:
+                raise ValueError(f"{lbl}: {attr} must be a finite non-zero 3-vector")
+    if light.type == "area":
+        sy = light.size if light.shape in ("square", "disk") else light.size_y
+        return light.size != 0 and sy != 0
+    return True
+
+
+def _light_row(light):
+    d = _normalized(light.direction)
+    if light.axis_u is None or light.axis_v is None:
+        u, v = _basis(-d)
+    else:
+        u, v = _normalized(light.axis_u), _normalized(light.axis_v)
+    if light.type == "area":
+        t = AREA_SHAPES[light.shape]
+        sy = light.size if light.shape in ("square", "disk") else light.size_y
+        u, v = u * abs(float(light.size)), v * abs(float(sy))
+    else:
+        t = LIGHT_TYPES[light.type]
+    return {
+        "type": t,
+        "position": _vec(light.position),
+        "direction": d,
+        "axis_u": u,
+        "axis_v": v,
+        "radius": max(float(light.radius), 0.0),
+        "color": _vec(light.color) * float(light.power),
+        "spot_size": min(max(float(light.spot_size), 0.0), math.pi),
+        "spot_blend": min(max(float(light.spot_blend), 0.0), 1.0),
+        "sun_angle": min(max(float(light.angle), 0.0), math.pi),
+    }
+
+
+def _light_from_row(a, j, name):
+    t = int(a["light_type"][j])
+    u = a["light_axis_u"][j].astype(np.float64)
+    v = a["light_axis_v"][j].astype(np.float64)
+    kw = {}
+    if t in (4, 5):
+        su, sv = float(np.linalg.norm(u)), float(np.linalg.norm(v))
+        kw = dict(type="area", shape="rectangle" if t == 4 else "ellipse",
+                  size=su, size_y=sv, axis_u=tuple(u / su), axis_v=tuple(v / sv))
+    else:
+        kw = dict(type={1: "point", 2: "spot", 3: "sun"}[t], axis_u=tuple(u), axis_v=tuple(v))
+    return Light(color=tuple(a["light_color"][j].tolist()), power=1.0,
+                 position=tuple(a["light_position"][j].tolist()),
+                 direction=tuple(a["light_direction"][j].tolist()),
+                 radius=float(a["light_radius"][j]),
+                 spot_size=float(a["light_spot_size"][j]),
+                 spot_blend=float(a["light_spot_blend"][j]),
+                 angle=float(a["light_sun_angle"][j]), name=name, **kw)
+
+
+def _infer_first_vertex(a):
+    """First vertex of each mesh when the metadata lacks it: the smallest index a mesh uses
+    (mesh 0 starts at 0; a mesh without triangles starts where the next one does)."""
+    M, V = len(a["mesh_first_triangle"]), len(a["positions"])
+    first = [None] * M
+    for m in range(M):
+        t0 = int(a["mesh_first_triangle"][m])
+        t1 = t0 + int(a["mesh_triangle_count"][m])
+        if t1 > t0:
+            first[m] = int(a["indices"][t0:t1].min())
+    if M:
+        first[0] = 0
+    nxt = V
+    for m in reversed(range(M)):
+        first[m] = nxt if first[m] is None else first[m]
+        nxt = first[m]
+    return first

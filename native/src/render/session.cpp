@@ -1,0 +1,191 @@
+#include "render/session.h"
+
+#include "shaders_embedded.h"
+
+#include <chrono>
+#include <stdexcept>
+
+namespace px {
+
+bool RenderParams::operator==(const RenderParams& o) const {
+    return method == o.method && mis_heuristic == o.mis_heuristic && samples_per_frame == o.samples_per_frame &&
+           max_depth == o.max_depth && depth_leeway == o.depth_leeway && rr_start_depth == o.rr_start_depth &&
+           light_samples == o.light_samples && seed == o.seed;
+}
+
+const std::vector<PassInfo>& pass_table() {
+    static const std::vector<PassInfo> table = {
+        {"combined", PASS_COMBINED, 4}, {"depth", PASS_DEPTH, 1},        {"normal", PASS_NORMAL, 3},
+        {"albedo", PASS_ALBEDO, 3},     {"ray_depth", PASS_RAY_DEPTH, 1},
+    };
+    return table;
+}
+
+Session::Session(uint32_t width, uint32_t height, const std::string& device) : width_(width), height_(height) {
+    if (width == 0 || height == 0 || width > 16384 || height > 16384)
+        throw std::invalid_argument("image size " + std::to_string(width) + "x" + std::to_string(height) +
+                                    " is out of range (1..16384)");
+    ctx_ = std::make_unique<Context>(device);
+    set_ = std::make_unique<DescriptorSet>(*ctx_, BINDING_COUNT, BINDING_TLAS);
+    const size_t pixels = size_t(width) * height;
+    film_ = Buffer(*ctx_, pixels * PASS_COUNT * sizeof(vec4), kStorageUsage);
+    ray_count_ = Buffer(*ctx_, pixels * sizeof(uint32_t), kStorageUsage);
+    test_io_ = Buffer(*ctx_, 16, kStorageUsage);
+    set_->bind_buffer(BINDING_FILM, film_);
+    set_->bind_buffer(BINDING_RAY_COUNT, ray_count_);
+    set_->bind_buffer(BINDING_TEST_IO, test_io_);
+    reset();
+}
+
+Session::~Session() = default;
+
+std::vector<std::string> Session::update(const SceneArrays& arrays, bool spatial_order) {
+    SceneHost host = prepare_scene(arrays, spatial_order);  // validates before touching the GPU
+    std::lock_guard<std::mutex> lock(mutex_);
+    auto warnings = host.warnings;
+    scene_.reset();  // free the old scene's memory first
+    scene_ = std::make_unique<Scene>(*ctx_, std::move(host));
+    scene_->bind(*set_);
+    stats_ = {};
+    film_.fill_zero();
+    ray_count_.fill_zero();
+    return warnings;
+}
+
+void Session::set_params(const RenderParams& p) {
+    if (p.method > METHOD_MIS) throw std::invalid_argument("unknown method " + std::to_string(p.method));
+    if (p.mis_heuristic > HEURISTIC_POWER) throw std::invalid_argument("unknown MIS heuristic");
+    if (p.samples_per_frame < 1 || p.samples_per_frame > 4096)
+        throw std::invalid_argument("samples_per_frame must be in 1..4096");
+    if (p.light_samples < 1 || p.light_samples > 64) throw std::invalid_argument("light_samples must be in 1..64");
+    if (p.max_depth > 1024 || p.depth_leeway > 1024) throw std::invalid_argument("max_depth/depth_leeway must be <= 1024");
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (p == params_) return;
+    params_ = p;
+    stats_ = {};
+    film_.fill_zero();
+    ray_count_.fill_zero();
+}
+
+void Session::reset() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stats_ = {};
+    film_.fill_zero();
+    ray_count_.fill_zero();
+}
+
+RayTracingPipeline& Session::pipeline() {
+    auto key = std::make_pair(params_.method, params_.mis_heuristic);
+    auto it = pipelines_.find(key);
+    if (it != pipelines_.end()) return *it->second;
+    std::vector<ShaderStage> stages = {
+        {VK_SHADER_STAGE_RAYGEN_BIT_KHR, &shader_raygen()},
+        {VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR, &shader_closesthit()},
+        {VK_SHADER_STAGE_MISS_BIT_KHR, &shader_miss()},
+        {VK_SHADER_STAGE_MISS_BIT_KHR, &shader_shadow_miss()},
+    };
+    std::vector<ShaderGroup> groups = {
+        {VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, 0},
+        {VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, 2},
+        {VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, 3},
+        {VK_RAY_TRACING_SHADER_GROUP_TYPE_TRIANGLES_HIT_GROUP_KHR, VK_SHADER_UNUSED_KHR, 1},
+    };
+    auto p = std::make_unique<RayTracingPipeline>(*ctx_, set_->layout(), uint32_t(sizeof(FrameParams)), stages, groups,
+                                                  std::vector<uint32_t>{params_.method, params_.mis_heuristic});
+    return *pipelines_.emplace(key, std::move(p)).first->second;
+}
+
+void Session::render(uint32_t frames) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!scene_) throw std::runtime_error("no scene: call update(scene) before render()");
+    RayTracingPipeline& pipe = pipeline();
+    auto start = std::chrono::steady_clock::now();
+    ctx_->submit_and_wait([&](VkCommandBuffer cmd) {
+        for (uint32_t f = 0; f < frames; ++f) {
+            FrameParams fp{};
+            fp.width = width_;
+            fp.height = height_;
+            fp.frame = stats_.frames + f;
+            fp.seed = params_.seed;
+            fp.samples_per_frame = params_.samples_per_frame;
+            fp.max_depth = params_.max_depth;
+            fp.depth_leeway = params_.depth_leeway;
+            fp.rr_start_depth = params_.rr_start_depth;
+            fp.light_samples = params_.light_samples;
+            pipe.trace(cmd, set_->set(), &fp, sizeof(fp), width_, height_);
+            VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+            b.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
+            b.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_READ_BIT;
+            vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_RAY_TRACING_SHADER_BIT_KHR,
+                                 VK_PIPELINE_STAGE_RAY_TRACING_SHADER_BIT_KHR | VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1,
+                                 &b, 0, nullptr, 0, nullptr);
+        }
+    });
+    stats_.milliseconds += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    stats_.frames += frames;
+    stats_.samples += uint64_t(frames) * params_.samples_per_frame;
+}
+
+std::vector<float> Session::read(const std::string& pass, uint32_t& channels) {
+    const PassInfo* info = nullptr;
+    for (const auto& p : pass_table())
+        if (pass == p.name) info = &p;
+    if (!info) {
+        std::string names;
+        for (const auto& p : pass_table()) names += std::string(names.empty() ? "" : ", ") + p.name;
+        throw std::invalid_argument("unknown pass '" + pass + "' (passes: " + names + ")");
+    }
+    std::lock_guard<std::mutex> lock(mutex_);
+    const size_t pixels = size_t(width_) * height_;
+    std::vector<vec4> sums(pixels);
+    film_.download(sums.data(), pixels * sizeof(vec4), size_t(info->index) * pixels * sizeof(vec4));
+    channels = info->channels;
+    std::vector<float> out(pixels * channels, 0.0f);
+    const float inv = stats_.samples ? 1.0f / float(stats_.samples) : 0.0f;
+    for (size_t i = 0; i < pixels; ++i) {
+        const float v[4] = {sums[i].x * inv, sums[i].y * inv, sums[i].z * inv, sums[i].w * inv};
+        for (uint32_t c = 0; c < channels; ++c) out[i * channels + c] = v[c];
+        if (info->index == PASS_DEPTH && stats_.samples == 0) out[i] = 1e10f;
+    }
+    return out;
+}
+
+SessionStats Session::stats() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const size_t pixels = size_t(width_) * height_;
+    std::vector<uint32_t> counts(pixels);
+    ray_count_.download(counts.data(), pixels * sizeof(uint32_t));
+    uint64_t total = 0;
+    for (uint32_t c : counts) total += c;
+    stats_.rays = total;
+    return stats_;
+}
+
+std::vector<float> Session::test_sampling(uint32_t routine, const std::vector<float>& params, uint32_t count,
+                                          uint32_t seed, const std::vector<float>& input) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!scene_) throw std::runtime_error("no scene: call update(scene) before test_sampling()");
+    if (params.size() != 5) throw std::invalid_argument("test_sampling needs 5 parameters");
+    if (!input.empty() && input.size() != size_t(count) * 8) throw std::invalid_argument("test input must be count*8 floats");
+    if (!test_pipeline_)
+        test_pipeline_ = std::make_unique<ComputePipeline>(*ctx_, set_->layout(), uint32_t(sizeof(FrameParams)),
+                                                           shader_sampling_test());
+    Buffer io(*ctx_, size_t(count) * 8 * sizeof(float), kStorageUsage);
+    if (!input.empty()) io.upload(input.data(), input.size() * sizeof(float));
+    set_->bind_buffer(BINDING_TEST_IO, io);
+    FrameParams fp{};
+    fp.test_routine = routine;
+    fp.test_count = count;
+    fp.seed = seed;
+    fp.test_params = {params[0], params[1], params[2], params[3]};
+    fp.test_param0 = params[4];
+    ctx_->submit_and_wait([&](VkCommandBuffer cmd) {
+        test_pipeline_->dispatch(cmd, set_->set(), &fp, sizeof(fp), (count + 63) / 64);
+    });
+    std::vector<float> out(size_t(count) * 8);
+    io.download(out.data(), out.size() * sizeof(float));
+    set_->bind_buffer(BINDING_TEST_IO, test_io_);
+    return out;
+}
+
+}  // namespace px

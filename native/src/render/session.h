@@ -1,0 +1,77 @@
+// Session: one device, one scene, one film. Progressive: every render() call adds
+// samples_per_frame samples per pixel to the running sums; read() divides by the count.
+#pragma once
+#include "scene/scene.h"
+#include "vk/pipeline.h"
+
+#include <map>
+#include <memory>
+#include <mutex>
+
+namespace px {
+
+struct RenderParams {
+    uint32_t method = METHOD_MIS;
+    uint32_t mis_heuristic = HEURISTIC_POWER;
+    uint32_t samples_per_frame = 1;
+    uint32_t max_depth = 8;
+    uint32_t depth_leeway = 4;
+    uint32_t rr_start_depth = 3;
+    uint32_t light_samples = 1;
+    uint32_t seed = 0;
+    bool operator==(const RenderParams& o) const;
+};
+
+struct SessionStats {
+    uint64_t samples = 0;  // per pixel
+    uint64_t rays = 0;     // all rays traced since the last reset
+    double milliseconds = 0;  // GPU-side render time since the last reset (wall clock)
+    uint32_t frames = 0;
+};
+
+struct PassInfo {
+    const char* name;
+    uint32_t index;
+    uint32_t channels;
+};
+const std::vector<PassInfo>& pass_table();
+
+class Session {
+public:
+    Session(uint32_t width, uint32_t height, const std::string& device);
+    ~Session();
+
+    // Replaces the scene; returns warnings (skipped items). Resets accumulation.
+    std::vector<std::string> update(const SceneArrays& arrays, bool spatial_order = true);
+    void set_params(const RenderParams& params);
+    const RenderParams& params() const { return params_; }
+    void render(uint32_t frames);
+    // (height, width, channels) float32, row 0 = top.
+    std::vector<float> read(const std::string& pass, uint32_t& channels);
+    void reset();
+    SessionStats stats();
+
+    // Runs shaders/tests/sampling_test.comp: see that file. Returns count * 8 floats.
+    std::vector<float> test_sampling(uint32_t routine, const std::vector<float>& params, uint32_t count,
+                                     uint32_t seed, const std::vector<float>& input);
+
+    uint32_t width() const { return width_; }
+    uint32_t height() const { return height_; }
+    const DeviceReport& device() const { return ctx_->report(); }
+    size_t triangle_count() const { return scene_ ? scene_->triangle_count() : 0; }
+
+private:
+    RayTracingPipeline& pipeline();
+    std::unique_ptr<Context> ctx_;
+    uint32_t width_, height_;
+    std::unique_ptr<DescriptorSet> set_;
+    std::unique_ptr<Scene> scene_;
+    Buffer film_, ray_count_, test_io_;
+    std::map<std::pair<uint32_t, uint32_t>, std::unique_ptr<RayTracingPipeline>> pipelines_;
+    std::unique_ptr<ComputePipeline> test_pipeline_;
+    RenderParams params_;
+    SessionStats stats_;
+    std::mutex mutex_;
+};
+
+}  // namespace px

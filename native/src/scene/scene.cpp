@@ -1,0 +1,540 @@
+#include "scene/scene.h"
+
+#include "vk/pipeline.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <stdexcept>
+
+namespace px {
+
+namespace {
+
+constexpr float kPi = 3.14159265358979f;
+
+std::string shape_str(const std::vector<size_t>& s) {
+    std::string r = "(";
+    for (size_t i = 0; i < s.size(); ++i) r += (i ? ", " : "") + std::to_string(s[i]);
+    return r + (s.size() == 1 ? ",)" : ")");
+}
+
+[[noreturn]] void bad(const std::string& msg) { throw std::invalid_argument("scene: " + msg); }
+
+// Checked access to one named array: dtype kind, item size and trailing dimensions.
+template <class T>
+struct Arr {
+    const T* data = nullptr;
+    size_t rows = 0;  // first dimension
+};
+
+template <class T>
+Arr<T> get(const SceneArrays& a, const std::string& name, char kind, std::vector<size_t> trailing,
+           bool optional = false) {
+    auto it = a.find(name);
+    if (it == a.end()) {
+        if (optional) return {};
+        bad("missing array '" + name + "'");
+    }
+    const ArrayView& v = it->second;
+    if (v.kind != kind || v.itemsize != sizeof(T))
+        bad("array '" + name + "' has the wrong dtype (expected " +
+            (kind == 'f' ? "float32" : kind == 'u' ? (sizeof(T) == 1 ? "uint8" : "uint32") : "int32") + ")");
+    bool ok = v.shape.size() == trailing.size() + 1;
+    for (size_t i = 0; ok && i < trailing.size(); ++i) ok = v.shape[i + 1] == trailing[i];
+    if (!ok) {
+        std::vector<size_t> expect = {0};
+        expect.insert(expect.end(), trailing.begin(), trailing.end());
+        std::string e = shape_str(expect);
+        e.replace(1, 1, "N");
+        bad("array '" + name + "' has shape " + shape_str(v.shape) + ", expected " + e);
+    }
+    return {static_cast<const T*>(v.data), v.shape[0]};
+}
+
+bool finite3(const float* p) { return std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]); }
+vec3 v3(const float* p) { return {p[0], p[1], p[2]}; }
+vec3 operator+(vec3 a, vec3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+vec3 operator-(vec3 a, vec3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+vec3 operator*(vec3 a, float s) { return {a.x * s, a.y * s, a.z * s}; }
+vec3 vmin(vec3 a, vec3 b) { return {std::min(a.x, b.x), std::min(a.y, b.y), std::min(a.z, b.z)}; }
+vec3 vmax(vec3 a, vec3 b) { return {std::max(a.x, b.x), std::max(a.y, b.y), std::max(a.z, b.z)}; }
+vec3 cross(vec3 a, vec3 b) { return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x}; }
+float dot(vec3 a, vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+float length(vec3 a) { return std::sqrt(dot(a, a)); }
+vec3 normalize(vec3 a) {
+    float l = length(a);
+    return l > 0 ? a * (1.0f / l) : vec3{0, 0, 1};
+}
+float luminance(vec3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
+
+vec3 transform_point(const vec4* rows, vec3 p) {
+    return {rows[0].x * p.x + rows[0].y * p.y + rows[0].z * p.z + rows[0].w,
+            rows[1].x * p.x + rows[1].y * p.y + rows[1].z * p.z + rows[1].w,
+            rows[2].x * p.x + rows[2].y * p.y + rows[2].z * p.z + rows[2].w};
+}
+
+// 30-bit Morton code of a point already normalised to [0,1]^3.
+uint32_t morton3(vec3 p) {
+    auto spread = [](uint32_t x) {
+        x = (x | (x << 16)) & 0x030000FF;
+        x = (x | (x << 8)) & 0x0300F00F;
+        x = (x | (x << 4)) & 0x030C30C3;
+        x = (x | (x << 2)) & 0x09249249;
+        return x;
+    };
+    auto q = [](float f) { return uint32_t(std::min(std::max(f, 0.0f), 1.0f) * 1023.0f); };
+    return (spread(q(p.x)) << 2) | (spread(q(p.y)) << 1) | spread(q(p.z));
+}
+
+// Permutation sorting `points` along a Morton curve within their bounding box.
+std::vector<uint32_t> morton_order(const std::vector<vec3>& points) {
+    vec3 lo{INFINITY, INFINITY, INFINITY}, hi{-INFINITY, -INFINITY, -INFINITY};
+    for (auto p : points) lo = vmin(lo, p), hi = vmax(hi, p);
+    vec3 ext = hi - lo;
+    vec3 inv{ext.x > 0 ? 1 / ext.x : 0, ext.y > 0 ? 1 / ext.y : 0, ext.z > 0 ? 1 / ext.z : 0};
+    std::vector<std::pair<uint32_t, uint32_t>> keys(points.size());
+    for (size_t i = 0; i < points.size(); ++i) {
+        vec3 d = points[i] - lo;
+        keys[i] = {morton3({d.x * inv.x, d.y * inv.y, d.z * inv.z}), uint32_t(i)};
+    }
+    std::sort(keys.begin(), keys.end());
+    std::vector<uint32_t> order(points.size());
+    for (size_t i = 0; i < keys.size(); ++i) order[i] = keys[i].second;
+    return order;
+}
+
+// Cycles' light units -> radiance (see DESIGN "Units match Cycles").
+Light analytic_light(uint type, vec3 pos, vec3 dir, vec3 axis_u, vec3 axis_v, float radius, vec3 power,
+                     float spot_size, float spot_blend, float sun_angle) {
+    Light l{};
+    l.type = type;
+    l.position = pos;
+    l.direction = type == LIGHT_SUN ? normalize(dir) * -1.0f : normalize(dir);  // sun: towards it
+    l.axis_u = axis_u;
+    l.axis_v = axis_v;
+    l.radius = std::max(radius, 0.0f);
+    switch (type) {
+        case LIGHT_SPHERE:
+        case LIGHT_SPOT: {
+            // Power P spread over 4π sr: intensity I = P / (4π). A sphere of radius r
+            // with radiance L has I = L π r², so L = P / (4π · π r²).
+            float intensity_scale = 1.0f / (4.0f * kPi);
+            float s = l.radius > 0 ? intensity_scale / (kPi * l.radius * l.radius) : intensity_scale;
+            l.radiance = power * s;  // radius 0: the radiance field holds the intensity
+            l.area = kPi * l.radius * l.radius;
+            if (type == LIGHT_SPOT) {
+                l.cos_half_angle = std::cos(std::min(std::max(spot_size, 0.0f), kPi) * 0.5f);
+                l.spot_smooth = (1.0f - l.cos_half_angle) * std::min(std::max(spot_blend, 0.0f), 1.0f);
+            }
+            break;
+        }
+        case LIGHT_SUN: {
+            // Strength S is the irradiance at normal incidence; a disc of half-angle h has
+            // projected solid angle π sin²h, so its radiance is S / (π sin²h).
+            float half = std::min(std::max(sun_angle, 0.0f), kPi) * 0.5f;
+            l.cos_half_angle = std::cos(half);
+            float sin_h = std::sin(half);
+            l.radiance = sin_h > 1e-4f ? power * (1.0f / (kPi * sin_h * sin_h)) : power;
+            if (sin_h <= 1e-4f) l.cos_half_angle = 1.0f;  // delta
+            break;
+        }
+        case LIGHT_RECT:
+        case LIGHT_DISK: {
+            float full_area = length(cross(axis_u, axis_v));
+            l.area = type == LIGHT_RECT ? full_area : full_area * kPi * 0.25f;
+            // One-sided Lambertian emitter of power P: L = P / (π A).
+            l.radiance = l.area > 0 ? power * (1.0f / (kPi * l.area)) : vec3{0, 0, 0};
+            break;
+        }
+        default: bad("light type " + std::to_string(type) + " is not an analytic light");
+    }
+    return l;
+}
+
+}  // namespace
+
+SceneHost prepare_scene(const SceneArrays& a, bool spatial_order) {
+    SceneHost s;
+    // ---- geometry ----
+    auto positions = get<float>(a, "positions", 'f', {3});
+    auto indices = get<uint32_t>(a, "indices", 'u', {3});
+    auto tri_mat = get<uint32_t>(a, "triangle_material", 'u', {});
+    auto normals = get<float>(a, "corner_normals", 'f', {3, 3});
+    auto uvs = get<float>(a, "corner_uvs", 'f', {3, 2});
+    auto mesh_first = get<uint32_t>(a, "mesh_first_triangle", 'u', {});
+    auto mesh_count = get<uint32_t>(a, "mesh_triangle_count", 'u', {});
+    auto mesh_has_n = get<uint32_t>(a, "mesh_has_normals", 'u', {});
+    auto mesh_has_uv = get<uint32_t>(a, "mesh_has_uvs", 'u', {});
+    auto materials_type = get<uint32_t>(a, "material_type", 'u', {});
+    const size_t V = positions.rows, T = indices.rows, M = mesh_first.rows, K = materials_type.rows;
+    if (V > 0xffffffffu || T > (1u << 28)) bad("too many vertices or triangles");
+    if (tri_mat.rows != T) bad("triangle_material has " + std::to_string(tri_mat.rows) + " entries, expected " + std::to_string(T));
+    if (normals.rows != 0 && normals.rows != T) bad("corner_normals must have 0 or " + std::to_string(T) + " rows");
+    if (uvs.rows != 0 && uvs.rows != T) bad("corner_uvs must have 0 or " + std::to_string(T) + " rows");
+    if (mesh_count.rows != M || mesh_has_n.rows != M || mesh_has_uv.rows != M)
+        bad("mesh_* arrays differ in length");
+    for (size_t i = 0; i < V; ++i)
+        if (!finite3(positions.data + 3 * i)) bad("positions[" + std::to_string(i) + "] is NaN or infinite");
+    for (size_t t = 0; t < T; ++t) {
+        for (int k = 0; k < 3; ++k)
+            if (indices.data[3 * t + k] >= V)
+                bad("indices[" + std::to_string(t) + "] refers to vertex " + std::to_string(indices.data[3 * t + k]) +
+                    ", but there are " + std::to_string(V) + " vertices");
+        if (tri_mat.data[t] >= K)
+            bad("triangle_material[" + std::to_string(t) + "] = " + std::to_string(tri_mat.data[t]) + " but there are " +
+                std::to_string(K) + " materials");
+    }
+    s.positions.resize(V);
+    for (size_t i = 0; i < V; ++i) s.positions[i] = v3(positions.data + 3 * i);
+    s.indices.resize(T);
+    s.triangle_material.assign(tri_mat.data, tri_mat.data + T);
+    for (size_t t = 0; t < T; ++t) s.indices[t] = {indices.data[3 * t], indices.data[3 * t + 1], indices.data[3 * t + 2]};
+    if (normals.rows) {
+        s.corner_normals.resize(3 * T);
+        for (size_t i = 0; i < 3 * T; ++i) {
+            vec3 n = v3(normals.data + 3 * i);
+            s.corner_normals[i] = finite3(normals.data + 3 * i) && length(n) > 0 ? normalize(n) : vec3{0, 0, 0};
+        }
+    }
+    if (uvs.rows) {
+        s.corner_uvs.resize(3 * T);
+        for (size_t i = 0; i < 3 * T; ++i) {
+            float u = uvs.data[2 * i], v = uvs.data[2 * i + 1];
+            s.corner_uvs[i] = {std::isfinite(u) ? u : 0.0f, std::isfinite(v) ? v : 0.0f};
+        }
+    }
+    s.meshes.resize(M);
+    for (size_t m = 0; m < M; ++m) {
+        uint64_t first = mesh_first.data[m], count = mesh_count.data[m];
+        if (first + count > T)
+            bad("mesh " + std::to_string(m) + " covers triangles " + std::to_string(first) + ".." +
+                std::to_string(first + count) + " but there are " + std::to_string(T));
+        s.meshes[m] = {uint(first), uint(count), mesh_has_n.data[m] && normals.rows ? 1u : 0u,
+                       mesh_has_uv.data[m] && uvs.rows ? 1u : 0u};
+        if (!spatial_order || count < 2) continue;
+        // Reorder this mesh's triangles along a Morton curve of their centroids.
+        std::vector<vec3> centroids(count);
+        for (size_t i = 0; i < count; ++i) {
+            uvec3 tri = s.indices[first + i];
+            centroids[i] = (s.positions[tri.x] + s.positions[tri.y] + s.positions[tri.z]) * (1.0f / 3.0f);
+        }
+        auto order = morton_order(centroids);
+        auto permute = [&](auto& vec, size_t per) {
+            if (vec.empty()) return;
+            std::vector<typename std::decay_t<decltype(vec)>::value_type> tmp(count * per);
+            for (size_t i = 0; i < count; ++i)
+                for (size_t k = 0; k < per; ++k) tmp[i * per + k] = vec[(first + order[i]) * per + k];
+            std::copy(tmp.begin(), tmp.end(), vec.begin() + first * per);
+        };
+        permute(s.indices, 1);
+        permute(s.triangle_material, 1);
+        permute(s.corner_normals, 3);
+        permute(s.corner_uvs, 3);
+    }
+
+    // ---- materials and textures ----
+    auto base_color = get<float>(a, "material_base_color", 'f', {3});
+    auto roughness = get<float>(a, "material_roughness", 'f', {});
+    auto ior = get<float>(a, "material_ior", 'f', {});
+    auto emission = get<float>(a, "material_emission", 'f', {3});
+    auto texture = get<int32_t>(a, "material_texture", 'i', {});
+    auto texels = get<uint8_t>(a, "texture_texels", 'u', {4});
+    auto tex_info = get<uint32_t>(a, "texture_info", 'u', {3});
+    if (base_color.rows != K || roughness.rows != K || ior.rows != K || emission.rows != K || texture.rows != K)
+        bad("material_* arrays differ in length");
+    for (size_t x = 0; x < tex_info.rows; ++x) {
+        const uint32_t* ti = tex_info.data + 3 * x;
+        if (ti[1] == 0 || ti[2] == 0) bad("texture " + std::to_string(x) + " has zero size");
+        if (uint64_t(ti[0]) + uint64_t(ti[1]) * ti[2] > texels.rows)
+            bad("texture " + std::to_string(x) + " extends past the end of texture_texels");
+        s.textures.push_back({ti[0], ti[1], ti[2], 0});
+    }
+    s.texels.resize(texels.rows);
+    for (size_t i = 0; i < texels.rows; ++i) {
+        const uint8_t* c = texels.data + 4 * i;
+        s.texels[i] = uint(c[0]) | uint(c[1]) << 8 | uint(c[2]) << 16 | uint(c[3]) << 24;
+    }
+    s.materials.resize(K);
+    for (size_t k = 0; k < K; ++k) {
+        Material& m = s.materials[k];
+        std::string id = "material " + std::to_string(k);
+        if (materials_type.data[k] > MATERIAL_EMISSION) bad(id + ": unknown type " + std::to_string(materials_type.data[k]));
+        if (!finite3(base_color.data + 3 * k) || !finite3(emission.data + 3 * k) || !std::isfinite(roughness.data[k]) ||
+            !std::isfinite(ior.data[k]))
+            bad(id + ": NaN or infinite value");
+        if (ior.data[k] <= 0) bad(id + ": ior must be positive");
+        if (texture.data[k] >= int32_t(s.textures.size()))
+            bad(id + ": texture " + std::to_string(texture.data[k]) + " out of range (" + std::to_string(s.textures.size()) + " textures)");
+        m.type = materials_type.data[k];
+        m.base_color = vmax(v3(base_color.data + 3 * k), {0, 0, 0});
+        m.roughness = std::min(std::max(roughness.data[k], 0.0f), 1.0f);
+        m.ior = ior.data[k];
+        m.emission = vmax(v3(emission.data + 3 * k), {0, 0, 0});
+        m.base_color_texture = std::max(texture.data[k], -1);
+    }
+
+    // ---- instances (spatially ordered for the TLAS) ----
+    auto inst_xf = get<float>(a, "instance_transform", 'f', {3, 4});
+    auto inst_mesh = get<uint32_t>(a, "instance_mesh", 'u', {});
+    if (inst_mesh.rows != inst_xf.rows) bad("instance_transform and instance_mesh differ in length");
+    std::vector<vec3> mesh_lo(M, {INFINITY, INFINITY, INFINITY}), mesh_hi(M, {-INFINITY, -INFINITY, -INFINITY});
+    for (size_t m = 0; m < M; ++m)
+        for (uint t = s.meshes[m].first_triangle; t < s.meshes[m].first_triangle + s.meshes[m].triangle_count; ++t)
+            for (uint vi : {s.indices[t].x, s.indices[t].y, s.indices[t].z})
+                mesh_lo[m] = vmin(mesh_lo[m], s.positions[vi]), mesh_hi[m] = vmax(mesh_hi[m], s.positions[vi]);
+    std::vector<InstanceInfo> instances;
+    std::vector<vec3> centers;
+    vec3 scene_lo{INFINITY, INFINITY, INFINITY}, scene_hi{-INFINITY, -INFINITY, -INFINITY};
+    size_t skipped = 0;
+    for (size_t i = 0; i < inst_xf.rows; ++i) {
+        const float* x = inst_xf.data + 12 * i;
+        for (int k = 0; k < 12; ++k)
+            if (!std::isfinite(x[k])) bad("instance_transform[" + std::to_string(i) + "] is NaN or infinite");
+        uint mesh = inst_mesh.data[i];
+        if (mesh >= M) bad("instance_mesh[" + std::to_string(i) + "] = " + std::to_string(mesh) + " but there are " + std::to_string(M) + " meshes");
+        if (s.meshes[mesh].triangle_count == 0) { ++skipped; continue; }
+        InstanceInfo inst{};
+        for (int r = 0; r < 3; ++r) inst.object_to_world[r] = {x[4 * r], x[4 * r + 1], x[4 * r + 2], x[4 * r + 3]};
+        // Normal matrix: inverse transpose of the 3x3 part (cofactor matrix / det).
+        vec3 r0{x[0], x[1], x[2]}, r1{x[4], x[5], x[6]}, r2{x[8], x[9], x[10]};
+        vec3 c0 = cross(r1, r2), c1 = cross(r2, r0), c2 = cross(r0, r1);
+        float det = dot(r0, c0);
+        if (std::fabs(det) < 1e-20f) { ++skipped; continue; }  // flattened to nothing
+        float inv = 1.0f / det;
+        inst.normal_to_world[0] = {c0.x * inv, c1.x * inv, c2.x * inv, 0};
+        inst.normal_to_world[1] = {c0.y * inv, c1.y * inv, c2.y * inv, 0};
+        inst.normal_to_world[2] = {c0.z * inv, c1.z * inv, c2.z * inv, 0};
+        inst.mesh = mesh;
+        inst.light_offset = NO_INDEX;
+        vec3 lo{INFINITY, INFINITY, INFINITY}, hi{-INFINITY, -INFINITY, -INFINITY};
+        for (int c = 0; c < 8; ++c) {
+            vec3 corner{(c & 1) ? mesh_hi[mesh].x : mesh_lo[mesh].x, (c & 2) ? mesh_hi[mesh].y : mesh_lo[mesh].y,
+                        (c & 4) ? mesh_hi[mesh].z : mesh_lo[mesh].z};
+            vec3 w = transform_point(inst.object_to_world, corner);
+            lo = vmin(lo, w), hi = vmax(hi, w);
+        }
+        scene_lo = vmin(scene_lo, lo), scene_hi = vmax(scene_hi, hi);
+        centers.push_back((lo + hi) * 0.5f);
+        instances.push_back(inst);
+    }
+    if (skipped) s.warnings.push_back(std::to_string(skipped) + " instance(s) of empty meshes or with singular transforms skipped");
+    if (spatial_order && instances.size() > 1) {
+        auto order = morton_order(centers);
+        for (uint32_t i : order) s.instances.push_back(instances[i]);
+    } else {
+        s.instances = instances;
+    }
+    bool has_geometry = !s.instances.empty();
+    vec3 center = has_geometry ? (scene_lo + scene_hi) * 0.5f : vec3{0, 0, 0};
+    float radius = has_geometry ? std::max(length(scene_hi - scene_lo) * 0.5f, 1e-3f) : 1.0f;
+
+    // ---- lights: emissive triangles, analytic lights, environment ----
+    std::vector<float> power;  // selection weight of each light
+    for (auto& inst : s.instances) {
+        const MeshInfo& mesh = s.meshes[inst.mesh];
+        bool emissive = false;
+        for (uint t = mesh.first_triangle; t < mesh.first_triangle + mesh.triangle_count && !emissive; ++t)
+            emissive = luminance(s.materials[s.triangle_material[t]].emission) > 0;
+        if (!emissive) continue;
+        inst.light_offset = uint(s.lights.size());
+        for (uint t = mesh.first_triangle; t < mesh.first_triangle + mesh.triangle_count; ++t) {
+            Light l{};
+            l.type = LIGHT_TRIANGLE;
+            vec3 p0 = transform_point(inst.object_to_world, s.positions[s.indices[t].x]);
+            vec3 p1 = transform_point(inst.object_to_world, s.positions[s.indices[t].y]);
+            vec3 p2 = transform_point(inst.object_to_world, s.positions[s.indices[t].z]);
+            l.position = p0;
+            l.axis_u = p1 - p0;
+            l.axis_v = p2 - p0;
+            l.area = 0.5f * length(cross(l.axis_u, l.axis_v));
+            l.radiance = s.materials[s.triangle_material[t]].emission;
+            l.direction = normalize(cross(l.axis_u, l.axis_v));
+            s.lights.push_back(l);
+            power.push_back(luminance(l.radiance) * l.area * 2.0f * kPi);  // emits from both sides
+        }
+    }
+    auto lt = get<uint32_t>(a, "light_type", 'u', {});
+    auto lpos = get<float>(a, "light_position", 'f', {3});
+    auto ldir = get<float>(a, "light_direction", 'f', {3});
+    auto lu = get<float>(a, "light_axis_u", 'f', {3});
+    auto lv = get<float>(a, "light_axis_v", 'f', {3});
+    auto lrad = get<float>(a, "light_radius", 'f', {});
+    auto lcol = get<float>(a, "light_color", 'f', {3});
+    auto lspot = get<float>(a, "light_spot_size", 'f', {});
+    auto lblend = get<float>(a, "light_spot_blend", 'f', {});
+    auto lsun = get<float>(a, "light_sun_angle", 'f', {});
+    const size_t L = lt.rows;
+    s.info.analytic_first = uint(s.lights.size());
+    for (size_t n : {lpos.rows, ldir.rows, lu.rows, lv.rows, lrad.rows, lcol.rows, lspot.rows, lblend.rows, lsun.rows})
+        if (n != L) bad("light_* arrays differ in length");
+    for (size_t i = 0; i < L; ++i) {
+        std::string id = "light " + std::to_string(i);
+        uint type = lt.data[i];
+        if (type < LIGHT_SPHERE || type > LIGHT_DISK) bad(id + ": unknown type " + std::to_string(type));
+        if (!finite3(lpos.data + 3 * i) || !finite3(ldir.data + 3 * i) || !finite3(lu.data + 3 * i) ||
+            !finite3(lv.data + 3 * i) || !finite3(lcol.data + 3 * i) || !std::isfinite(lrad.data[i]) ||
+            !std::isfinite(lspot.data[i]) || !std::isfinite(lblend.data[i]) || !std::isfinite(lsun.data[i]))
+            bad(id + ": NaN or infinite value");
+        if (length(v3(ldir.data + 3 * i)) == 0) bad(id + ": zero direction");
+        Light l = analytic_light(type, v3(lpos.data + 3 * i), v3(ldir.data + 3 * i), v3(lu.data + 3 * i),
+                                 v3(lv.data + 3 * i), lrad.data[i], vmax(v3(lcol.data + 3 * i), {0, 0, 0}),
+                                 lspot.data[i], lblend.data[i], lsun.data[i]);
+        float lum = luminance(l.radiance), p = 0;
+        switch (type) {
+            case LIGHT_SPHERE:
+            case LIGHT_SPOT:
+                p = l.radius > 0 ? lum * 4 * kPi * kPi * l.radius * l.radius : lum * 4 * kPi;
+                if (type == LIGHT_SPOT) p *= std::max(0.05f, 0.5f * (1 - l.cos_half_angle));
+                break;
+            case LIGHT_SUN:
+                p = lum * (l.cos_half_angle < 1 ? kPi * (1 - l.cos_half_angle * l.cos_half_angle) : 1.0f) * kPi * radius * radius;
+                break;
+            default: p = lum * kPi * l.area;
+        }
+        if (p <= 0) continue;  // a black light contributes nothing: leave it out
+        s.lights.push_back(l);
+        power.push_back(p);
+    }
+
+    s.info.analytic_count = uint(s.lights.size()) - s.info.analytic_first;
+    auto world_color = get<float>(a, "world_color", 'f', {}, false);
+    if (world_color.rows != 3 || !finite3(world_color.data)) bad("world_color must be 3 finite floats");
+    s.info.env_color = vmax(v3(world_color.data), {0, 0, 0});
+    s.info.env_light = NO_INDEX;
+    {
+        if (!a.count("world_map")) bad("missing array 'world_map'");
+        const ArrayView& wm = a.at("world_map");
+        if (wm.kind != 'f' || wm.itemsize != 4 || wm.shape.size() != 3 || wm.shape[2] != 3)
+            bad("array 'world_map' must be float32 (H, W, 3)");
+        size_t H = wm.shape[0], W = wm.shape[1];
+        if ((H == 0) != (W == 0)) bad("world_map has zero size " + shape_str(wm.shape));
+        float env_lum = luminance(s.info.env_color);
+        if (H > 0) {
+            const float* px_ = static_cast<const float*>(wm.data);
+            s.env_texels.resize(H * W);
+            s.env_conditional.assign(H * (W + 1), 0.0f);
+            s.env_marginal.assign(H + 1, 0.0f);
+            double total = 0, lum_sum = 0, sin_sum = 0;
+            std::vector<double> row_sum(H, 0.0);
+            for (size_t r = 0; r < H; ++r) {
+                float sin_theta = std::sin(kPi * (r + 0.5f) / H);
+                float* cdf = &s.env_conditional[r * (W + 1)];
+                double acc = 0;
+                for (size_t c = 0; c < W; ++c) {
+                    const float* p = px_ + 3 * (r * W + c);
+                    vec3 t = finite3(p) ? vmax(v3(p), {0, 0, 0}) : vec3{0, 0, 0};
+                    s.env_texels[r * W + c] = t;
+                    double w = luminance(t) * sin_theta;
+                    acc += w;
+                    cdf[c + 1] = float(acc);
+                    lum_sum += luminance(t) * sin_theta;
+                    sin_sum += sin_theta;
+                }
+                for (size_t c = 1; c <= W; ++c) cdf[c] = acc > 0 ? float(cdf[c] / acc) : float(c) / W;
+                cdf[W] = 1.0f;
+                row_sum[r] = acc;
+                total += acc;
+            }
+            for (size_t r = 0; r < H; ++r)
+                s.env_marginal[r + 1] = total > 0 ? float(s.env_marginal[r] + row_sum[r] / total) : float(r + 1) / H;
+            s.env_marginal[H] = 1.0f;
+            s.info.env_width = uint(W);
+            s.info.env_height = uint(H);
+            s.info.env_total = float(total);
+            env_lum = total > 0 ? float(lum_sum / sin_sum) : 0.0f;
+        }
+        if (env_lum > 0) {
+            Light l{};
+            l.type = LIGHT_ENV;
+            s.info.env_light = uint(s.lights.size());
+            s.lights.push_back(l);
+            power.push_back(env_lum * kPi * 4 * kPi * radius * radius);
+        }
+    }
+    double power_total = std::accumulate(power.begin(), power.end(), 0.0);
+    s.light_cdf.assign(power.size() + 1, 0.0f);
+    double acc = 0;
+    for (size_t i = 0; i < power.size(); ++i) {
+        acc += power[i];
+        s.light_cdf[i + 1] = float(acc / power_total);
+    }
+    if (!power.empty()) s.light_cdf.back() = 1.0f;
+    s.info.light_count = uint(s.lights.size());
+
+    // ---- camera ----
+    auto cam = get<float>(a, "camera_to_world", 'f', {4});
+    auto cam_type = get<uint32_t>(a, "camera_type", 'u', {});
+    auto window = get<float>(a, "camera_window", 'f', {});
+    auto clip = get<float>(a, "camera_clip", 'f', {});
+    if (cam.rows != 3 || cam_type.rows != 1 || window.rows != 4 || clip.rows != 2) bad("camera arrays have wrong sizes");
+    for (int k = 0; k < 12; ++k)
+        if (!std::isfinite(cam.data[k])) bad("camera_to_world is NaN or infinite");
+    for (int r = 0; r < 3; ++r) s.info.camera_to_world[r] = {cam.data[4 * r], cam.data[4 * r + 1], cam.data[4 * r + 2], cam.data[4 * r + 3]};
+    if (cam_type.data[0] > CAMERA_ORTHOGRAPHIC) bad("unknown camera_type " + std::to_string(cam_type.data[0]));
+    s.info.camera_type = cam_type.data[0];
+    s.info.camera_window = {window.data[0], window.data[1], window.data[2], window.data[3]};
+    if (!(window.data[1] > window.data[0]) || !(window.data[3] > window.data[2])) bad("camera_window is empty or NaN");
+    s.info.clip = {std::max(clip.data[0], 0.0f), clip.data[1] > clip.data[0] ? clip.data[1] : 1e30f};
+    s.info.scene_center = center;
+    s.info.scene_radius = radius;
+    return s;
+}
+
+Scene::Scene(Context& ctx, SceneHost host) : host_(std::move(host)) {
+    auto put = [&](uint32_t binding, const auto& vec) {
+        buffers_.emplace(binding, Buffer::with_vector(ctx, vec, kStorageUsage));
+    };
+    const VkBufferUsageFlags as_input = kStorageUsage | VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR;
+    buffers_.emplace(BINDING_POSITIONS, Buffer::with_vector(ctx, host_.positions, as_input));
+    buffers_.emplace(BINDING_INDICES, Buffer::with_vector(ctx, host_.indices, as_input));
+    put(BINDING_CORNER_NORMALS, host_.corner_normals);
+    put(BINDING_CORNER_UVS, host_.corner_uvs);
+    put(BINDING_TRIANGLE_MATERIAL, host_.triangle_material);
+    put(BINDING_MESHES, host_.meshes);
+    put(BINDING_INSTANCES, host_.instances);
+    put(BINDING_MATERIALS, host_.materials);
+    put(BINDING_TEXTURE_INFO, host_.textures);
+    put(BINDING_TEXELS, host_.texels);
+    put(BINDING_LIGHTS, host_.lights);
+    put(BINDING_LIGHT_CDF, host_.light_cdf);
+    put(BINDING_ENV_TEXELS, host_.env_texels);
+    put(BINDING_ENV_MARGINAL, host_.env_marginal);
+    put(BINDING_ENV_CONDITIONAL, host_.env_conditional);
+    put(BINDING_SCENE, std::vector<SceneInfo>{host_.info});
+
+    // One BLAS per mesh that some instance uses.
+    std::vector<TriangleRange> ranges;
+    std::vector<int> blas_of_mesh(host_.meshes.size(), -1);
+    for (const auto& inst : host_.instances)
+        if (blas_of_mesh[inst.mesh] < 0) {
+            blas_of_mesh[inst.mesh] = int(ranges.size());
+            ranges.push_back({host_.meshes[inst.mesh].first_triangle, host_.meshes[inst.mesh].triangle_count});
+        }
+    blases_ = build_triangle_blases(ctx, buffers_.at(BINDING_POSITIONS), uint32_t(host_.positions.size()),
+                                    buffers_.at(BINDING_INDICES), ranges);
+    std::vector<TlasInstance> tlas_instances;
+    for (size_t i = 0; i < host_.instances.size(); ++i) {
+        const auto& inst = host_.instances[i];
+        TlasInstance t{};
+        for (int r = 0; r < 3; ++r) {
+            t.transform[4 * r] = inst.object_to_world[r].x;
+            t.transform[4 * r + 1] = inst.object_to_world[r].y;
+            t.transform[4 * r + 2] = inst.object_to_world[r].z;
+            t.transform[4 * r + 3] = inst.object_to_world[r].w;
+        }
+        t.custom_index = uint32_t(i);
+        t.mask = 0xff;
+        t.sbt_offset = 0;
+        t.blas = blases_[blas_of_mesh[inst.mesh]]->address();
+        tlas_instances.push_back(t);
+    }
+    tlas_ = build_tlas(ctx, tlas_instances);
+}
+
+void Scene::bind(DescriptorSet& set) const {
+    for (const auto& [binding, buffer] : buffers_) set.bind_buffer(binding, buffer);
+    set.bind_tlas(BINDING_TLAS, tlas_->handle());
+}
+
+}  // namespace px

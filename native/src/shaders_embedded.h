@@ -1,0 +1,12 @@
+// SPIR-V of every shader, compiled by glslangValidator at build time (CMakeLists.txt).
+#pragma once
+#include <cstdint>
+#include <vector>
+
+namespace px {
+const std::vector<uint32_t>& shader_raygen();
+const std::vector<uint32_t>& shader_closesthit();
+const std::vector<uint32_t>& shader_miss();
+const std::vector<uint32_t>& shader_shadow_miss();
+const std::vector<uint32_t>& shader_sampling_test();
+}  // namespace px

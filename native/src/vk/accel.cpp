@@ -1,0 +1,135 @@
+#include "vk/accel.h"
+
+#include <cstring>
+
+namespace px {
+
+AccelerationStructure::AccelerationStructure(Context& ctx, VkAccelerationStructureTypeKHR type, VkDeviceSize size)
+    : ctx_(ctx), storage_(ctx, size, VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_STORAGE_BIT_KHR) {
+    VkAccelerationStructureCreateInfoKHR info{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_CREATE_INFO_KHR};
+    info.buffer = storage_.handle();
+    info.size = size;
+    info.type = type;
+    VK_CHECK(ctx.rt().create_as(ctx.device(), &info, nullptr, &as_));
+    VkAccelerationStructureDeviceAddressInfoKHR ainfo{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_DEVICE_ADDRESS_INFO_KHR};
+    ainfo.accelerationStructure = as_;
+    address_ = ctx.rt().get_as_address(ctx.device(), &ainfo);
+}
+
+AccelerationStructure::~AccelerationStructure() {
+    if (as_) ctx_.rt().destroy_as(ctx_.device(), as_, nullptr);
+}
+
+static VkDeviceSize align_up(VkDeviceSize v, VkDeviceSize a) { return (v + a - 1) / a * a; }
+
+static void barrier_after_build(VkCommandBuffer cmd) {
+    VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    b.srcAccessMask = VK_ACCESS_ACCELERATION_STRUCTURE_WRITE_BIT_KHR;
+    b.dstAccessMask = VK_ACCESS_ACCELERATION_STRUCTURE_READ_BIT_KHR;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_ACCELERATION_STRUCTURE_BUILD_BIT_KHR,
+                         VK_PIPELINE_STAGE_ACCELERATION_STRUCTURE_BUILD_BIT_KHR |
+                             VK_PIPELINE_STAGE_RAY_TRACING_SHADER_BIT_KHR,
+                         0, 1, &b, 0, nullptr, 0, nullptr);
+}
+
+std::vector<std::unique_ptr<AccelerationStructure>> build_triangle_blases(
+    Context& ctx, const Buffer& positions, uint32_t vertex_count, const Buffer& indices,
+    const std::vector<TriangleRange>& ranges) {
+    const size_t n = ranges.size();
+    std::vector<VkAccelerationStructureGeometryKHR> geometries(n);
+    std::vector<VkAccelerationStructureBuildGeometryInfoKHR> builds(n);
+    std::vector<VkAccelerationStructureBuildRangeInfoKHR> range_infos(n);
+    std::vector<std::unique_ptr<AccelerationStructure>> result;
+    std::vector<VkDeviceSize> scratch_offsets(n);
+    VkDeviceSize scratch_total = 0;
+    const VkDeviceSize scratch_align = 256;
+
+    for (size_t i = 0; i < n; ++i) {
+        auto& g = geometries[i];
+        g = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_KHR};
+        g.geometryType = VK_GEOMETRY_TYPE_TRIANGLES_KHR;
+        g.flags = VK_GEOMETRY_OPAQUE_BIT_KHR;
+        auto& t = g.geometry.triangles;
+        t = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_TRIANGLES_DATA_KHR};
+        t.vertexFormat = VK_FORMAT_R32G32B32_SFLOAT;
+        t.vertexData.deviceAddress = positions.address();
+        t.vertexStride = 12;
+        t.maxVertex = vertex_count ? vertex_count - 1 : 0;
+        t.indexType = VK_INDEX_TYPE_UINT32;
+        t.indexData.deviceAddress = indices.address() + VkDeviceSize(ranges[i].first_triangle) * 12;
+
+        auto& b = builds[i];
+        b = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_GEOMETRY_INFO_KHR};
+        b.type = VK_ACCELERATION_STRUCTURE_TYPE_BOTTOM_LEVEL_KHR;
+        b.flags = VK_BUILD_ACCELERATION_STRUCTURE_PREFER_FAST_TRACE_BIT_KHR;
+        b.mode = VK_BUILD_ACCELERATION_STRUCTURE_MODE_BUILD_KHR;
+        b.geometryCount = 1;
+        b.pGeometries = &g;
+        VkAccelerationStructureBuildSizesInfoKHR sizes{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_SIZES_INFO_KHR};
+        ctx.rt().get_build_sizes(ctx.device(), VK_ACCELERATION_STRUCTURE_BUILD_TYPE_DEVICE_KHR, &b,
+                                 &ranges[i].triangle_count, &sizes);
+        result.push_back(std::make_unique<AccelerationStructure>(
+            ctx, VK_ACCELERATION_STRUCTURE_TYPE_BOTTOM_LEVEL_KHR, sizes.accelerationStructureSize));
+        b.dstAccelerationStructure = result.back()->handle();
+        scratch_offsets[i] = scratch_total;
+        scratch_total += align_up(sizes.buildScratchSize, scratch_align);
+        range_infos[i] = {ranges[i].triangle_count, 0, 0, 0};
+    }
+    if (n == 0) return result;
+    Buffer scratch(ctx, scratch_total + scratch_align, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+    VkDeviceAddress base = align_up(scratch.address(), scratch_align);
+    std::vector<const VkAccelerationStructureBuildRangeInfoKHR*> range_ptrs(n);
+    for (size_t i = 0; i < n; ++i) {
+        builds[i].scratchData.deviceAddress = base + scratch_offsets[i];
+        range_ptrs[i] = &range_infos[i];
+    }
+    ctx.submit_and_wait([&](VkCommandBuffer cmd) {
+        ctx.rt().cmd_build_as(cmd, uint32_t(n), builds.data(), range_ptrs.data());
+        barrier_after_build(cmd);
+    });
+    return result;
+}
+
+std::unique_ptr<AccelerationStructure> build_tlas(Context& ctx, const std::vector<TlasInstance>& instances) {
+    std::vector<VkAccelerationStructureInstanceKHR> vk_instances(instances.size());
+    for (size_t i = 0; i < instances.size(); ++i) {
+        auto& d = vk_instances[i];
+        const auto& s = instances[i];
+        std::memcpy(d.transform.matrix, s.transform.data(), sizeof(d.transform.matrix));
+        d.instanceCustomIndex = s.custom_index & 0xffffff;
+        d.mask = s.mask & 0xff;
+        d.instanceShaderBindingTableRecordOffset = s.sbt_offset;
+        d.flags = VK_GEOMETRY_INSTANCE_TRIANGLE_FACING_CULL_DISABLE_BIT_KHR;
+        d.accelerationStructureReference = s.blas;
+    }
+    Buffer instance_buffer = Buffer::with_vector(
+        ctx, vk_instances, VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR);
+
+    VkAccelerationStructureGeometryKHR g{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_KHR};
+    g.geometryType = VK_GEOMETRY_TYPE_INSTANCES_KHR;
+    g.geometry.instances = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_INSTANCES_DATA_KHR};
+    g.geometry.instances.data.deviceAddress = instance_buffer.address();
+    VkAccelerationStructureBuildGeometryInfoKHR b{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_GEOMETRY_INFO_KHR};
+    b.type = VK_ACCELERATION_STRUCTURE_TYPE_TOP_LEVEL_KHR;
+    b.flags = VK_BUILD_ACCELERATION_STRUCTURE_PREFER_FAST_TRACE_BIT_KHR;
+    b.mode = VK_BUILD_ACCELERATION_STRUCTURE_MODE_BUILD_KHR;
+    b.geometryCount = 1;
+    b.pGeometries = &g;
+    uint32_t count = uint32_t(instances.size());
+    VkAccelerationStructureBuildSizesInfoKHR sizes{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_SIZES_INFO_KHR};
+    ctx.rt().get_build_sizes(ctx.device(), VK_ACCELERATION_STRUCTURE_BUILD_TYPE_DEVICE_KHR, &b, &count, &sizes);
+    auto tlas = std::make_unique<AccelerationStructure>(ctx, VK_ACCELERATION_STRUCTURE_TYPE_TOP_LEVEL_KHR,
+                                                        sizes.accelerationStructureSize);
+    Buffer scratch(ctx, sizes.buildScratchSize + 256, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+    b.dstAccelerationStructure = tlas->handle();
+    b.scratchData.deviceAddress = align_up(scratch.address(), 256);
+    VkAccelerationStructureBuildRangeInfoKHR range{count, 0, 0, 0};
+    const VkAccelerationStructureBuildRangeInfoKHR* range_ptr = &range;
+    ctx.submit_and_wait([&](VkCommandBuffer cmd) {
+        ctx.rt().cmd_build_as(cmd, 1, &b, &range_ptr);
+        barrier_after_build(cmd);
+    });
+    return tlas;
+}
+
+}  // namespace px

@@ -1,0 +1,47 @@
+// Bottom- and top-level acceleration structures.
+#pragma once
+#include "vk/buffer.h"
+
+#include <array>
+#include <memory>
+
+namespace px {
+
+class AccelerationStructure {
+public:
+    AccelerationStructure(Context& ctx, VkAccelerationStructureTypeKHR type, VkDeviceSize size);
+    ~AccelerationStructure();
+    AccelerationStructure(const AccelerationStructure&) = delete;
+    AccelerationStructure& operator=(const AccelerationStructure&) = delete;
+    VkAccelerationStructureKHR handle() const { return as_; }
+    VkDeviceAddress address() const { return address_; }
+
+private:
+    Context& ctx_;
+    Buffer storage_;
+    VkAccelerationStructureKHR as_ = VK_NULL_HANDLE;
+    VkDeviceAddress address_ = 0;
+};
+
+struct TriangleRange {
+    uint32_t first_triangle;
+    uint32_t triangle_count;
+};
+
+// One BLAS per range, all built in one submission. Indices are global into `positions`.
+std::vector<std::unique_ptr<AccelerationStructure>> build_triangle_blases(
+    Context& ctx, const Buffer& positions, uint32_t vertex_count, const Buffer& indices,
+    const std::vector<TriangleRange>& ranges);
+
+struct TlasInstance {
+    std::array<float, 12> transform;  // rows of a 3x4 matrix
+    uint32_t custom_index;            // gl_InstanceCustomIndexEXT (24 bits)
+    uint32_t mask;
+    uint32_t sbt_offset;
+    VkDeviceAddress blas;
+};
+
+// A TLAS over `instances` (in the given order: order them spatially first on lavapipe).
+std::unique_ptr<AccelerationStructure> build_tlas(Context& ctx, const std::vector<TlasInstance>& instances);
+
+}  // namespace px

@@ -1,0 +1,107 @@
+#include "vk/buffer.h"
+
+#include <algorithm>
+#include <cstring>
+
+namespace px {
+
+Buffer::Buffer(Context& ctx, VkDeviceSize size, VkBufferUsageFlags usage, bool host_visible) : ctx_(&ctx) {
+    size_ = std::max<VkDeviceSize>(size, 16);
+    host_visible = host_visible || ctx.is_cpu();
+    usage |= VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT |
+             VK_BUFFER_USAGE_TRANSFER_SRC_BIT;
+    VkBufferCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
+    info.size = size_;
+    info.usage = usage;
+    VK_CHECK(vkCreateBuffer(ctx.device(), &info, nullptr, &buffer_));
+    VkMemoryRequirements req;
+    vkGetBufferMemoryRequirements(ctx.device(), buffer_, &req);
+    VkMemoryAllocateFlagsInfo flags{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_FLAGS_INFO};
+    flags.flags = VK_MEMORY_ALLOCATE_DEVICE_ADDRESS_BIT;
+    VkMemoryAllocateInfo alloc{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
+    alloc.pNext = &flags;
+    alloc.allocationSize = req.size;
+    alloc.memoryTypeIndex = ctx.memory_type(
+        req.memoryTypeBits, host_visible ? VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT
+                                         : VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
+    VkResult r = vkAllocateMemory(ctx.device(), &alloc, nullptr, &memory_);
+    if (r != VK_SUCCESS) {
+        vkDestroyBuffer(ctx.device(), buffer_, nullptr);
+        buffer_ = VK_NULL_HANDLE;
+        vk_check(r, ("vkAllocateMemory (" + std::to_string(size_ >> 20) + " MiB)").c_str());
+    }
+    VK_CHECK(vkBindBufferMemory(ctx.device(), buffer_, memory_, 0));
+    if (host_visible) VK_CHECK(vkMapMemory(ctx.device(), memory_, 0, VK_WHOLE_SIZE, 0, &mapped_));
+    VkBufferDeviceAddressInfo ainfo{VK_STRUCTURE_TYPE_BUFFER_DEVICE_ADDRESS_INFO};
+    ainfo.buffer = buffer_;
+    address_ = vkGetBufferDeviceAddress(ctx.device(), &ainfo);
+}
+
+Buffer& Buffer::operator=(Buffer&& o) noexcept {
+    if (this != &o) {
+        release();
+        ctx_ = o.ctx_;
+        buffer_ = o.buffer_;
+        memory_ = o.memory_;
+        size_ = o.size_;
+        address_ = o.address_;
+        mapped_ = o.mapped_;
+        o.buffer_ = VK_NULL_HANDLE;
+        o.memory_ = VK_NULL_HANDLE;
+        o.mapped_ = nullptr;
+    }
+    return *this;
+}
+
+void Buffer::release() {
+    if (!ctx_) return;
+    if (buffer_) vkDestroyBuffer(ctx_->device(), buffer_, nullptr);
+    if (memory_) vkFreeMemory(ctx_->device(), memory_, nullptr);
+    buffer_ = VK_NULL_HANDLE;
+    memory_ = VK_NULL_HANDLE;
+    mapped_ = nullptr;
+}
+
+Buffer Buffer::with_data(Context& ctx, const void* data, size_t bytes, VkBufferUsageFlags usage) {
+    Buffer b(ctx, bytes, usage);
+    if (bytes) b.upload(data, bytes);
+    return b;
+}
+
+void Buffer::upload(const void* data, size_t bytes, size_t offset) {
+    if (!bytes) return;
+    if (mapped_) {
+        std::memcpy(static_cast<char*>(mapped_) + offset, data, bytes);
+        return;
+    }
+    Buffer staging(*ctx_, bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true);
+    staging.upload(data, bytes);
+    ctx_->submit_and_wait([&](VkCommandBuffer cmd) {
+        VkBufferCopy region{0, offset, bytes};
+        vkCmdCopyBuffer(cmd, staging.buffer_, buffer_, 1, &region);
+    });
+}
+
+void Buffer::download(void* data, size_t bytes, size_t offset) const {
+    if (!bytes) return;
+    if (mapped_) {
+        std::memcpy(data, static_cast<const char*>(mapped_) + offset, bytes);
+        return;
+    }
+    Buffer staging(*ctx_, bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT, true);
+    ctx_->submit_and_wait([&](VkCommandBuffer cmd) {
+        VkBufferCopy region{offset, 0, bytes};
+        vkCmdCopyBuffer(cmd, buffer_, staging.buffer_, 1, &region);
+    });
+    staging.download(data, bytes);
+}
+
+void Buffer::fill_zero() {
+    if (mapped_) {
+        std::memset(mapped_, 0, size_);
+        return;
+    }
+    ctx_->submit_and_wait([&](VkCommandBuffer cmd) { vkCmdFillBuffer(cmd, buffer_, 0, VK_WHOLE_SIZE, 0); });
+}
+
+}  // namespace px

@@ -1,0 +1,266 @@
+#include "vk/context.h"
+
+#include <algorithm>
+#include <cstring>
+
+namespace px {
+
+static const char* result_name(VkResult r) {
+    switch (r) {
+        case VK_ERROR_OUT_OF_HOST_MEMORY: return "out of host memory";
+        case VK_ERROR_OUT_OF_DEVICE_MEMORY: return "out of device memory";
+        case VK_ERROR_DEVICE_LOST: return "device lost";
+        case VK_ERROR_INITIALIZATION_FAILED: return "initialization failed";
+        case VK_ERROR_EXTENSION_NOT_PRESENT: return "extension not present";
+        case VK_ERROR_FEATURE_NOT_PRESENT: return "feature not present";
+        case VK_ERROR_INCOMPATIBLE_DRIVER: return "incompatible driver (no Vulkan driver found)";
+        case VK_TIMEOUT: return "timeout";
+        default: return "error";
+    }
+}
+
+void vk_check(VkResult result, const char* what) {
+    if (result != VK_SUCCESS)
+        throw VulkanError(std::string("Vulkan: ") + what + " failed: " + result_name(result) +
+                          " (" + std::to_string(int(result)) + ")");
+}
+
+static const std::vector<const char*> kRequiredExtensions = {
+    VK_KHR_ACCELERATION_STRUCTURE_EXTENSION_NAME,
+    VK_KHR_RAY_TRACING_PIPELINE_EXTENSION_NAME,
+    VK_KHR_DEFERRED_HOST_OPERATIONS_EXTENSION_NAME,
+};
+
+static VkInstance create_instance() {
+    VkApplicationInfo app{VK_STRUCTURE_TYPE_APPLICATION_INFO};
+    app.pApplicationName = "Parallax";
+    app.apiVersion = VK_API_VERSION_1_2;
+    VkInstanceCreateInfo info{VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
+    info.pApplicationInfo = &app;
+    VkInstance instance = VK_NULL_HANDLE;
+    VkResult r = vkCreateInstance(&info, nullptr, &instance);
+    if (r != VK_SUCCESS)
+        throw VulkanError(
+            std::string("no Vulkan driver could be loaded (vkCreateInstance: ") + result_name(r) +
+            "). Install Mesa's lavapipe (mesa-vulkan-drivers from bookworm-backports: run "
+            "`make setup`) or an NVIDIA driver.");
+    return instance;
+}
+
+struct Features {
+    VkPhysicalDeviceFeatures2 base{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+    VkPhysicalDeviceVulkan12Features v12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+    VkPhysicalDeviceAccelerationStructureFeaturesKHR as{
+        VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_ACCELERATION_STRUCTURE_FEATURES_KHR};
+    VkPhysicalDeviceRayTracingPipelineFeaturesKHR rt{
+        VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_RAY_TRACING_PIPELINE_FEATURES_KHR};
+    Features() {
+        base.pNext = &v12;
+        v12.pNext = &as;
+        as.pNext = &rt;
+    }
+};
+
+static DeviceReport inspect(VkPhysicalDevice pd, uint32_t index) {
+    VkPhysicalDeviceProperties props;
+    vkGetPhysicalDeviceProperties(pd, &props);
+    DeviceReport rep;
+    rep.name = props.deviceName;
+    rep.index = index;
+    switch (props.deviceType) {
+        case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU: rep.type = "discrete"; break;
+        case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU: rep.type = "integrated"; break;
+        case VK_PHYSICAL_DEVICE_TYPE_CPU: rep.type = "cpu"; break;
+        case VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU: rep.type = "virtual"; break;
+        default: rep.type = "other";
+    }
+    if (props.apiVersion < VK_API_VERSION_1_2) rep.missing.push_back("Vulkan 1.2");
+    uint32_t n = 0;
+    vkEnumerateDeviceExtensionProperties(pd, nullptr, &n, nullptr);
+    std::vector<VkExtensionProperties> exts(n);
+    vkEnumerateDeviceExtensionProperties(pd, nullptr, &n, exts.data());
+    for (const char* req : kRequiredExtensions) {
+        bool found = std::any_of(exts.begin(), exts.end(),
+                                 [&](const VkExtensionProperties& e) { return !strcmp(e.extensionName, req); });
+        if (!found) rep.missing.push_back(req);
+    }
+    if (rep.missing.empty()) {
+        Features f;
+        vkGetPhysicalDeviceFeatures2(pd, &f.base);
+        if (!f.v12.bufferDeviceAddress) rep.missing.push_back("bufferDeviceAddress");
+        if (!f.v12.scalarBlockLayout) rep.missing.push_back("scalarBlockLayout");
+        if (!f.as.accelerationStructure) rep.missing.push_back("accelerationStructure");
+        if (!f.rt.rayTracingPipeline) rep.missing.push_back("rayTracingPipeline");
+    }
+    rep.ray_tracing = rep.missing.empty();
+    return rep;
+}
+
+std::vector<DeviceReport> Context::enumerate() {
+    VkInstance instance = create_instance();
+    uint32_t n = 0;
+    vkEnumeratePhysicalDevices(instance, &n, nullptr);
+    std::vector<VkPhysicalDevice> pds(n);
+    vkEnumeratePhysicalDevices(instance, &n, pds.data());
+    std::vector<DeviceReport> reports;
+    for (uint32_t i = 0; i < n; ++i) reports.push_back(inspect(pds[i], i));
+    vkDestroyInstance(instance, nullptr);
+    return reports;
+}
+
+uint32_t Context::choose(const std::vector<DeviceReport>& reports, const std::string& selector) {
+    std::string why;
+    for (const auto& r : reports)
+        if (!r.ray_tracing) {
+            why += "\n  " + r.name + " (" + r.type + "): lacks";
+            for (const auto& m : r.missing) why += " " + m;
+        }
+    auto fail = [&](const std::string& msg) -> uint32_t {
+        throw VulkanError(msg + (why.empty() ? "" : "\nDevices without ray tracing:" + why) +
+                          "\nOn Debian 12, `make setup` installs lavapipe with ray tracing "
+                          "(Mesa 25 from bookworm-backports); Mesa 22 has none.");
+    };
+    if (reports.empty()) return fail("no Vulkan device found");
+    bool digits = !selector.empty() && std::all_of(selector.begin(), selector.end(), ::isdigit);
+    if (digits) {
+        uint32_t i = uint32_t(std::stoul(selector));
+        if (i >= reports.size())
+            return fail("device index " + selector + " out of range (" + std::to_string(reports.size()) + " devices)");
+        if (!reports[i].ray_tracing) return fail("device " + selector + " (" + reports[i].name + ") cannot ray-trace");
+        return i;
+    }
+    auto first = [&](auto pred) -> int {
+        for (const auto& r : reports)
+            if (r.ray_tracing && pred(r)) return int(r.index);
+        return -1;
+    };
+    auto is_gpu = [](const DeviceReport& r) { return r.type != "cpu"; };
+    auto is_cpu = [](const DeviceReport& r) { return r.type == "cpu"; };
+    auto is_discrete = [](const DeviceReport& r) { return r.type == "discrete"; };
+    int pick = -1;
+    if (selector == "auto" || selector.empty()) {
+        pick = first(is_discrete);
+        if (pick < 0) pick = first(is_gpu);
+        if (pick < 0) pick = first(is_cpu);
+    } else if (selector == "gpu") {
+        pick = first(is_discrete);
+        if (pick < 0) pick = first(is_gpu);
+    } else if (selector == "cpu") {
+        pick = first(is_cpu);
+    } else {
+        return fail("unknown device selector '" + selector + "' (use auto, cpu, gpu or an index)");
+    }
+    if (pick < 0) return fail("no Vulkan device with ray tracing matches '" + selector + "'");
+    return uint32_t(pick);
+}
+
+Context::Context(const std::string& selector) {
+    auto reports = enumerate();
+    uint32_t index = choose(reports, selector);
+    report_ = reports[index];
+    instance_ = create_instance();
+    uint32_t n = 0;
+    vkEnumeratePhysicalDevices(instance_, &n, nullptr);
+    std::vector<VkPhysicalDevice> pds(n);
+    vkEnumeratePhysicalDevices(instance_, &n, pds.data());
+    physical_ = pds.at(index);
+
+    uint32_t qn = 0;
+    vkGetPhysicalDeviceQueueFamilyProperties(physical_, &qn, nullptr);
+    std::vector<VkQueueFamilyProperties> qprops(qn);
+    vkGetPhysicalDeviceQueueFamilyProperties(physical_, &qn, qprops.data());
+    queue_family_ = UINT32_MAX;
+    for (uint32_t i = 0; i < qn; ++i)
+        if ((qprops[i].queueFlags & VK_QUEUE_COMPUTE_BIT) && queue_family_ == UINT32_MAX) queue_family_ = i;
+    if (queue_family_ == UINT32_MAX) throw VulkanError("device has no compute queue");
+
+    float priority = 1.0f;
+    VkDeviceQueueCreateInfo qinfo{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
+    qinfo.queueFamilyIndex = queue_family_;
+    qinfo.queueCount = 1;
+    qinfo.pQueuePriorities = &priority;
+
+    Features f;  // enable exactly what we need
+    f.v12.bufferDeviceAddress = VK_TRUE;
+    f.v12.scalarBlockLayout = VK_TRUE;
+    f.as.accelerationStructure = VK_TRUE;
+    f.rt.rayTracingPipeline = VK_TRUE;
+    VkPhysicalDeviceFeatures2 supported{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+    vkGetPhysicalDeviceFeatures2(physical_, &supported);
+    f.base.features.shaderInt64 = supported.features.shaderInt64;
+
+    VkDeviceCreateInfo dinfo{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
+    dinfo.pNext = &f.base;
+    dinfo.queueCreateInfoCount = 1;
+    dinfo.pQueueCreateInfos = &qinfo;
+    dinfo.enabledExtensionCount = uint32_t(kRequiredExtensions.size());
+    dinfo.ppEnabledExtensionNames = kRequiredExtensions.data();
+    VK_CHECK(vkCreateDevice(physical_, &dinfo, nullptr, &device_));
+    vkGetDeviceQueue(device_, queue_family_, 0, &queue_);
+
+#define PX_LOAD(member, name) rt_.member = reinterpret_cast<PFN_##name>(vkGetDeviceProcAddr(device_, #name))
+    PX_LOAD(create_as, vkCreateAccelerationStructureKHR);
+    PX_LOAD(destroy_as, vkDestroyAccelerationStructureKHR);
+    PX_LOAD(get_build_sizes, vkGetAccelerationStructureBuildSizesKHR);
+    PX_LOAD(cmd_build_as, vkCmdBuildAccelerationStructuresKHR);
+    PX_LOAD(get_as_address, vkGetAccelerationStructureDeviceAddressKHR);
+    PX_LOAD(create_rt_pipelines, vkCreateRayTracingPipelinesKHR);
+    PX_LOAD(get_group_handles, vkGetRayTracingShaderGroupHandlesKHR);
+    PX_LOAD(cmd_trace_rays, vkCmdTraceRaysKHR);
+#undef PX_LOAD
+
+    rt_props_.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_RAY_TRACING_PIPELINE_PROPERTIES_KHR;
+    VkPhysicalDeviceProperties2 p2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
+    p2.pNext = &rt_props_;
+    vkGetPhysicalDeviceProperties2(physical_, &p2);
+    vkGetPhysicalDeviceMemoryProperties(physical_, &memory_props_);
+
+    VkCommandPoolCreateInfo pinfo{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
+    pinfo.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
+    pinfo.queueFamilyIndex = queue_family_;
+    VK_CHECK(vkCreateCommandPool(device_, &pinfo, nullptr, &pool_));
+    VkFenceCreateInfo finfo{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
+    VK_CHECK(vkCreateFence(device_, &finfo, nullptr, &fence_));
+}
+
+Context::~Context() {
+    if (device_) {
+        vkDeviceWaitIdle(device_);
+        vkDestroyFence(device_, fence_, nullptr);
+        vkDestroyCommandPool(device_, pool_, nullptr);
+        vkDestroyDevice(device_, nullptr);
+    }
+    if (instance_) vkDestroyInstance(instance_, nullptr);
+}
+
+uint32_t Context::memory_type(uint32_t type_bits, VkMemoryPropertyFlags flags) const {
+    for (uint32_t i = 0; i < memory_props_.memoryTypeCount; ++i)
+        if ((type_bits & (1u << i)) && (memory_props_.memoryTypes[i].propertyFlags & flags) == flags) return i;
+    throw VulkanError("no suitable memory type");
+}
+
+void Context::submit_and_wait(const std::function<void(VkCommandBuffer)>& record) {
+    VkCommandBufferAllocateInfo ainfo{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
+    ainfo.commandPool = pool_;
+    ainfo.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+    ainfo.commandBufferCount = 1;
+    VkCommandBuffer cmd;
+    VK_CHECK(vkAllocateCommandBuffers(device_, &ainfo, &cmd));
+    struct Free {
+        VkDevice d; VkCommandPool p; VkCommandBuffer c;
+        ~Free() { vkFreeCommandBuffers(d, p, 1, &c); }
+    } free_on_exit{device_, pool_, cmd};
+    VkCommandBufferBeginInfo binfo{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+    binfo.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+    VK_CHECK(vkBeginCommandBuffer(cmd, &binfo));
+    record(cmd);
+    VK_CHECK(vkEndCommandBuffer(cmd));
+    VkSubmitInfo sinfo{VK_STRUCTURE_TYPE_SUBMIT_INFO};
+    sinfo.commandBufferCount = 1;
+    sinfo.pCommandBuffers = &cmd;
+    VK_CHECK(vkResetFences(device_, 1, &fence_));
+    VK_CHECK(vkQueueSubmit(queue_, 1, &sinfo, fence_));
+    VK_CHECK(vkWaitForFences(device_, 1, &fence_, VK_TRUE, UINT64_MAX));
+}
+
+}  // namespace px

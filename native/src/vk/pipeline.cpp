@@ -1,0 +1,216 @@
+#include "vk/pipeline.h"
+
+#include <cstring>
+
+namespace px {
+
+static constexpr VkShaderStageFlags kAllStages =
+    VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR | VK_SHADER_STAGE_MISS_BIT_KHR |
+    VK_SHADER_STAGE_ANY_HIT_BIT_KHR | VK_SHADER_STAGE_INTERSECTION_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT;
+
+DescriptorSet::DescriptorSet(Context& ctx, uint32_t binding_count, uint32_t tlas_binding) : ctx_(ctx) {
+    std::vector<VkDescriptorSetLayoutBinding> bindings(binding_count);
+    for (uint32_t i = 0; i < binding_count; ++i) {
+        bindings[i].binding = i;
+        bindings[i].descriptorType = i == tlas_binding ? VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR
+                                                       : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+        bindings[i].descriptorCount = 1;
+        bindings[i].stageFlags = kAllStages;
+    }
+    VkDescriptorSetLayoutCreateInfo linfo{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+    linfo.bindingCount = binding_count;
+    linfo.pBindings = bindings.data();
+    VK_CHECK(vkCreateDescriptorSetLayout(ctx.device(), &linfo, nullptr, &layout_));
+    VkDescriptorPoolSize sizes[2] = {{VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR, 1},
+                                     {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, binding_count}};
+    VkDescriptorPoolCreateInfo pinfo{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
+    pinfo.maxSets = 1;
+    pinfo.poolSizeCount = 2;
+    pinfo.pPoolSizes = sizes;
+    VK_CHECK(vkCreateDescriptorPool(ctx.device(), &pinfo, nullptr, &pool_));
+    VkDescriptorSetAllocateInfo ainfo{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
+    ainfo.descriptorPool = pool_;
+    ainfo.descriptorSetCount = 1;
+    ainfo.pSetLayouts = &layout_;
+    VK_CHECK(vkAllocateDescriptorSets(ctx.device(), &ainfo, &set_));
+}
+
+DescriptorSet::~DescriptorSet() {
+    vkDestroyDescriptorPool(ctx_.device(), pool_, nullptr);
+    vkDestroyDescriptorSetLayout(ctx_.device(), layout_, nullptr);
+}
+
+void DescriptorSet::bind_buffer(uint32_t binding, const Buffer& buffer) {
+    VkDescriptorBufferInfo info{buffer.handle(), 0, VK_WHOLE_SIZE};
+    VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+    w.dstSet = set_;
+    w.dstBinding = binding;
+    w.descriptorCount = 1;
+    w.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+    w.pBufferInfo = &info;
+    vkUpdateDescriptorSets(ctx_.device(), 1, &w, 0, nullptr);
+}
+
+void DescriptorSet::bind_tlas(uint32_t binding, VkAccelerationStructureKHR tlas) {
+    VkWriteDescriptorSetAccelerationStructureKHR as{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET_ACCELERATION_STRUCTURE_KHR};
+    as.accelerationStructureCount = 1;
+    as.pAccelerationStructures = &tlas;
+    VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+    w.pNext = &as;
+    w.dstSet = set_;
+    w.dstBinding = binding;
+    w.descriptorCount = 1;
+    w.descriptorType = VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR;
+    vkUpdateDescriptorSets(ctx_.device(), 1, &w, 0, nullptr);
+}
+
+static VkPipelineLayout make_layout(Context& ctx, VkDescriptorSetLayout set_layout, uint32_t push_size) {
+    VkPushConstantRange range{kAllStages, 0, push_size};
+    VkPipelineLayoutCreateInfo info{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
+    info.setLayoutCount = 1;
+    info.pSetLayouts = &set_layout;
+    info.pushConstantRangeCount = push_size ? 1 : 0;
+    info.pPushConstantRanges = &range;
+    VkPipelineLayout layout;
+    VK_CHECK(vkCreatePipelineLayout(ctx.device(), &info, nullptr, &layout));
+    return layout;
+}
+
+static VkShaderModule make_module(Context& ctx, const std::vector<uint32_t>& spirv) {
+    VkShaderModuleCreateInfo info{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
+    info.codeSize = spirv.size() * 4;
+    info.pCode = spirv.data();
+    VkShaderModule m;
+    VK_CHECK(vkCreateShaderModule(ctx.device(), &info, nullptr, &m));
+    return m;
+}
+
+struct Specialization {
+    std::vector<VkSpecializationMapEntry> entries;
+    VkSpecializationInfo info{};
+    explicit Specialization(const std::vector<uint32_t>& values) {
+        for (uint32_t i = 0; i < values.size(); ++i) entries.push_back({i, i * 4, 4});
+        info.mapEntryCount = uint32_t(entries.size());
+        info.pMapEntries = entries.data();
+        info.dataSize = values.size() * 4;
+        info.pData = values.data();
+    }
+};
+
+static VkDeviceSize align_up(VkDeviceSize v, VkDeviceSize a) { return (v + a - 1) / a * a; }
+
+RayTracingPipeline::RayTracingPipeline(Context& ctx, VkDescriptorSetLayout set_layout, uint32_t push_size,
+                                       const std::vector<ShaderStage>& stages,
+                                       const std::vector<ShaderGroup>& groups,
+                                       const std::vector<uint32_t>& specialization)
+    : ctx_(ctx) {
+    layout_ = make_layout(ctx, set_layout, push_size);
+    Specialization spec(specialization);
+    std::vector<VkPipelineShaderStageCreateInfo> stage_infos;
+    std::vector<VkShaderModule> modules;
+    for (const auto& s : stages) {
+        modules.push_back(make_module(ctx, *s.spirv));
+        VkPipelineShaderStageCreateInfo si{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+        si.stage = s.stage;
+        si.module = modules.back();
+        si.pName = "main";
+        si.pSpecializationInfo = &spec.info;
+        stage_infos.push_back(si);
+    }
+    std::vector<VkRayTracingShaderGroupCreateInfoKHR> group_infos;
+    uint32_t miss_count = 0, hit_count = 0;
+    for (const auto& g : groups) {
+        VkRayTracingShaderGroupCreateInfoKHR gi{VK_STRUCTURE_TYPE_RAY_TRACING_SHADER_GROUP_CREATE_INFO_KHR};
+        gi.type = g.type;
+        gi.generalShader = g.general;
+        gi.closestHitShader = g.closest_hit;
+        gi.anyHitShader = g.any_hit;
+        gi.intersectionShader = g.intersection;
+        group_infos.push_back(gi);
+        if (g.type == VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR) {
+            if (&g != &groups[0]) ++miss_count;
+        } else {
+            ++hit_count;
+        }
+    }
+    VkRayTracingPipelineCreateInfoKHR info{VK_STRUCTURE_TYPE_RAY_TRACING_PIPELINE_CREATE_INFO_KHR};
+    info.stageCount = uint32_t(stage_infos.size());
+    info.pStages = stage_infos.data();
+    info.groupCount = uint32_t(group_infos.size());
+    info.pGroups = group_infos.data();
+    info.maxPipelineRayRecursionDepth = 1;
+    info.layout = layout_;
+    VkResult r = ctx.rt().create_rt_pipelines(ctx.device(), VK_NULL_HANDLE, VK_NULL_HANDLE, 1, &info, nullptr,
+                                              &pipeline_);
+    for (auto m : modules) vkDestroyShaderModule(ctx.device(), m, nullptr);
+    vk_check(r, "vkCreateRayTracingPipelinesKHR");
+
+    // Shader binding table: raygen | miss... | hit...
+    const auto& p = ctx.rt_properties();
+    const uint32_t handle_size = p.shaderGroupHandleSize;
+    const VkDeviceSize stride = align_up(handle_size, p.shaderGroupHandleAlignment);
+    const VkDeviceSize base_align = p.shaderGroupBaseAlignment;
+    std::vector<uint8_t> handles(size_t(handle_size) * groups.size());
+    VK_CHECK(ctx.rt().get_group_handles(ctx.device(), pipeline_, 0, uint32_t(groups.size()), handles.size(),
+                                        handles.data()));
+    VkDeviceSize raygen_size = align_up(stride, base_align);
+    VkDeviceSize miss_size = align_up(stride * miss_count, base_align);
+    VkDeviceSize hit_size = align_up(stride * std::max(hit_count, 1u), base_align);
+    std::vector<uint8_t> table(raygen_size + miss_size + hit_size, 0);
+    auto put = [&](VkDeviceSize offset, uint32_t group) {
+        std::memcpy(table.data() + offset, handles.data() + size_t(group) * handle_size, handle_size);
+    };
+    put(0, 0);
+    for (uint32_t i = 0; i < miss_count; ++i) put(raygen_size + i * stride, 1 + i);
+    for (uint32_t i = 0; i < hit_count; ++i) put(raygen_size + miss_size + i * stride, 1 + miss_count + i);
+    sbt_ = Buffer(ctx, table.size() + base_align, VK_BUFFER_USAGE_SHADER_BINDING_TABLE_BIT_KHR);
+    VkDeviceAddress base = align_up(sbt_.address(), base_align);
+    sbt_.upload(table.data(), table.size(), base - sbt_.address());
+    raygen_ = {base, raygen_size, raygen_size};
+    miss_ = {base + raygen_size, stride, stride * miss_count};
+    hit_ = {base + raygen_size + miss_size, stride, stride * hit_count};
+}
+
+RayTracingPipeline::~RayTracingPipeline() {
+    vkDestroyPipeline(ctx_.device(), pipeline_, nullptr);
+    vkDestroyPipelineLayout(ctx_.device(), layout_, nullptr);
+}
+
+void RayTracingPipeline::trace(VkCommandBuffer cmd, VkDescriptorSet set, const void* push, uint32_t push_size,
+                               uint32_t width, uint32_t height) const {
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, pipeline_);
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, layout_, 0, 1, &set, 0, nullptr);
+    vkCmdPushConstants(cmd, layout_, kAllStages, 0, push_size, push);
+    ctx_.rt().cmd_trace_rays(cmd, &raygen_, &miss_, &hit_, &callable_, width, height, 1);
+}
+
+ComputePipeline::ComputePipeline(Context& ctx, VkDescriptorSetLayout set_layout, uint32_t push_size,
+                                 const std::vector<uint32_t>& spirv)
+    : ctx_(ctx) {
+    layout_ = make_layout(ctx, set_layout, push_size);
+    VkShaderModule module = make_module(ctx, spirv);
+    VkComputePipelineCreateInfo info{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
+    info.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+    info.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
+    info.stage.module = module;
+    info.stage.pName = "main";
+    info.layout = layout_;
+    VkResult r = vkCreateComputePipelines(ctx.device(), VK_NULL_HANDLE, 1, &info, nullptr, &pipeline_);
+    vkDestroyShaderModule(ctx.device(), module, nullptr);
+    vk_check(r, "vkCreateComputePipelines");
+}
+
+ComputePipeline::~ComputePipeline() {
+    vkDestroyPipeline(ctx_.device(), pipeline_, nullptr);
+    vkDestroyPipelineLayout(ctx_.device(), layout_, nullptr);
+}
+
+void ComputePipeline::dispatch(VkCommandBuffer cmd, VkDescriptorSet set, const void* push, uint32_t push_size,
+                               uint32_t groups_x) const {
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_);
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_, 0, 1, &set, 0, nullptr);
+    vkCmdPushConstants(cmd, layout_, kAllStages, 0, push_size, push);
+    vkCmdDispatch(cmd, groups_x, 1, 1);
+}
+
+}  // namespace px

@@ -1,0 +1,170 @@
+// BSDFs in a local shading frame (z = shading normal). Each returns f * |cos(theta_i)|
+// ("eval") and the solid-angle pdf of its sampler, so MIS can weigh any direction.
+//   diffuse     Lambert (two-sided)
+//   conductor   GGX microfacet, alpha = roughness^2, Fresnel = colour (Cycles Glossy BSDF),
+//               height-correlated Smith G2, visible-normal sampling (Heitz 2018)
+//   dielectric  smooth or rough GGX glass (Walter et al. 2007), colour tints both lobes
+
+const float DELTA_ALPHA = 1e-4;  // alpha below this: a perfect mirror / smooth glass
+
+struct Surface {
+    uint type;
+    vec3 albedo;  // base colour (x texture)
+    float alpha;  // GGX roughness
+    float eta;    // dielectric: IOR on the far side / IOR on the side of wo (after flip)
+};
+
+struct BsdfSample {
+    vec3 wi;
+    vec3 weight;  // f * |cos| / pdf
+    float pdf;    // 0 for delta lobes' pdf-free use; set to 1 with delta = true
+    bool delta;
+};
+
+bool surface_is_delta(Surface s) {
+    return s.type != MATERIAL_DIFFUSE && s.alpha < DELTA_ALPHA;
+}
+
+// ---- GGX ------------------------------------------------------------------------------
+float ggx_d(vec3 m, float alpha) {
+    float a2 = alpha * alpha;
+    float c2 = m.z * m.z;
+    return a2 / (PI * sqr(c2 * (a2 - 1.0) + 1.0));
+}
+
+float ggx_lambda(vec3 w, float alpha) {
+    float c2 = w.z * w.z;
+    if (c2 >= 1.0) return 0.0;
+    float tan2 = max(0.0, 1.0 - c2) / max(c2, 1e-12);
+    return 0.5 * (-1.0 + sqrt(1.0 + alpha * alpha * tan2));
+}
+
+float ggx_g1(vec3 w, float alpha) { return 1.0 / (1.0 + ggx_lambda(w, alpha)); }
+float ggx_g2(vec3 wo, vec3 wi, float alpha) { return 1.0 / (1.0 + ggx_lambda(wo, alpha) + ggx_lambda(wi, alpha)); }
+
+// Visible normal for wo.z > 0 (Heitz 2018, "Sampling the GGX Distribution of Visible Normals").
+vec3 ggx_sample_vndf(vec3 wo, float alpha, vec2 u) {
+    vec3 vh = normalize(vec3(alpha * wo.x, alpha * wo.y, wo.z));
+    float lensq = vh.x * vh.x + vh.y * vh.y;
+    vec3 t1 = lensq > 0.0 ? vec3(-vh.y, vh.x, 0.0) * inversesqrt(lensq) : vec3(1.0, 0.0, 0.0);
+    vec3 t2 = cross(vh, t1);
+    float r = sqrt(u.x);
+    float phi = 2.0 * PI * u.y;
+    float p1 = r * cos(phi);
+    float p2 = r * sin(phi);
+    float s = 0.5 * (1.0 + vh.z);
+    p2 = (1.0 - s) * sqrt(max(0.0, 1.0 - p1 * p1)) + s * p2;
+    vec3 nh = p1 * t1 + p2 * t2 + sqrt(max(0.0, 1.0 - p1 * p1 - p2 * p2)) * vh;
+    return normalize(vec3(alpha * nh.x, alpha * nh.y, max(1e-6, nh.z)));
+}
+
+// Density of the visible normal m seen from wo: G1(wo) max(0, wo.m) D(m) / wo.z.
+float ggx_vndf_pdf(vec3 wo, vec3 m, float alpha) {
+    return ggx_g1(wo, alpha) * max(0.0, dot(wo, m)) * ggx_d(m, alpha) / wo.z;
+}
+
+// Exact unpolarised Fresnel reflectance; eta = n_t / n_i, cos_i > 0.
+float fresnel_dielectric(float cos_i, float eta) {
+    float c = abs(cos_i);
+    float g2 = eta * eta - 1.0 + c * c;
+    if (g2 <= 0.0) return 1.0;  // total internal reflection
+    float g = sqrt(g2);
+    float a = (g - c) / (g + c);
+    float b = (c * (g + c) - 1.0) / (c * (g - c) + 1.0);
+    return 0.5 * a * a * (1.0 + b * b);
+}
+
+// ---- evaluation ----------------------------------------------------------------------
+// f(wo, wi) |wi.z| and the sampling pdf. wo.z > 0 is guaranteed by the caller.
+vec3 bsdf_eval(Surface s, vec3 wo, vec3 wi, out float pdf) {
+    pdf = 0.0;
+    if (s.type == MATERIAL_DIFFUSE) {
+        if (wi.z <= 0.0) return vec3(0.0);
+        pdf = wi.z * INV_PI;
+        return s.albedo * (wi.z * INV_PI);
+    }
+    if (s.type == MATERIAL_EMISSION || s.alpha < DELTA_ALPHA) return vec3(0.0);
+    if (s.type == MATERIAL_CONDUCTOR) {
+        if (wi.z <= 0.0) return vec3(0.0);
+        vec3 m = normalize(wo + wi);
+        float d = ggx_d(m, s.alpha);
+        pdf = ggx_g1(wo, s.alpha) * d / (4.0 * wo.z);
+        return s.albedo * (d * ggx_g2(wo, wi, s.alpha) / (4.0 * wo.z));
+    }
+    // rough dielectric
+    if (wi.z > 0.0) {
+        vec3 m = normalize(wo + wi);
+        float f = fresnel_dielectric(dot(wo, m), s.eta);
+        float d = ggx_d(m, s.alpha);
+        pdf = ggx_g1(wo, s.alpha) * d / (4.0 * wo.z) * f;
+        return s.albedo * (f * d * ggx_g2(wo, wi, s.alpha) / (4.0 * wo.z));
+    }
+    if (wi.z == 0.0) return vec3(0.0);
+    vec3 m = normalize(wo + s.eta * wi);  // generalized half vector (Walter et al. eq. 16)
+    if (m.z < 0.0) m = -m;
+    float wo_m = dot(wo, m), wi_m = dot(wi, m);
+    if (wo_m <= 0.0 || wi_m >= 0.0) return vec3(0.0);
+    float f = fresnel_dielectric(wo_m, s.eta);
+    float d = ggx_d(m, s.alpha);
+    float denom = sqr(wo_m + s.eta * wi_m);
+    float jacobian = s.eta * s.eta * abs(wi_m) / denom;  // d omega_m / d omega_i (eq. 17)
+    pdf = ggx_vndf_pdf(wo, m, s.alpha) * (1.0 - f) * jacobian;
+    // Walter eq. 21 times |wi.z|; no 1/eta^2 radiance scaling, as in Cycles.
+    return s.albedo * ((1.0 - f) * d * ggx_g2(wo, wi, s.alpha) * wo_m * jacobian / wo.z);
+}
+
+// ---- sampling ------------------------------------------------------------------------
+bool bsdf_sample(Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
+    bs.delta = false;
+    bs.pdf = 0.0;
+    bs.weight = vec3(0.0);
+    bs.wi = vec3(0.0, 0.0, 1.0);
+    if (s.type == MATERIAL_EMISSION) return false;
+    if (s.type == MATERIAL_DIFFUSE) {
+        bs.wi = cosine_hemisphere(u.xy);
+        bs.pdf = bs.wi.z * INV_PI;
+        bs.weight = s.albedo;
+        return bs.wi.z > 0.0;
+    }
+    if (s.type == MATERIAL_CONDUCTOR) {
+        if (s.alpha < DELTA_ALPHA) {
+            bs.wi = vec3(-wo.xy, wo.z);
+            bs.pdf = 1.0;
+            bs.delta = true;
+            bs.weight = s.albedo;
+            return true;
+        }
+        vec3 m = ggx_sample_vndf(wo, s.alpha, u.xy);
+        bs.wi = reflect(-wo, m);
+        if (bs.wi.z <= 0.0) return false;
+        bs.pdf = ggx_vndf_pdf(wo, m, s.alpha) / (4.0 * dot(wo, m));
+        bs.weight = s.albedo * (ggx_g2(wo, bs.wi, s.alpha) / ggx_g1(wo, s.alpha));
+        return true;
+    }
+    // dielectric
+    vec3 m = s.alpha < DELTA_ALPHA ? vec3(0.0, 0.0, 1.0) : ggx_sample_vndf(wo, s.alpha, u.xy);
+    float wo_m = dot(wo, m);
+    float f = fresnel_dielectric(wo_m, s.eta);
+    bool reflect_lobe = u.z < f;
+    if (reflect_lobe) {
+        bs.wi = reflect(-wo, m);
+        if (bs.wi.z <= 0.0) return false;
+    } else {
+        bs.wi = refract(-wo, m, 1.0 / s.eta);
+        if (bs.wi.z >= 0.0 || dot(bs.wi, bs.wi) == 0.0) return false;
+    }
+    if (s.alpha < DELTA_ALPHA) {
+        bs.delta = true;
+        bs.pdf = 1.0;
+        bs.weight = s.albedo;  // F / P(lobe) = 1
+        return true;
+    }
+    if (reflect_lobe) {
+        bs.pdf = ggx_vndf_pdf(wo, m, s.alpha) / (4.0 * wo_m) * f;
+    } else {
+        float wi_m = dot(bs.wi, m);
+        bs.pdf = ggx_vndf_pdf(wo, m, s.alpha) * (1.0 - f) * s.eta * s.eta * abs(wi_m) / sqr(wo_m + s.eta * wi_m);
+    }
+    bs.weight = s.albedo * (ggx_g2(wo, bs.wi, s.alpha) / ggx_g1(wo, s.alpha));
+    return true;
+}

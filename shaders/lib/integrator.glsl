@@ -1,0 +1,159 @@
+// The one configurable trace loop (DESIGN: "One configurable trace loop"). Unidirectional
+// path tracing with BSDF sampling (METHOD_PT), next event estimation (METHOD_NEE), or both
+// combined by MIS (METHOD_MIS, Veach 1997 ch. 9, multi-sample model with N light samples
+// and one BSDF sample per vertex).
+layout(constant_id = 0) const uint METHOD = METHOD_MIS;
+
+layout(set = 0, binding = BINDING_TLAS) uniform accelerationStructureEXT tlas;
+layout(location = 0) rayPayloadEXT HitPayload hit;
+layout(location = 1) rayPayloadEXT uint shadow_visible;
+
+struct PathOptions {
+    uint max_depth;       // non-discrete bounces; emission one segment further still counts
+    uint depth_leeway;    // discrete (delta) bounces that do not count towards max_depth
+    uint rr_start_depth;  // Russian roulette from this bounce on (0: never)
+    uint light_samples;   // NEE samples per vertex
+};
+
+struct PathResult {
+    vec3 radiance;
+    float first_t;      // distance to the first hit (INFINITY_F: none)
+    vec3 first_normal;  // shading normal of the first hit
+    vec3 albedo;        // at the first non-delta vertex, through delta vertices
+    uint segments;      // ray segments traced (camera ray included)
+    uint rays;          // all rays traced (shadow rays included)
+};
+
+bool trace_shadow(vec3 origin, vec3 dir, float t_max) {
+    shadow_visible = 0u;
+    traceRayEXT(tlas, gl_RayFlagsOpaqueEXT | gl_RayFlagsTerminateOnFirstHitEXT | gl_RayFlagsSkipClosestHitShaderEXT,
+                0xff, 0, 0, 1, origin, 0.0, dir, t_max, 1);
+    return shadow_visible != 0u;
+}
+
+// Weight of emission found by a ray that left a vertex by BSDF sampling (pdf prev_pdf, or
+// delta / a camera ray) and hit an emitter that NEE samples with density light_pdf.
+float emission_weight(bool prev_delta, float prev_pdf, float light_pdf, uint light_samples) {
+    if (METHOD == METHOD_PT || prev_delta) return 1.0;
+    if (METHOD == METHOD_NEE) return 0.0;
+    return mis_weight(prev_pdf, float(light_samples) * light_pdf);
+}
+
+PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptions opt, inout uint rng) {
+    PathResult res;
+    res.radiance = vec3(0.0);
+    res.first_t = INFINITY_F;
+    res.first_normal = vec3(0.0);
+    res.albedo = vec3(0.0);
+    res.segments = 0u;
+    res.rays = 0u;
+    vec3 throughput = vec3(1.0);
+    vec3 albedo_throughput = vec3(1.0);
+    bool albedo_done = false;
+    bool prev_delta = true;  // the camera ray counts as delta: nothing to weigh it against
+    float prev_pdf = 0.0;
+    uint bounces = 0u, discrete = 0u;
+
+    for (;;) {
+        traceRayEXT(tlas, gl_RayFlagsOpaqueEXT, 0xff, 0, 0, 0, origin, t_min, dir, t_max, 0);
+        res.rays++;
+        res.segments++;
+        float t_surface = hit.t < 0.0 ? t_max : hit.t;
+
+        // Analytic lights are not in the TLAS: test them against this segment.
+        float t_light, light_pdf;
+        vec3 light_radiance;
+        if (intersect_analytic_lights(origin, dir, t_surface, t_light, light_radiance, light_pdf) != NO_INDEX) {
+            res.radiance += throughput * light_radiance * emission_weight(prev_delta, prev_pdf, light_pdf, opt.light_samples);
+            if (res.segments == 1u) res.first_t = t_light;
+            break;
+        }
+        if (hit.t < 0.0) {
+            vec3 le = distant_radiance(dir, light_pdf);
+            res.radiance += throughput * le * emission_weight(prev_delta, prev_pdf, light_pdf, opt.light_samples);
+            break;
+        }
+
+        SurfaceHit sh = fetch_surface(hit.instance, hit.primitive, hit.barycentrics);
+        Material mat = materials[sh.material];
+        vec3 wo = -dir;
+        if (res.segments == 1u) {
+            res.first_t = hit.t;
+            res.first_normal = dot(sh.ns, wo) >= 0.0 ? sh.ns : -sh.ns;
+        }
+        if (max3(mat.emission) > 0.0) {
+            float lp = 0.0;
+            if (METHOD == METHOD_MIS && !prev_delta) {
+                uint light = instances[sh.instance].light_offset + sh.primitive;
+                lp = triangle_light_pdf(light, hit.t, dot(sh.ng, dir));
+            }
+            res.radiance += throughput * mat.emission * emission_weight(prev_delta, prev_pdf, lp, opt.light_samples);
+        }
+        if (mat.type == MATERIAL_EMISSION || bounces > opt.max_depth) break;
+
+        // Shading frame. Reflective materials are two-sided: face the normals towards wo.
+        // Glass keeps the geometric side to know whether the ray enters or leaves.
+        bool front = dot(sh.ng, wo) > 0.0;
+        vec3 ng = front ? sh.ng : -sh.ng;
+        vec3 ns = front ? sh.ns : -sh.ns;
+        if (dot(ns, wo) <= 1e-6) ns = ng;  // shading normal facing away from the viewer
+        Surface surf;
+        surf.type = mat.type;
+        surf.albedo = material_albedo(mat, sh.uv);
+        surf.alpha = mat.roughness * mat.roughness;
+        surf.eta = front ? mat.ior : 1.0 / mat.ior;
+        vec3 tangent, bitangent;
+        make_basis(ns, tangent, bitangent);
+        vec3 wo_local = vec3(dot(wo, tangent), dot(wo, bitangent), dot(wo, ns));
+        bool delta = surface_is_delta(surf);
+        if (!albedo_done && !delta) {
+            res.albedo = albedo_throughput * surf.albedo;
+            albedo_done = true;
+        }
+
+        // Next event estimation (Veach 1997 eq. 9.8 / 9.13 weights for MIS).
+        if (METHOD != METHOD_PT && !delta) {
+            for (uint k = 0u; k < opt.light_samples; ++k) {
+                LightSample ls;
+                vec3 u = vec3(rnd(rng), rnd(rng), rnd(rng));
+                if (!sample_light(sh.p, u, ls)) continue;
+                vec3 wi_local = vec3(dot(ls.wi, tangent), dot(ls.wi, bitangent), dot(ls.wi, ns));
+                float bsdf_pdf;
+                vec3 f = bsdf_eval(surf, wo_local, wi_local, bsdf_pdf);
+                if (max3(f) <= 0.0 || max3(ls.radiance) <= 0.0) continue;
+                vec3 shadow_origin = offset_ray(sh.p, dot(ls.wi, ng) > 0.0 ? ng : -ng);
+                float shadow_t = ls.dist >= INFINITY_F ? INFINITY_F : ls.dist * (1.0 - 1e-4);
+                res.rays++;
+                if (!trace_shadow(shadow_origin, ls.wi, shadow_t)) continue;
+                float w = (METHOD == METHOD_MIS && !ls.delta) ? mis_weight(float(opt.light_samples) * ls.pdf, bsdf_pdf) : 1.0;
+                res.radiance += throughput * f * ls.radiance * (w / (ls.pdf * float(opt.light_samples)));
+            }
+        }
+
+        // Continue the path by sampling the BSDF.
+        BsdfSample bs;
+        if (!bsdf_sample(surf, wo_local, vec3(rnd(rng), rnd(rng), rnd(rng)), bs)) break;
+        throughput *= bs.weight;
+        if (bs.delta) {
+            discrete++;
+            if (discrete > opt.depth_leeway) bounces++;
+            if (!albedo_done) albedo_throughput *= bs.weight;
+        } else {
+            bounces++;
+        }
+        prev_delta = bs.delta;
+        prev_pdf = bs.pdf;
+        dir = normalize(bs.wi.x * tangent + bs.wi.y * bitangent + bs.wi.z * ns);
+        origin = offset_ray(sh.p, dot(dir, ng) > 0.0 ? ng : -ng);
+        t_min = 0.0;
+        t_max = INFINITY_F;
+        if (max3(throughput) <= 0.0) break;
+        // Russian roulette on the throughput (survival probability max(throughput), at most 1).
+        if (opt.rr_start_depth > 0u && bounces >= opt.rr_start_depth) {
+            float survive = min(1.0, max3(throughput));
+            if (rnd(rng) >= survive) break;
+            throughput /= survive;
+        }
+    }
+    return res;
+}

@@ -1,0 +1,246 @@
+// Light sampling for next event estimation, and the matching densities for MIS when a
+// BSDF-sampled ray hits a light. A light is chosen from light_cdf (weights ~ emitted
+// power); emissive triangles are sampled uniformly by area, spheres uniformly within the
+// cone they subtend, rectangles/disks by area, the sun within its cone, the environment
+// map by its luminance * sin(theta) table. All pdfs are per solid angle and include the
+// selection probability; delta lights report pdf = selection probability.
+
+struct LightSample {
+    vec3 wi;
+    float dist;       // to the sampled point (INFINITY_F for distant lights)
+    vec3 radiance;    // arriving radiance (delta lights: irradiance-like, already / d^2)
+    float pdf;
+    bool delta;
+};
+
+float light_select_pdf(uint index) { return light_cdf[index + 1u] - light_cdf[index]; }
+
+// Cycles' spot cone: smoothstep over the blend region, no extra cosine (Cycles >= 4.0).
+float spot_attenuation(Light l, vec3 from_light) {
+    float c = dot(from_light, l.direction);
+    if (l.spot_smooth <= 0.0) return c > l.cos_half_angle ? 1.0 : 0.0;
+    return smoothstep(0.0, 1.0, (c - l.cos_half_angle) / l.spot_smooth);
+}
+
+// ---- environment ----------------------------------------------------------------------
+// Blender's equirectangular mapping: u = 0.5 - atan2(y, x) / 2pi, v = 0.5 + asin(z) / pi;
+// texel row 0 is the top (v = 1).
+vec2 env_direction_to_uv(vec3 d) {
+    return vec2(0.5 - atan(d.y, d.x) * (0.5 * INV_PI), 0.5 + asin(clamp(d.z, -1.0, 1.0)) * INV_PI);
+}
+
+uvec2 env_texel(vec2 uv) {
+    uint col = min(uint(uv.x * float(scene.env_width)), scene.env_width - 1u);
+    uint row = min(uint((1.0 - uv.y) * float(scene.env_height)), scene.env_height - 1u);
+    return uvec2(col, row);
+}
+
+vec3 env_radiance(vec3 d) {
+    if (scene.env_width == 0u) return scene.env_color;
+    uvec2 t = env_texel(env_direction_to_uv(d));
+    return env_texels[t.y * scene.env_width + t.x];
+}
+
+// Solid-angle pdf of sampling direction d from the environment (selection excluded).
+float env_pdf(vec3 d) {
+    if (scene.env_width == 0u) return 1.0 / (4.0 * PI);
+    if (scene.env_total <= 0.0) return 0.0;
+    uvec2 t = env_texel(env_direction_to_uv(d));
+    uint w = scene.env_width, h = scene.env_height;
+    float sin_theta = sqrt(max(0.0, 1.0 - d.z * d.z));
+    if (sin_theta <= 0.0) return 0.0;
+    float p_row = env_marginal[t.y + 1u] - env_marginal[t.y];
+    float p_col = env_conditional[t.y * (w + 1u) + t.x + 1u] - env_conditional[t.y * (w + 1u) + t.x];
+    return p_row * p_col * float(w * h) / (2.0 * PI * PI * sin_theta);
+}
+
+vec3 env_sample(vec2 u, out float pdf) {
+    if (scene.env_width == 0u) {
+        pdf = 1.0 / (4.0 * PI);
+        return uniform_sphere(u);
+    }
+    uint w = scene.env_width, h = scene.env_height;
+    uint row = sample_env_marginal(0u, h, u.y);
+    float p_row = env_marginal[row + 1u] - env_marginal[row];
+    float v_in = clamp((u.y - env_marginal[row]) / max(p_row, 1e-20), 0.0, 0.99999994);
+    uint col = sample_env_conditional(row * (w + 1u), w, u.x);
+    float c0 = env_conditional[row * (w + 1u) + col], c1 = env_conditional[row * (w + 1u) + col + 1u];
+    float u_in = clamp((u.x - c0) / max(c1 - c0, 1e-20), 0.0, 0.99999994);
+    float uu = (float(col) + u_in) / float(w);
+    float vv = 1.0 - (float(row) + v_in) / float(h);
+    float phi = 2.0 * PI * (0.5 - uu);
+    float theta = PI * (1.0 - vv);
+    float sin_theta = sin(theta);
+    vec3 d = vec3(sin_theta * cos(phi), sin_theta * sin(phi), cos(theta));
+    pdf = sin_theta > 0.0 ? p_row * (c1 - c0) * float(w * h) / (2.0 * PI * PI * sin_theta) : 0.0;
+    return d;
+}
+
+// ---- sampling -------------------------------------------------------------------------
+bool sample_one_light(uint index, vec3 p, vec2 u, out LightSample ls) {
+    Light l = lights[index];
+    ls.delta = false;
+    ls.dist = INFINITY_F;
+    ls.radiance = vec3(0.0);
+    ls.pdf = 0.0;
+    ls.wi = vec3(0.0, 0.0, 1.0);
+    if (l.type == LIGHT_TRIANGLE) {
+        float su = sqrt(u.x);
+        vec3 q = l.position + (1.0 - su) * l.axis_u + (u.y * su) * l.axis_v;
+        vec3 to = q - p;
+        float d2 = dot(to, to);
+        ls.dist = sqrt(d2);
+        ls.wi = to / ls.dist;
+        float cos_l = abs(dot(l.direction, ls.wi));  // emits from both sides
+        if (cos_l <= 0.0 || l.area <= 0.0) return false;
+        ls.pdf = d2 / (l.area * cos_l);
+        ls.radiance = l.radiance;
+        return true;
+    }
+    if (l.type == LIGHT_SPHERE || l.type == LIGHT_SPOT) {
+        vec3 to = l.position - p;
+        float d2 = dot(to, to);
+        float d = sqrt(d2);
+        vec3 axis = to / d;
+        float att = l.type == LIGHT_SPOT ? spot_attenuation(l, -axis) : 1.0;
+        if (att <= 0.0) return false;
+        if (l.radius <= 0.0) {  // point light: delta, radiance field holds the intensity
+            ls.wi = axis;
+            ls.dist = d;
+            ls.radiance = l.radiance * att / d2;
+            ls.pdf = 1.0;
+            ls.delta = true;
+            return true;
+        }
+        float r2 = l.radius * l.radius;
+        if (d2 <= r2) return false;  // inside the light
+        float omc = one_minus_cos_from_sin2(r2 / d2);
+        vec3 t, b;
+        make_basis(axis, t, b);
+        vec3 local = uniform_cone(u, omc);
+        ls.wi = normalize(local.x * t + local.y * b + local.z * axis);
+        // distance to the near intersection with the sphere
+        float proj = dot(to, ls.wi);
+        float disc = r2 - (d2 - proj * proj);
+        ls.dist = proj - sqrt(max(0.0, disc));
+        ls.pdf = 1.0 / (2.0 * PI * omc);
+        ls.radiance = l.radiance * att;
+        return true;
+    }
+    if (l.type == LIGHT_SUN) {
+        if (l.cos_half_angle >= 1.0) {
+            ls.wi = l.direction;
+            ls.radiance = l.radiance;
+            ls.pdf = 1.0;
+            ls.delta = true;
+            return true;
+        }
+        vec3 t, b;
+        make_basis(l.direction, t, b);
+        float omc = 1.0 - l.cos_half_angle;
+        vec3 local = uniform_cone(u, omc);
+        ls.wi = normalize(local.x * t + local.y * b + local.z * l.direction);
+        ls.pdf = 1.0 / (2.0 * PI * omc);
+        ls.radiance = l.radiance;
+        return true;
+    }
+    if (l.type == LIGHT_RECT || l.type == LIGHT_DISK) {
+        vec2 o = l.type == LIGHT_RECT ? u - 0.5 : 0.5 * concentric_disk(u);
+        vec3 q = l.position + o.x * l.axis_u + o.y * l.axis_v;
+        vec3 to = q - p;
+        float d2 = dot(to, to);
+        ls.dist = sqrt(d2);
+        ls.wi = to / ls.dist;
+        float cos_l = -dot(l.direction, ls.wi);  // one-sided: emits along direction
+        if (cos_l <= 0.0 || l.area <= 0.0) return false;
+        ls.pdf = d2 / (l.area * cos_l);
+        ls.radiance = l.radiance;
+        return true;
+    }
+    // environment
+    ls.wi = env_sample(u, ls.pdf);
+    ls.radiance = env_radiance(ls.wi);
+    return ls.pdf > 0.0;
+}
+
+// Picks a light by power and samples it; ls.pdf includes the selection probability.
+bool sample_light(vec3 p, vec3 u, out LightSample ls) {
+    if (scene.light_count == 0u) return false;
+    uint index = sample_light_cdf(0u, scene.light_count, u.z);
+    float select = light_select_pdf(index);
+    if (select <= 0.0 || !sample_one_light(index, p, u.xy, ls)) return false;
+    ls.pdf *= select;
+    return ls.pdf > 0.0;
+}
+
+// ---- BSDF rays hitting lights ---------------------------------------------------------
+// Density with which sample_light would have produced the direction that hit triangle
+// light `index` at distance t with cosine cos_l at the light.
+float triangle_light_pdf(uint index, float t, float cos_l) {
+    Light l = lights[index];
+    return light_select_pdf(index) * t * t / (l.area * max(abs(cos_l), 1e-8));
+}
+
+// Nearest analytic light (sphere, spot, rect, disk) along the ray within t_max.
+// Returns its index or NO_INDEX; t_hit, radiance and pdf (incl. selection) as seen from o.
+uint intersect_analytic_lights(vec3 o, vec3 d, float t_max, out float t_hit, out vec3 radiance, out float pdf) {
+    uint found = NO_INDEX;
+    t_hit = t_max;
+    radiance = vec3(0.0);
+    pdf = 0.0;
+    for (uint i = scene.analytic_first; i < scene.analytic_first + scene.analytic_count; ++i) {
+        Light l = lights[i];
+        if (l.type == LIGHT_SPHERE || l.type == LIGHT_SPOT) {
+            if (l.radius <= 0.0) continue;
+            vec3 oc = o - l.position;
+            float b = dot(oc, d);
+            float c = dot(oc, oc) - l.radius * l.radius;
+            if (c <= 0.0) continue;  // origin inside: ignore
+            float disc = b * b - c;
+            if (disc < 0.0) continue;
+            float t = -b - sqrt(disc);
+            if (t <= 0.0 || t >= t_hit) continue;
+            float att = l.type == LIGHT_SPOT ? spot_attenuation(l, normalize(-oc)) : 1.0;
+            t_hit = t;
+            found = i;
+            radiance = l.radiance * att;
+            float omc = one_minus_cos_from_sin2(l.radius * l.radius / dot(oc, oc));
+            pdf = light_select_pdf(i) / (2.0 * PI * omc);
+        } else if (l.type == LIGHT_RECT || l.type == LIGHT_DISK) {
+            float denom = dot(d, l.direction);
+            if (denom >= 0.0) continue;  // back side or parallel: invisible
+            float t = dot(l.position - o, l.direction) / denom;
+            if (t <= 0.0 || t >= t_hit) continue;
+            vec3 q = o + t * d - l.position;
+            float su = dot(q, l.axis_u) / dot(l.axis_u, l.axis_u);
+            float sv = dot(q, l.axis_v) / dot(l.axis_v, l.axis_v);
+            bool inside = l.type == LIGHT_RECT ? (abs(su) <= 0.5 && abs(sv) <= 0.5) : (su * su + sv * sv <= 0.25);
+            if (!inside) continue;
+            t_hit = t;
+            found = i;
+            radiance = l.radiance;
+            pdf = light_select_pdf(i) * t * t / (l.area * -denom);
+        }
+    }
+    return found;
+}
+
+// Radiance and MIS pdf (incl. selection) of everything at infinity in direction d:
+// the environment plus any sun disc containing d.
+vec3 distant_radiance(vec3 d, out float pdf) {
+    vec3 radiance = vec3(0.0);
+    pdf = 0.0;
+    if (scene.env_light != NO_INDEX) {
+        radiance += env_radiance(d);
+        pdf += light_select_pdf(scene.env_light) * env_pdf(d);
+    }
+    for (uint i = scene.analytic_first; i < scene.analytic_first + scene.analytic_count; ++i) {
+        Light l = lights[i];
+        if (l.type != LIGHT_SUN || l.cos_half_angle >= 1.0) continue;
+        if (dot(d, l.direction) >= l.cos_half_angle) {
+            radiance += l.radiance;
+            pdf += light_select_pdf(i) / (2.0 * PI * (1.0 - l.cos_half_angle));
+        }
+    }
+    return radiance;
+}

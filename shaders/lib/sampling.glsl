@@ -1,0 +1,55 @@
+// Warps from [0,1)^2 to directions and points, with their densities.
+
+vec2 concentric_disk(vec2 u) {  // Shirley & Chiu 1997, unit disk
+    vec2 o = 2.0 * u - 1.0;
+    if (o.x == 0.0 && o.y == 0.0) return vec2(0.0);
+    float r, theta;
+    if (abs(o.x) > abs(o.y)) {
+        r = o.x;
+        theta = (PI / 4.0) * (o.y / o.x);
+    } else {
+        r = o.y;
+        theta = (PI / 2.0) - (PI / 4.0) * (o.x / o.y);
+    }
+    return r * vec2(cos(theta), sin(theta));
+}
+
+vec3 cosine_hemisphere(vec2 u) {  // pdf = cos(theta) / pi
+    vec2 d = concentric_disk(u);
+    return vec3(d, sqrt(max(0.0, 1.0 - dot(d, d))));
+}
+
+vec3 uniform_sphere(vec2 u) {  // pdf = 1 / (4 pi)
+    float z = 1.0 - 2.0 * u.x;
+    float r = sqrt(max(0.0, 1.0 - z * z));
+    float phi = 2.0 * PI * u.y;
+    return vec3(r * cos(phi), r * sin(phi), z);
+}
+
+// 1 - cos(theta_max) from sin^2(theta_max), accurate for tiny cones.
+float one_minus_cos_from_sin2(float sin2) {
+    return sin2 < 1e-3 ? 0.5 * sin2 + 0.125 * sin2 * sin2 : 1.0 - sqrt(max(0.0, 1.0 - sin2));
+}
+
+// Uniform direction in the cone around +z with 1 - cos(theta_max) = omc; pdf = 1 / (2 pi omc).
+vec3 uniform_cone(vec2 u, float omc) {
+    float one_minus_cos = u.x * omc;
+    float cos_t = 1.0 - one_minus_cos;
+    float sin_t = sqrt(max(0.0, one_minus_cos * (2.0 - one_minus_cos)));
+    float phi = 2.0 * PI * u.y;
+    return vec3(sin_t * cos(phi), sin_t * sin(phi), cos_t);
+}
+
+// Index i with cdf[i] <= u < cdf[i+1] in cdf[first .. first+count], cdf[first] = 0.
+#define PX_SAMPLE_CDF(NAME, ARRAY)                              \
+    uint NAME(uint first, uint count, float u) {                \
+        uint lo = 0u, hi = count;                               \
+        while (hi - lo > 1u) {                                  \
+            uint mid = (lo + hi) >> 1;                          \
+            if (ARRAY[first + mid] <= u) lo = mid; else hi = mid; \
+        }                                                       \
+        return lo;                                              \
+    }
+PX_SAMPLE_CDF(sample_light_cdf, light_cdf)
+PX_SAMPLE_CDF(sample_env_marginal, env_marginal)
+PX_SAMPLE_CDF(sample_env_conditional, env_conditional)

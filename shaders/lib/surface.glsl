@@ -1,0 +1,67 @@
+// Reconstructs the surface at a hit: position, normals, uv, material, texture.
+
+struct SurfaceHit {
+    vec3 p;
+    vec3 ng;  // geometric normal, unit, world space (winding order side)
+    vec3 ns;  // shading normal, unit, on the same side as ng
+    vec2 uv;
+    uint material;
+    uint instance;
+    uint primitive;
+};
+
+SurfaceHit fetch_surface(uint instance_index, uint primitive, vec2 bary) {
+    SurfaceHit h;
+    InstanceInfo inst = instances[instance_index];
+    MeshInfo mesh = meshes[inst.mesh];
+    uint tri = mesh.first_triangle + primitive;
+    uvec3 idx = indices[tri];
+    vec3 p0 = positions[idx.x], p1 = positions[idx.y], p2 = positions[idx.z];
+    vec3 b = vec3(1.0 - bary.x - bary.y, bary.x, bary.y);
+    h.p = transform_point(inst.object_to_world, b.x * p0 + b.y * p1 + b.z * p2);
+    vec3 ng_obj = cross(p1 - p0, p2 - p0);
+    h.ng = normalize(transform_vector(inst.normal_to_world, ng_obj));
+    h.ns = h.ng;
+    if (mesh.has_normals != 0u) {
+        vec3 n = b.x * corner_normals[3u * tri] + b.y * corner_normals[3u * tri + 1u] + b.z * corner_normals[3u * tri + 2u];
+        n = transform_vector(inst.normal_to_world, n);
+        if (dot(n, n) > 1e-12) {
+            n = normalize(n);
+            h.ns = dot(n, h.ng) >= 0.0 ? n : -n;
+        }
+    }
+    h.uv = vec2(0.0);
+    if (mesh.has_uvs != 0u)
+        h.uv = b.x * corner_uvs[3u * tri] + b.y * corner_uvs[3u * tri + 1u] + b.z * corner_uvs[3u * tri + 2u];
+    h.material = triangle_material[tri];
+    h.instance = instance_index;
+    h.primitive = primitive;
+    return h;
+}
+
+vec3 srgb_to_linear(vec3 c) {
+    return mix(c / 12.92, pow((c + 0.055) / 1.055, vec3(2.4)), step(vec3(0.04045), c));
+}
+
+vec3 texel_linear(TextureInfo t, uint x, uint y) {
+    return srgb_to_linear(unpackUnorm4x8(texels[t.offset + y * t.width + x]).rgb);
+}
+
+// Bilinear lookup with repeat wrapping; v = 1 is the top row (row 0), as in Blender.
+vec3 sample_texture(int index, vec2 uv) {
+    TextureInfo t = textures[index];
+    float x = fract(uv.x) * float(t.width) - 0.5;
+    float y = (1.0 - fract(uv.y)) * float(t.height) - 0.5;
+    float fx = floor(x), fy = floor(y);
+    vec2 f = vec2(x - fx, y - fy);
+    uint x0 = uint(int(fx) + int(t.width)) % t.width, x1 = (x0 + 1u) % t.width;
+    uint y0 = uint(int(fy) + int(t.height)) % t.height, y1 = (y0 + 1u) % t.height;
+    return mix(mix(texel_linear(t, x0, y0), texel_linear(t, x1, y0), f.x),
+               mix(texel_linear(t, x0, y1), texel_linear(t, x1, y1), f.x), f.y);
+}
+
+vec3 material_albedo(Material m, vec2 uv) {
+    vec3 c = m.base_color;
+    if (m.base_color_texture >= 0) c *= sample_texture(m.base_color_texture, uv);
+    return c;
+}

@@ -1,0 +1,169 @@
+// Every struct, binding index and constant that crosses the host/device boundary.
+// Polyglot: compiled by C++17 (host) and by glslang (GLSL 460). All buffers use the
+// scalar block layout (GL_EXT_scalar_block_layout), so a C++ struct of 4-byte scalars
+// has exactly the layout the shaders see: no vec3 padding rules to remember.
+#ifndef PARALLAX_SHARED_TYPES_H
+#define PARALLAX_SHARED_TYPES_H
+
+#ifdef __cplusplus
+#include <cstdint>
+namespace px {
+using uint = uint32_t;
+struct vec2 { float x, y; };
+struct vec3 { float x, y, z; };
+struct vec4 { float x, y, z, w; };
+struct uvec3 { uint x, y, z; };
+#define PX_CONST static constexpr
+#else
+#define PX_CONST const
+#endif
+
+// ---- descriptor set 0 bindings -------------------------------------------------------
+PX_CONST uint BINDING_TLAS = 0;
+PX_CONST uint BINDING_FILM = 1;            // vec4 film[PASS_COUNT][width*height] sums
+PX_CONST uint BINDING_RAY_COUNT = 2;       // uint per pixel, rays traced (all frames)
+PX_CONST uint BINDING_POSITIONS = 3;       // vec3 per vertex (all meshes)
+PX_CONST uint BINDING_INDICES = 4;         // uvec3 per triangle, global vertex indices
+PX_CONST uint BINDING_CORNER_NORMALS = 5;  // vec3 [3] per triangle (meshes with normals)
+PX_CONST uint BINDING_CORNER_UVS = 6;      // vec2 [3] per triangle (meshes with UVs)
+PX_CONST uint BINDING_TRIANGLE_MATERIAL = 7;
+PX_CONST uint BINDING_MESHES = 8;          // MeshInfo
+PX_CONST uint BINDING_INSTANCES = 9;       // InstanceInfo, indexed by gl_InstanceCustomIndexEXT
+PX_CONST uint BINDING_MATERIALS = 10;      // Material
+PX_CONST uint BINDING_TEXTURE_INFO = 11;   // TextureInfo
+PX_CONST uint BINDING_TEXELS = 12;         // uint RGBA8 sRGB texels, all textures
+PX_CONST uint BINDING_LIGHTS = 13;         // Light
+PX_CONST uint BINDING_LIGHT_CDF = 14;      // float[light_count + 1], selection by power
+PX_CONST uint BINDING_ENV_TEXELS = 15;     // vec3 linear radiance, row 0 = top (zenith)
+PX_CONST uint BINDING_ENV_MARGINAL = 16;   // float[env_height + 1]
+PX_CONST uint BINDING_ENV_CONDITIONAL = 17;// float[env_height * (env_width + 1)]
+PX_CONST uint BINDING_SCENE = 18;          // SceneInfo (uniform-like, one element)
+PX_CONST uint BINDING_TEST_IO = 19;        // sampling test shader: vec4 in/out
+PX_CONST uint BINDING_COUNT = 20;
+
+// ---- film passes ------------------------------------------------------------------------
+PX_CONST uint PASS_COMBINED = 0;   // rgb radiance, a = 1
+PX_CONST uint PASS_DEPTH = 1;      // x = z-depth along the camera axis (1e10 on a miss)
+PX_CONST uint PASS_NORMAL = 2;     // xyz = world shading normal of the first hit
+PX_CONST uint PASS_ALBEDO = 3;     // rgb = albedo at the first non-specular vertex
+PX_CONST uint PASS_RAY_DEPTH = 4;  // x = number of path segments traced
+PX_CONST uint PASS_COUNT = 5;
+
+// ---- enums ------------------------------------------------------------------------------
+PX_CONST uint METHOD_PT = 0;   // BSDF sampling only
+PX_CONST uint METHOD_NEE = 1;  // next event estimation, emission only via camera/specular
+PX_CONST uint METHOD_MIS = 2;  // NEE + BSDF sampling combined by MIS (Veach 1997)
+
+PX_CONST uint HEURISTIC_BALANCE = 0;
+PX_CONST uint HEURISTIC_POWER = 1;
+
+PX_CONST uint MATERIAL_DIFFUSE = 0;     // Lambert, two-sided
+PX_CONST uint MATERIAL_CONDUCTOR = 1;   // GGX, colour = reflectance (Cycles Glossy BSDF)
+PX_CONST uint MATERIAL_DIELECTRIC = 2;  // smooth or rough GGX glass (Cycles Glass BSDF)
+PX_CONST uint MATERIAL_EMISSION = 3;    // emits only, no scattering (Cycles Emission)
+
+PX_CONST uint LIGHT_TRIANGLE = 0;  // emissive mesh triangle, world-space vertices
+PX_CONST uint LIGHT_SPHERE = 1;    // point light, radius 0 = delta
+PX_CONST uint LIGHT_SPOT = 2;      // sphere light with cone falloff
+PX_CONST uint LIGHT_SUN = 3;       // distant light, cone of half-angle sun_angle/2
+PX_CONST uint LIGHT_RECT = 4;      // area light: position ± axis_u/2 ± axis_v/2
+PX_CONST uint LIGHT_DISK = 5;      // area light: ellipse with half-axes axis_u/2, axis_v/2
+PX_CONST uint LIGHT_ENV = 6;       // the world (constant or map), at most one
+
+PX_CONST uint CAMERA_PERSPECTIVE = 0;
+PX_CONST uint CAMERA_ORTHOGRAPHIC = 1;
+
+PX_CONST uint NO_INDEX = 0xffffffffu;
+
+// ---- scene records --------------------------------------------------------------------
+struct MeshInfo {
+    uint first_triangle;
+    uint triangle_count;
+    uint has_normals;  // corner normals at the same triangle index
+    uint has_uvs;      // corner uvs at the same triangle index
+};
+
+struct InstanceInfo {
+    vec4 object_to_world[3];  // rows of a 3x4 matrix
+    vec4 normal_to_world[3];  // rows of the inverse transpose (3x3 used)
+    uint mesh;
+    uint light_offset;  // index of this instance's first triangle light, or NO_INDEX
+    uint pad0, pad1;
+};
+
+struct Material {
+    vec3 base_color;
+    float roughness;  // Cycles roughness; alpha = roughness^2
+    vec3 emission;    // radiance: colour * strength
+    float ior;
+    uint type;
+    int base_color_texture;  // -1: none
+    float pad0, pad1;
+};
+
+struct TextureInfo {
+    uint offset;  // first texel in the texel buffer
+    uint width;
+    uint height;
+    uint pad0;
+};
+
+// One light. Radiometric quantities are already converted from Cycles' units to radiance
+// (sphere, spot, rect, disk, triangle, env) or irradiance-derived radiance (sun).
+struct Light {
+    vec3 position;   // sphere/spot/rect/disk centre; triangle vertex 0
+    uint type;
+    vec3 radiance;   // emitted radiance (sun: radiance of its disc)
+    float radius;    // sphere/spot radius
+    vec3 direction;  // spot axis / rect+disk normal (emitting side) / direction *to* the sun
+    float cos_half_angle;  // spot: cos(spot_size/2); sun: cos(angle/2)
+    vec3 axis_u;     // rect/disk full extent along u; triangle edge p1 - p0
+    float spot_smooth;     // spot: (1 - cos_half_angle) * blend (Cycles' smoothstep width)
+    vec3 axis_v;     // rect/disk full extent along v; triangle edge p2 - p0
+    float area;      // rect/disk/triangle area
+};
+
+struct SceneInfo {
+    vec4 camera_to_world[3];  // rows; camera looks down -Z with +Y up (Blender)
+    vec4 camera_window;       // left, right, bottom, top at distance 1 (persp) or world (ortho)
+    vec2 clip;                // clip start, clip end
+    uint camera_type;
+    uint light_count;         // entries in the light table (env included)
+    vec3 env_color;           // constant world radiance (used when env_width == 0)
+    uint env_light;           // index of the env entry in the light table, or NO_INDEX
+    uint env_width;
+    uint env_height;
+    float env_total;          // sum of the env map luminance * sin(theta) weights
+    uint analytic_first;      // analytic lights (sphere..disk) are contiguous in the table
+    uint analytic_count;
+    vec3 scene_center;        // bounding sphere of the geometry (sun/env sampling)
+    float scene_radius;
+};
+
+// Per-frame parameters (push constants).
+struct FrameParams {
+    uint width;
+    uint height;
+    uint frame;             // frame index since the last reset
+    uint seed;
+    uint samples_per_frame;
+    uint max_depth;         // path segments after the camera ray that count towards the limit
+    uint depth_leeway;      // extra segments allowed after discrete (specular) bounces
+    uint rr_start_depth;    // Russian roulette from this depth on (0: off)
+    uint light_samples;     // NEE light samples per vertex
+    uint test_routine;      // sampling test shader only
+    uint test_count;
+    float test_param0;
+    vec4 test_params;
+};
+
+// Sampling test routines (shaders/tests/sampling_test.comp).
+PX_CONST uint TEST_DIFFUSE = 0;
+PX_CONST uint TEST_CONDUCTOR = 1;
+PX_CONST uint TEST_DIELECTRIC = 2;
+PX_CONST uint TEST_LIGHT = 3;   // light sampling from a shading point (all lights)
+
+#ifdef __cplusplus
+}  // namespace px
+#endif
+#endif

@@ -1,0 +1,102 @@
+#version 460
+#extension GL_GOOGLE_include_directive : require
+// Runs one sampling routine of the real shader library many times so tests can compare
+// sampled directions against the routine's own pdf (chi-square, tests/unit).
+//   routine < TEST_EVAL: sample.  io[2i] = (wi, pdf), io[2i+1] = (weight.x, eval.x, eval pdf, ok)
+//   routine >= TEST_EVAL: evaluate at io[2i].xyz. io[2i+1] = (f cos .x, pdf, 0, 0)
+// BSDFs: test_params = (wo, roughness), test_param0 = ior, albedo 1.
+// Lights: test_params.xyz = shading point; sampling includes light selection.
+#include "../lib/common.glsl"
+#include "../lib/rng.glsl"
+#include "../lib/sampling.glsl"
+#include "../lib/bsdf.glsl"
+#include "../lib/lights.glsl"
+
+layout(local_size_x = 64) in;
+layout(set = 0, binding = BINDING_TEST_IO, scalar) buffer TestIo { vec4 io[]; };
+
+const uint TEST_EVAL = 16u;
+
+// Sum over all lights of the density with which sample_light produces direction wi from p.
+float light_pdf_all(vec3 p, vec3 wi) {
+    float pdf = 0.0;
+    for (uint i = 0u; i < scene.light_count; ++i) {
+        Light l = lights[i];
+        float sel = light_select_pdf(i);
+        if (l.type == LIGHT_TRIANGLE) {  // Moller-Trumbore
+            vec3 pv = cross(wi, l.axis_v);
+            float det = dot(l.axis_u, pv);
+            if (abs(det) < 1e-12) continue;
+            vec3 tv = p - l.position;
+            float bu = dot(tv, pv) / det;
+            vec3 qv = cross(tv, l.axis_u);
+            float bv = dot(wi, qv) / det;
+            float t = dot(l.axis_v, qv) / det;
+            if (bu < 0.0 || bv < 0.0 || bu + bv > 1.0 || t <= 0.0) continue;
+            pdf += sel * t * t / (l.area * abs(dot(l.direction, wi)));
+        } else if (l.type == LIGHT_SPHERE || l.type == LIGHT_SPOT) {
+            if (l.radius <= 0.0) continue;
+            vec3 oc = p - l.position;
+            float b = dot(oc, wi), c = dot(oc, oc) - l.radius * l.radius;
+            if (c <= 0.0 || b * b - c < 0.0 || -b - sqrt(b * b - c) <= 0.0) continue;
+            if (l.type == LIGHT_SPOT && spot_attenuation(l, normalize(-oc)) <= 0.0) continue;
+            pdf += sel / (2.0 * PI * one_minus_cos_from_sin2(l.radius * l.radius / dot(oc, oc)));
+        } else if (l.type == LIGHT_RECT || l.type == LIGHT_DISK) {
+            float denom = dot(wi, l.direction);
+            if (denom >= 0.0) continue;
+            float t = dot(l.position - p, l.direction) / denom;
+            if (t <= 0.0) continue;
+            vec3 q = p + t * wi - l.position;
+            float su = dot(q, l.axis_u) / dot(l.axis_u, l.axis_u);
+            float sv = dot(q, l.axis_v) / dot(l.axis_v, l.axis_v);
+            bool inside = l.type == LIGHT_RECT ? (abs(su) <= 0.5 && abs(sv) <= 0.5) : (su * su + sv * sv <= 0.25);
+            if (inside) pdf += sel * t * t / (l.area * -denom);
+        } else if (l.type == LIGHT_SUN) {
+            if (l.cos_half_angle < 1.0 && dot(wi, l.direction) >= l.cos_half_angle)
+                pdf += sel / (2.0 * PI * (1.0 - l.cos_half_angle));
+        } else if (l.type == LIGHT_ENV) {
+            pdf += sel * env_pdf(wi);
+        }
+    }
+    return pdf;
+}
+
+void main() {
+    uint i = gl_GlobalInvocationID.x;
+    if (i >= params.test_count) return;
+    uint routine = params.test_routine % TEST_EVAL;
+    bool eval_mode = params.test_routine >= TEST_EVAL;
+    uint rng = tea(i, params.seed);
+
+    if (routine == TEST_LIGHT) {
+        vec3 p = params.test_params.xyz;
+        if (eval_mode) {
+            io[2u * i + 1u] = vec4(0.0, light_pdf_all(p, normalize(io[2u * i].xyz)), 0.0, 0.0);
+            return;
+        }
+        LightSample ls;
+        bool ok = sample_light(p, vec3(rnd(rng), rnd(rng), rnd(rng)), ls);
+        io[2u * i] = vec4(ls.wi, ok ? ls.pdf : 0.0);
+        io[2u * i + 1u] = vec4(ls.radiance.x, ls.dist, ok ? 1.0 : 0.0, ls.delta ? 1.0 : 0.0);
+        return;
+    }
+
+    Surface s;
+    s.type = routine == TEST_DIFFUSE ? MATERIAL_DIFFUSE : routine == TEST_CONDUCTOR ? MATERIAL_CONDUCTOR : MATERIAL_DIELECTRIC;
+    s.albedo = vec3(1.0);
+    s.alpha = params.test_params.w * params.test_params.w;
+    s.eta = params.test_param0;
+    vec3 wo = normalize(params.test_params.xyz);
+    if (eval_mode) {
+        float pdf;
+        vec3 f = bsdf_eval(s, wo, normalize(io[2u * i].xyz), pdf);
+        io[2u * i + 1u] = vec4(f.x, pdf, 0.0, 0.0);
+        return;
+    }
+    BsdfSample bs;
+    bool ok = bsdf_sample(s, wo, vec3(rnd(rng), rnd(rng), rnd(rng)), bs);
+    float eval_pdf = 0.0;
+    vec3 f = ok ? bsdf_eval(s, wo, bs.wi, eval_pdf) : vec3(0.0);
+    io[2u * i] = vec4(bs.wi, ok ? bs.pdf : 0.0);
+    io[2u * i + 1u] = vec4(bs.weight.x, f.x, eval_pdf, ok ? 1.0 : 0.0);
+}
