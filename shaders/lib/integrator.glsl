@@ -121,10 +121,19 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
                 float bsdf_pdf;
                 vec3 f = bsdf_eval(surf, wo_local, wi_local, bsdf_pdf);
                 if (max3(f) <= 0.0 || max3(ls.radiance) <= 0.0) continue;
+                // Aim the shadow ray from the offset origin at the sampled point itself (a
+                // direction kept from the unoffset point misses grazing lights), stopping short.
                 vec3 shadow_origin = offset_ray(sh.p, dot(ls.wi, ng) > 0.0 ? ng : -ng);
-                float shadow_t = ls.dist >= INFINITY_F ? INFINITY_F : ls.dist * (1.0 - 1e-4);
+                vec3 shadow_dir = ls.wi;
+                float shadow_t = INFINITY_F;
+                if (ls.dist < INFINITY_F) {
+                    vec3 to_light = sh.p + ls.wi * ls.dist - shadow_origin;
+                    shadow_t = length(to_light);
+                    shadow_dir = to_light / shadow_t;
+                    shadow_t *= 1.0 - 1e-4;
+                }
                 res.rays++;
-                if (!trace_shadow(shadow_origin, ls.wi, shadow_t)) continue;
+                if (!trace_shadow(shadow_origin, shadow_dir, shadow_t)) continue;
                 float w = (METHOD == METHOD_MIS && !ls.delta) ? mis_weight(float(opt.light_samples) * ls.pdf, bsdf_pdf) : 1.0;
                 res.radiance += throughput * f * ls.radiance * (w / (ls.pdf * float(opt.light_samples)));
             }
