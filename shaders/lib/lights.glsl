@@ -200,7 +200,7 @@ uint intersect_analytic_lights(vec3 o, vec3 d, float t_max, out float t_hit, out
             if (disc < 0.0) continue;
             float t = -b - sqrt(disc);
             if (t <= 0.0 || t >= t_hit) continue;
-            float att = l.type == LIGHT_SPOT ? spot_attenuation(l, normalize(-oc)) : 1.0;
+            float att = l.type == LIGHT_SPOT ? spot_attenuation(l, normalize(oc)) : 1.0;
             t_hit = t;
             found = i;
             radiance = l.radiance * att;

@@ -39,7 +39,7 @@ float light_pdf_all(vec3 p, vec3 wi) {
             vec3 oc = p - l.position;
             float b = dot(oc, wi), c = dot(oc, oc) - l.radius * l.radius;
             if (c <= 0.0 || b * b - c < 0.0 || -b - sqrt(b * b - c) <= 0.0) continue;
-            if (l.type == LIGHT_SPOT && spot_attenuation(l, normalize(-oc)) <= 0.0) continue;
+            if (l.type == LIGHT_SPOT && spot_attenuation(l, normalize(oc)) <= 0.0) continue;
             pdf += sel / (2.0 * PI * one_minus_cos_from_sin2(l.radius * l.radius / dot(oc, oc)));
         } else if (l.type == LIGHT_RECT || l.type == LIGHT_DISK) {
             float denom = dot(wi, l.direction);

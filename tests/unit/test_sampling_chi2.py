@@ -1,0 +1,628 @@
+"""Chi-square goodness-of-fit tests of the shader sampling routines (DESIGN "Tests", tier 1).
+
+Each routine of shaders/lib/{bsdf,lights}.glsl is run through shaders/tests/sampling_test.comp
+(``Session.test_sampling``): sampled directions are binned on a (theta, phi) grid -- over the
+whole sphere, or over a cap around a light in a rotated frame -- and compared with the counts
+expected from integrating the routine's own pdf (eval mode) over each bin with a fine
+sub-grid (midpoint rule, each sub-cell weighted by its exact solid angle), as in Mitsuba's and
+pbrt's chi2 tests. Cells with fewer than 5 expected samples are pooled. A test passes when
+p > ALPHA, a Sidak-corrected 1 % level over all chi-square tests in this file. The integral of
+the pdf must also match the fraction of samples the routine accepted.
+
+Besides the chi-square tests: sampler pdf == eval pdf and weight == eval / pdf for every BSDF
+sample, light selection proportional to power, uniform area sampling of emitters, radiance
+and delta-light values in Cycles' units, and the irradiance of a sphere and a sun light.
+Everything is seeded: the same build gives the same p-values.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import parallax_core as pc
+from parallax_core import scenes
+from parallax_core.scene import (Light, Material, Mesh, SceneData, World,
+                                 direction_to_equirectangular)
+
+TEST_DIFFUSE, TEST_CONDUCTOR, TEST_DIELECTRIC, TEST_LIGHT = 0, 1, 2, 3
+EVAL = 16                 # routine + EVAL: evaluate at given directions
+N = 300_000               # samples per chi-square test
+DISTANT = 1e29            # sample distance at or above this: a light at infinity
+CHI2_TESTS = 40           # upper bound on the chi-square tests below (Sidak correction)
+ALPHA = 1.0 - (1.0 - 0.01) ** (1.0 / CHI2_TESTS)
+
+
+# ---- statistics (no scipy) ----------------------------------------------------------------
+
+def gammaincc(a: float, x: float) -> float:
+    """Regularised upper incomplete gamma Q(a, x) (Numerical Recipes: series / Lentz)."""
+    if x <= 0.0:
+        return 1.0
+    log_front = -x + a * math.log(x) - math.lgamma(a)
+    if x < a + 1.0:  # series for P(a, x)
+        ap, term = a, 1.0 / a
+        total = term
+        for _ in range(100_000):
+            ap += 1.0
+            term *= x / ap
+            total += term
+            if abs(term) < abs(total) * 1e-15:
+                break
+        return max(0.0, 1.0 - total * math.exp(log_front))
+    tiny = 1e-300
+    b = x + 1.0 - a
+    c, d = 1.0 / tiny, 1.0 / b
+    h = d
+    for i in range(1, 100_000):
+        an = -i * (i - a)
+        b += 2.0
+        d = an * d + b
+        d = d if abs(d) > tiny else tiny
+        c = b + an / c
+        c = c if abs(c) > tiny else tiny
+        d = 1.0 / d
+        delta = d * c
+        h *= delta
+        if abs(delta - 1.0) < 1e-15:
+            break
+    return math.exp(log_front) * h
+
+
+def chi2_sf(stat: float, dof: int) -> float:
+    return gammaincc(0.5 * dof, 0.5 * stat)
+
+
+def chi2_pooled(observed, expected, min_expected=5.0):
+    """Pearson's statistic with cells of expected count < min_expected pooled into one
+    (merged into the smallest regular cell if the pool itself stays below min_expected).
+    Returns (statistic, degrees of freedom, p-value)."""
+    obs = np.asarray(observed, np.float64).ravel()
+    exp = np.asarray(expected, np.float64).ravel()
+    low = exp < min_expected
+    o, e = obs[~low], exp[~low]
+    po, pe = obs[low].sum(), exp[low].sum()
+    if po > 0 or pe > 0:
+        if pe >= min_expected or len(e) == 0:
+            o, e = np.append(o, po), np.append(e, max(pe, 1e-12))
+        else:
+            k = int(np.argmin(e))
+            o[k] += po
+            e[k] += pe
+    stat = float(((o - e) ** 2 / e).sum())
+    dof = len(e) - 1
+    assert dof >= 1, "too few cells for a chi-square test"
+    return stat, dof, chi2_sf(stat, dof)
+
+
+# ---- directional histograms ---------------------------------------------------------------
+
+def frame_around(axis):
+    """Rows x, y, z of an orthonormal frame with z = axis."""
+    z = np.asarray(axis, np.float64)
+    z = z / np.linalg.norm(z)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = np.cross(helper, z)
+    x /= np.linalg.norm(x)
+    return np.stack([x, np.cross(z, x), z])
+
+
+class SphereGrid:
+    """theta x phi bins in a frame (theta from the frame's z); theta edges are given, phi is
+    uniform over (-pi, pi]. Directions beyond the last theta edge fall into an extra cell
+    whose expected count is 0 (the caller chooses a cap that holds the pdf's support)."""
+
+    def __init__(self, theta_edges, n_phi=32, frame=None):
+        self.theta = np.asarray(theta_edges, np.float64)
+        self.n_theta, self.n_phi = len(self.theta) - 1, n_phi
+        self.frame = np.eye(3) if frame is None else np.asarray(frame, np.float64)
+        self.full = self.theta[-1] >= math.pi
+
+    @classmethod
+    def sphere(cls, n_theta=16, n_phi=32):
+        return cls(np.linspace(0.0, math.pi, n_theta + 1), n_phi)
+
+    @classmethod
+    def cone(cls, axis, cos_max, n_inside=12, n_outside=3, n_phi=24):
+        """Cap around ``axis`` whose theta edges put the cone edge acos(cos_max) on a bin
+        edge, plus n_outside empty bins beyond it (to catch samples outside the cone)."""
+        t = math.acos(min(max(cos_max, -1.0), 1.0))
+        edges = np.linspace(0.0, t, n_inside + 1)
+        edges = np.append(edges, t + (t / n_inside) * np.arange(1, n_outside + 1))
+        return cls(np.minimum(edges, math.pi), n_phi, frame_around(axis))
+
+    @classmethod
+    def bounding(cls, p, points, margin=1.15, n_theta=12, n_phi=24):
+        """Cap from p around every point of ``points`` (an emitter's outline)."""
+        d = np.asarray(points, np.float64) - np.asarray(p, np.float64)
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        axis = d.mean(axis=0)
+        axis /= np.linalg.norm(axis)
+        t = min(math.pi, margin * float(np.arccos(np.clip(d @ axis, -1.0, 1.0)).max()))
+        return cls(np.linspace(0.0, t, n_theta + 1), n_phi, frame_around(axis))
+
+    def index(self, dirs):
+        """Cell of each direction; n_theta * n_phi = outside the cap."""
+        d = np.asarray(dirs, np.float64)
+        d = d / np.linalg.norm(d, axis=1, keepdims=True)
+        local = d @ self.frame.T
+        theta = np.arccos(np.clip(local[:, 2], -1.0, 1.0))
+        phi = np.arctan2(local[:, 1], local[:, 0])
+        it = np.searchsorted(self.theta, theta, side="right") - 1
+        it = np.where(theta == self.theta[-1], self.n_theta - 1, it)  # closed last edge
+        ip = np.clip(((phi + math.pi) / (2.0 * math.pi) * self.n_phi).astype(np.int64), 0, self.n_phi - 1)
+        cell = it * self.n_phi + ip
+        return np.where((it < 0) | (it >= self.n_theta), self.n_theta * self.n_phi, cell)
+
+    def histogram(self, dirs):
+        return np.bincount(self.index(dirs), minlength=self.n_theta * self.n_phi + 1).astype(np.float64)
+
+    def integrate(self, pdf, nsub=16):
+        """Integral of pdf(directions) over each cell (+ 0 for the outside cell)."""
+        k = (np.arange(nsub) + 0.5) / nsub
+        t0, t1 = self.theta[:-1], self.theta[1:]
+        ts = (t0[:, None] + (t1 - t0)[:, None] * k[None, :]).ravel()                   # midpoints
+        tb = t0[:, None] + (t1 - t0)[:, None] * (np.arange(nsub + 1) / nsub)[None, :]   # sub-edges
+        dz = (np.cos(tb[:, :-1]) - np.cos(tb[:, 1:])).ravel()                           # per sub-row
+        dphi = 2.0 * math.pi / (self.n_phi * nsub)
+        ps = -math.pi + dphi * (np.arange(self.n_phi * nsub) + 0.5)
+        st = np.sin(ts)
+        local = np.stack(np.broadcast_arrays(st[:, None] * np.cos(ps)[None, :],
+                                             st[:, None] * np.sin(ps)[None, :],
+                                             np.cos(ts)[:, None]), axis=-1).reshape(-1, 3)
+        world = (local @ self.frame).astype(np.float32)
+        values = np.asarray(pdf(world), np.float64).reshape(len(ts), len(ps))
+        assert np.all(np.isfinite(values)) and np.all(values >= 0.0), "pdf not finite / negative"
+        mass = values * dz[:, None] * dphi
+        mass = mass.reshape(self.n_theta, nsub, self.n_phi, nsub).sum(axis=(1, 3)).ravel()
+        return np.append(mass, 0.0)
+
+
+RESULTS: list[str] = []  # one line per chi-square test; printed at the end (pytest -s)
+
+
+def check_fit(label, grid, dirs, n_total, pdf, nsub=16, integral_rtol=0.01):
+    """Chi-square test of ``dirs`` (the accepted samples out of n_total draws) against
+    ``pdf``; also checks that pdf integrates to the accepted fraction."""
+    observed = grid.histogram(dirs)
+    mass = grid.integrate(pdf, nsub)
+    expected = mass * n_total
+    accepted = len(dirs) / n_total
+    integral = float(mass.sum())
+    # Samples where the pdf is zero: a few may straddle an edge through float rounding.
+    stray = float(observed[mass <= 0.0].sum())
+    assert stray <= 2 + 1e-5 * n_total, f"{label}: {stray:.0f} samples where the pdf integrates to 0"
+    sigma = math.sqrt(max(accepted * (1 - accepted), 1e-12) / n_total)
+    assert abs(integral - accepted) <= integral_rtol * accepted + 4 * sigma, (
+        f"{label}: pdf integrates to {integral:.5f} but {accepted:.5f} of the samples were accepted")
+    stat, dof, p = chi2_pooled(observed, expected)
+    RESULTS.append(f"{label:48s} chi2={stat:9.1f} dof={dof:4d} p={p:.4f} "
+                   f"integral={integral:.5f} accepted={accepted:.5f}")
+    assert p > ALPHA, f"{label}: chi2 = {stat:.1f} with {dof} dof, p = {p:.3g} <= {ALPHA:.3g}"
+    return p
+
+
+def check_multinomial(label, counts, probs):
+    counts = np.asarray(counts, np.float64)
+    probs = np.asarray(probs, np.float64)
+    stat, dof, p = chi2_pooled(counts, probs / probs.sum() * counts.sum())
+    RESULTS.append(f"{label:48s} chi2={stat:9.1f} dof={dof:4d} p={p:.4f}")
+    assert p > ALPHA, f"{label}: counts {counts} vs probabilities {probs}: p = {p:.3g}"
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _print_results():
+    yield
+    if RESULTS:
+        print("\nchi-square results (alpha = %.2e):" % ALPHA)
+        print("\n".join(RESULTS))
+
+
+# ---- fixtures -----------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def session():
+    s = pc.Session(8, 8)
+    s.update(scenes.cornell_box(8, 8))  # the BSDF routines read no scene data
+    return s
+
+
+def lights_scene(lights=(), meshes=(), materials=(), world=None):
+    return SceneData(meshes=list(meshes), materials=list(materials), lights=list(lights),
+                     world=world or World(color=(0.0, 0.0, 0.0)))
+
+
+def sample_lights(session, scene, p, n=N, seed=0):
+    session.update(scene)
+    r = session.test_sampling(TEST_LIGHT, [*p, 0.0, 0.0], n, seed=seed)
+    return r
+
+
+def light_pdf(session, p):
+    return lambda d: session.test_sampling(TEST_LIGHT + EVAL, [*p, 0.0, 0.0], len(d), directions=d)[:, 1, 1]
+
+
+def smoothstep(x):
+    x = min(max(x, 0.0), 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+def unit(v):
+    v = np.asarray(v, np.float64)
+    return v / np.linalg.norm(v)
+
+
+def test_gammaincc():
+    assert chi2_sf(3.841458820694124, 1) == pytest.approx(0.05, rel=1e-9)
+    assert chi2_sf(7.0, 2) == pytest.approx(math.exp(-3.5), rel=1e-12)
+    assert chi2_sf(124.342, 100) == pytest.approx(0.05, rel=1e-4)
+    assert chi2_sf(135.807, 100) == pytest.approx(0.01, rel=1e-3)
+    assert chi2_sf(3.0, 10) == pytest.approx(0.981424, rel=1e-5)
+    for stat, dof in ((600.0, 480), (430.0, 480), (560.0, 500)):  # vs Wilson-Hilferty
+        z = ((stat / dof) ** (1 / 3) - (1 - 2 / (9 * dof))) / math.sqrt(2 / (9 * dof))
+        assert chi2_sf(stat, dof) == pytest.approx(0.5 * math.erfc(z / math.sqrt(2)), rel=0.02)
+    assert chi2_sf(0.0, 5) == 1.0
+
+
+# ---- BSDFs --------------------------------------------------------------------------------
+
+def wo_at(deg, phi=0.7):
+    t = math.radians(deg)
+    return [math.sin(t) * math.cos(phi), math.sin(t) * math.sin(phi), math.cos(t)]
+
+
+BSDF_CASES = (
+    [("diffuse", TEST_DIFFUSE, a, 0.5, 1.5) for a in (20, 75)]
+    + [("conductor", TEST_CONDUCTOR, a, r, 1.5) for r in (0.3, 0.6, 0.9) for a in (10, 45, 80)]
+    + [("dielectric", TEST_DIELECTRIC, a, r, ior)
+       for r in (0.4, 0.8) for ior in (1.5, 1.0 / 1.5) for a in (30, 70)]
+)
+
+
+def _case_id(c):
+    return f"{c[0]}-wo{c[2]}-r{c[3]}" + (f"-ior{c[4]:.3g}" if c[0] == "dielectric" else "")
+
+
+@pytest.mark.parametrize("case", BSDF_CASES, ids=_case_id)
+def test_bsdf_chi2(session, case):
+    name, routine, angle, rough, ior = case
+    params = [*wo_at(angle), rough, ior]
+    r = session.test_sampling(routine, params, N, seed=11 + angle)
+    ok = r[:, 1, 3] > 0.5
+    if routine != TEST_DIELECTRIC:
+        assert np.all(r[ok, 0, 2] > 0.0), "reflection below the surface"
+    pdf = lambda d: session.test_sampling(routine + EVAL, params, len(d), directions=d)[:, 1, 1]
+    check_fit(_case_id(case), SphereGrid.sphere(16, 32), r[ok, 0, :3], N, pdf)
+
+
+@pytest.mark.parametrize("case", BSDF_CASES, ids=_case_id)
+def test_bsdf_pdf_and_weight_consistent(session, case):
+    """Sampler pdf == eval pdf at the sampled direction; weight == eval / pdf; failed samples
+    report pdf 0; everything finite and non-negative."""
+    name, routine, angle, rough, ior = case
+    params = [*wo_at(angle), rough, ior]
+    r = session.test_sampling(routine, params, 50_000, seed=5)
+    assert np.all(np.isfinite(r))
+    ok = r[:, 1, 3] > 0.5
+    assert ok.mean() > 0.3
+    assert np.all(r[~ok, 0, 3] == 0.0)
+    pdf_s, weight, f_eval, pdf_e = r[ok, 0, 3], r[ok, 1, 0], r[ok, 1, 1], r[ok, 1, 2]
+    assert np.all(pdf_s > 0.0) and np.all(pdf_e >= 0.0) and np.all(f_eval >= 0.0) and np.all(weight >= 0.0)
+    np.testing.assert_allclose(pdf_e, pdf_s, rtol=1e-3, err_msg="sampler pdf != eval pdf")
+    np.testing.assert_allclose(weight, f_eval / pdf_s, rtol=1e-3, atol=1e-6, err_msg="weight != f cos / pdf")
+    # eval mode at the sampled directions reproduces the in-shader evaluation
+    e = session.test_sampling(routine + EVAL, params, int(ok.sum()), directions=r[ok, 0, :3])
+    np.testing.assert_allclose(e[:, 1, 1], pdf_e, rtol=1e-3)
+    np.testing.assert_allclose(e[:, 1, 0], f_eval, rtol=1e-3)
+    if routine == TEST_DIFFUSE:  # Lambert with albedo 1: weight is exactly 1
+        np.testing.assert_allclose(weight, 1.0, rtol=1e-6)
+    else:  # energy conservation: G2 / G1 <= 1
+        assert weight.max() <= 1.0 + 1e-5
+
+
+# ---- lights: one kind per scene -----------------------------------------------------------
+
+P0 = np.zeros(3)  # shading point of the single-light scenes
+
+
+def emission_mesh(corners, material):
+    idx = [[0, 1, 2]] if len(corners) == 3 else [[0, 1, 2], [0, 2, 3]]
+    return Mesh(np.asarray(corners, np.float64), np.asarray(idx), material_indices=np.full(len(idx), material))
+
+
+def test_triangle_lights(session):
+    """An emissive quad and an emissive triangle of other area and emission: selection by
+    power (2 pi L A, two-sided), uniform area sampling, radiance, chi-square."""
+    quad = np.array([[-0.6, 0.3, 1.5], [0.2, 0.3, 1.7], [0.2, 0.8, 1.7], [-0.6, 0.8, 1.5]])
+    tri = np.array([[0.3, -0.9, 1.2], [0.9, -0.6, 1.0], [0.4, -0.2, 1.4]])
+    em_q, em_t = 5.0, 2.0
+    scene = lights_scene(
+        meshes=[emission_mesh(quad, 0), emission_mesh(tri, 1)],
+        materials=[Material("emission", emission=(em_q,) * 3), Material("emission", emission=(em_t,) * 3)])
+    r = sample_lights(session, scene, P0, seed=1)
+    ok = r[:, 1, 2] > 0.5
+    assert ok.all() and not (r[:, 1, 3] > 0.5).any()
+    q = P0 + r[:, 0, :3].astype(np.float64) * r[:, 1, 1:2].astype(np.float64)
+    on_quad = np.isclose(r[:, 1, 0], em_q, rtol=1e-6)
+    assert np.all(on_quad | np.isclose(r[:, 1, 0], em_t, rtol=1e-6))
+    area_q = np.linalg.norm(np.cross(quad[1] - quad[0], quad[3] - quad[0]))
+    area_t = 0.5 * np.linalg.norm(np.cross(tri[1] - tri[0], tri[2] - tri[0]))
+    check_multinomial("triangles: selection by power", [on_quad.sum(), (~on_quad).sum()],
+                      [em_q * area_q, em_t * area_t])
+    # points lie on their emitter; uniform over the quad (both of its triangles)
+    eu, ev = quad[1] - quad[0], quad[3] - quad[0]
+    uv = np.linalg.lstsq(np.stack([eu, ev], 1), (q[on_quad] - quad[0]).T, rcond=None)[0].T
+    back = quad[0] + uv @ np.stack([eu, ev])
+    assert np.abs(back - q[on_quad]).max() < 1e-4
+    assert uv.min() > -1e-4 and uv.max() < 1 + 1e-4
+    hist = np.histogram2d(uv[:, 0], uv[:, 1], bins=8, range=[[0, 1], [0, 1]])[0]
+    check_multinomial("triangles: uniform over the quad", hist.ravel(), np.ones(64))
+    n_t = unit(np.cross(tri[1] - tri[0], tri[2] - tri[0]))
+    assert np.abs((q[~on_quad] - tri[0]) @ n_t).max() < 1e-4
+    grid = SphereGrid.bounding(P0, np.concatenate([quad, tri]))
+    check_fit("triangle lights", grid, r[ok, 0, :3], N, light_pdf(session, P0), nsub=24)
+
+
+def test_sphere_light(session):
+    c, rad, power = np.array([0.4, -0.2, 2.0]), 0.3, 25.0
+    scene = lights_scene([Light("point", power=power, position=tuple(c), radius=rad)])
+    r = sample_lights(session, scene, P0, seed=2)
+    ok = r[:, 1, 2] > 0.5
+    assert ok.all() and not (r[:, 1, 3] > 0.5).any()
+    np.testing.assert_allclose(r[:, 1, 0], power / (4 * math.pi ** 2 * rad ** 2), rtol=1e-5)
+    d = np.linalg.norm(c - P0)
+    q = P0 + r[:, 0, :3].astype(np.float64) * r[:, 1, 1:2]
+    np.testing.assert_allclose(np.linalg.norm(q - c, axis=1), rad, atol=2e-4)  # on the sphere,
+    assert np.all(r[:, 1, 1] <= math.sqrt(d * d - rad * rad) + 1e-4)          # the near side
+    cos_max = math.sqrt(1 - (rad / d) ** 2)
+    check_fit("sphere light", SphereGrid.cone(c - P0, cos_max), r[:, 0, :3], N, light_pdf(session, P0), nsub=8)
+
+
+@pytest.mark.parametrize("tilt_deg", [0.0, 40.0])
+def test_sphere_light_irradiance(session, tilt_deg):
+    """NEE irradiance of a sphere light: E = pi L sin^2(theta_max) cos(tilt) with
+    L = P / (4 pi^2 r^2) (Cycles), i.e. P cos(tilt) / (4 pi d^2) -- the sphere is above the
+    horizon of the tilted normal."""
+    c, rad, power = np.array([0.0, 0.0, 1.5]), 0.4, 100.0
+    scene = lights_scene([Light("point", power=power, position=tuple(c), radius=rad)])
+    r = sample_lights(session, scene, P0, n=100_000, seed=3)
+    t = math.radians(tilt_deg)
+    normal = np.array([math.sin(t), 0.0, math.cos(t)])
+    cos = r[:, 0, :3].astype(np.float64) @ normal
+    assert cos.min() > 0
+    estimate = float(np.mean(r[:, 1, 0] * cos / r[:, 0, 3]))
+    d = np.linalg.norm(c - P0)
+    assert estimate == pytest.approx(power * math.cos(t) / (4 * math.pi * d * d), rel=0.01)
+
+
+def spot_scene(power=50.0, off_axis_deg=27.0):
+    pos = np.array([0.0, 0.0, 2.0])
+    t = math.radians(off_axis_deg)  # angle between the spot axis and the direction to P0
+    direction = (math.sin(t), 0.0, -math.cos(t))
+    light = Light("spot", power=power, position=tuple(pos), direction=direction, radius=0.2,
+                  spot_size=math.radians(60.0), spot_blend=0.3)
+    return lights_scene([light]), pos, light
+
+
+def test_spot_light(session):
+    power = 50.0
+    scene, pos, light = spot_scene(power, 27.0)
+    r = sample_lights(session, scene, P0, seed=4)
+    ok = r[:, 1, 2] > 0.5
+    assert ok.all() and not (r[:, 1, 3] > 0.5).any()
+    # Cycles: smoothstep((cos - cos_half) / ((1 - cos_half) * blend)) on the sphere's radiance
+    cos_half = math.cos(math.radians(30.0))
+    att = smoothstep((math.cos(math.radians(27.0)) - cos_half) / ((1 - cos_half) * 0.3))
+    assert 0.3 < att < 0.9  # the point is inside the blend region
+    np.testing.assert_allclose(r[:, 1, 0], att * power / (4 * math.pi ** 2 * 0.2 ** 2), rtol=1e-4)
+    d = np.linalg.norm(pos - P0)
+    cos_max = math.sqrt(1 - (0.2 / d) ** 2)
+    check_fit("spot light", SphereGrid.cone(pos - P0, cos_max), r[:, 0, :3], N, light_pdf(session, P0), nsub=8)
+    # outside the cone: nothing to sample, zero pdf
+    scene, _, _ = spot_scene(power, 35.0)
+    r = sample_lights(session, scene, P0, n=2000, seed=4)
+    assert not (r[:, 1, 2] > 0.5).any()
+    dirs = np.tile(unit(pos - P0), (16, 1))
+    assert np.all(light_pdf(session, P0)(dirs) == 0.0)
+
+
+def test_sun_light(session):
+    strength, angle = 3.0, math.radians(10.0)
+    to_sun = unit([0.3, -0.5, 0.8])
+    scene = lights_scene([Light("sun", power=strength, direction=tuple(-to_sun), angle=angle)])
+    r = sample_lights(session, scene, P0, seed=5)
+    ok = r[:, 1, 2] > 0.5
+    assert ok.all() and not (r[:, 1, 3] > 0.5).any() and np.all(r[:, 1, 1] >= DISTANT)
+    h = angle / 2
+    np.testing.assert_allclose(r[:, 1, 0], strength / (math.pi * math.sin(h) ** 2), rtol=1e-4)
+    # irradiance at normal incidence is the strength
+    e = np.mean(r[:, 1, 0] * (r[:, 0, :3].astype(np.float64) @ to_sun) / r[:, 0, 3])
+    assert e == pytest.approx(strength, rel=0.01)
+    check_fit("sun (10 deg)", SphereGrid.cone(to_sun, math.cos(h)), r[:, 0, :3], N, light_pdf(session, P0), nsub=8)
+
+
+@pytest.mark.parametrize("shape", ["rectangle", "ellipse"])
+def test_area_light(session, shape):
+    pos = np.array([0.3, 0.2, 1.6])
+    normal = unit([0.2, 0.1, -1.0])  # emits downwards, towards P0
+    u = unit(np.cross(normal, [0.3, 1.0, 0.0]))
+    v = np.cross(normal, u)  # u x v = -normal (Blender: the light points along its -Z)
+    size, size_y, power = 0.9, 0.5, 40.0
+    light = Light("area", power=power, position=tuple(pos), direction=tuple(normal), shape=shape,
+                  size=size, size_y=size_y, axis_u=tuple(u), axis_v=tuple(v))
+    scene = lights_scene([light])
+    r = sample_lights(session, scene, P0, seed=6)
+    ok = r[:, 1, 2] > 0.5
+    assert ok.all() and not (r[:, 1, 3] > 0.5).any()
+    area = size * size_y * (1.0 if shape == "rectangle" else math.pi / 4)
+    np.testing.assert_allclose(r[:, 1, 0], power / (math.pi * area), rtol=1e-5)  # P / (pi A)
+    q = P0 + r[:, 0, :3].astype(np.float64) * r[:, 1, 1:2]
+    assert np.abs((q - pos) @ normal).max() < 1e-4
+    su, sv = (q - pos) @ u / size, (q - pos) @ v / size_y  # in [-0.5, 0.5]
+    if shape == "rectangle":
+        assert np.abs(su).max() < 0.5 + 1e-4 and np.abs(sv).max() < 0.5 + 1e-4
+        hist = np.histogram2d(su, sv, bins=8, range=[[-0.5, 0.5], [-0.5, 0.5]])[0]
+        check_multinomial("rect: uniform by area", hist.ravel(), np.ones(64))
+        outline = pos + np.array([[a * size, b * size_y] for a in (-.5, .5) for b in (-.5, .5)]) @ np.stack([u, v])
+    else:
+        rho2 = 4 * (su ** 2 + sv ** 2)
+        assert rho2.max() < 1 + 1e-3
+        hist = np.histogram2d(rho2, np.arctan2(sv, su), bins=8, range=[[0, 1], [-math.pi, math.pi]])[0]
+        check_multinomial("disk: uniform by area", hist.ravel(), np.ones(64))
+        a = np.linspace(0, 2 * math.pi, 64, endpoint=False)
+        outline = pos + 0.5 * np.stack([size * np.cos(a), size_y * np.sin(a)], 1) @ np.stack([u, v])
+    grid = SphereGrid.bounding(P0, outline)
+    check_fit(f"area light ({shape})", grid, r[:, 0, :3], N, light_pdf(session, P0), nsub=24)
+    # one-sided: nothing from behind
+    behind = pos + 1.0 * normal * -1.0
+    r = sample_lights(session, scene, behind, n=2000, seed=6)
+    assert not (r[:, 1, 2] > 0.5).any()
+    assert np.all(light_pdf(session, behind)(np.tile(unit(pos - behind), (16, 1))) == 0.0)
+
+
+def env_map(h=32, w=64):
+    rows, cols = np.meshgrid(np.arange(h) + 0.5, np.arange(w) + 0.5, indexing="ij")
+    u, v = cols / w, 1.0 - rows / h
+    m = np.zeros((h, w, 3), np.float32)
+    grad = 0.2 + 0.8 * v + 0.3 * np.cos(2 * math.pi * u)  # brighter towards the zenith
+    m[..., 0], m[..., 1], m[..., 2] = grad, 0.7 * grad, 0.4 + 0.2 * u
+    blob = 60.0 * np.exp(-(((u - 0.3) / 0.05) ** 2 + ((v - 0.65) / 0.07) ** 2))
+    m += blob[..., None].astype(np.float32) * np.array([1.0, 0.8, 0.5], np.float32)
+    m[20:24, 40:48] = 0.0  # a black patch: must never be sampled
+    return m
+
+
+def test_environment_map(session):
+    m = env_map()
+    h, w = m.shape[:2]
+    scene = lights_scene(world=World(color=(1.0, 0.0, 1.0), map=m))
+    r = sample_lights(session, scene, P0, seed=7)
+    ok = r[:, 1, 2] > 0.5
+    assert ok.mean() > 0.9999 and not (r[:, 1, 3] > 0.5).any() and np.all(r[ok, 1, 1] >= DISTANT)
+    dirs = r[ok, 0, :3].astype(np.float64)
+    # radiance is the map texel under Blender's equirectangular mapping (away from texel edges)
+    uu, vv = direction_to_equirectangular(dirs)
+    fx, fy = uu * w, (1.0 - vv) * h
+    inner = (np.abs(fx - np.round(fx)) > 1e-3) & (np.abs(fy - np.round(fy)) > 1e-3)
+    col = np.clip(fx.astype(int), 0, w - 1)
+    row = np.clip(fy.astype(int), 0, h - 1)
+    np.testing.assert_allclose(r[ok, 1, 0][inner], m[row, col, 0][inner], rtol=1e-6)
+    # pdf at texel centres ∝ luminance: lum * W * H / (2 pi^2 * sum(lum * sin(theta)))
+    lum = m @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    theta_c = math.pi * (np.arange(h) + 0.5) / h
+    total = float((lum.astype(np.float64) * np.sin(theta_c)[:, None]).sum())
+    rows_c, cols_c = np.meshgrid(np.arange(h) + 0.5, np.arange(w) + 0.5, indexing="ij")
+    from parallax_core.scene import equirectangular_to_direction
+    centres = equirectangular_to_direction(cols_c / w, 1.0 - rows_c / h).reshape(-1, 3)
+    got = light_pdf(session, P0)(centres.astype(np.float32))
+    want = lum.ravel() * w * h / (2 * math.pi ** 2 * total)
+    np.testing.assert_allclose(got, want, rtol=5e-3, atol=1e-4 * want.mean())
+    # theta-spaced bins whose sub-grid lines fall on texel edges: exact integration
+    check_fit("environment map", SphereGrid.sphere(16, 32), dirs, N, light_pdf(session, P0), nsub=8)
+
+
+def test_constant_world(session):
+    colour = (0.3, 0.5, 0.2)
+    r = sample_lights(session, lights_scene(world=World(color=colour)), P0, seed=8)
+    ok = r[:, 1, 2] > 0.5
+    assert ok.all() and not (r[:, 1, 3] > 0.5).any()
+    np.testing.assert_allclose(r[:, 1, 0], colour[0], rtol=1e-6)
+    np.testing.assert_allclose(r[:, 0, 3], 1.0 / (4 * math.pi), rtol=1e-5)
+    check_fit("constant world", SphereGrid.sphere(16, 32), r[:, 0, :3], N, light_pdf(session, P0), nsub=4)
+
+
+# ---- delta lights -------------------------------------------------------------------------
+
+def test_point_light_delta(session):
+    """Point light next to a rect light: delta samples along the axis with radiance
+    P / (4 pi d^2), pdf = selection probability = P_point / (P_point + P_rect) (both W)."""
+    pos, p_point, p_rect = np.array([0.5, -0.4, 1.8]), 30.0, 10.0
+    rect = Light("area", power=p_rect, position=(-1.0, 0.0, 1.0), direction=(0.5, 0.0, -1.0), size=0.5)
+    scene = lights_scene([Light("point", power=p_point, position=tuple(pos)), rect])
+    r = sample_lights(session, scene, P0, n=20_000, seed=9)
+    delta = r[:, 1, 3] > 0.5
+    assert (r[:, 1, 2] > 0.5).all()
+    sel = p_point / (p_point + p_rect)
+    check_multinomial("point vs rect: selection by power", [delta.sum(), (~delta).sum()], [sel, 1 - sel])
+    d = np.linalg.norm(pos - P0)
+    np.testing.assert_allclose(r[delta, 0, :3], np.tile(unit(pos - P0), (delta.sum(), 1)), atol=1e-6)
+    np.testing.assert_allclose(r[delta, 1, 0], p_point / (4 * math.pi * d * d), rtol=1e-5)
+    np.testing.assert_allclose(r[delta, 1, 1], d, rtol=1e-5)
+    np.testing.assert_allclose(r[delta, 0, 3], sel, rtol=1e-5)
+    # the rect's samples carry its own selection probability
+    rect_pdf = light_pdf(session, P0)(r[~delta, 0, :3])
+    np.testing.assert_allclose(r[~delta, 0, 3], rect_pdf, rtol=1e-3)
+
+
+def test_sun_and_spot_delta(session):
+    """Sun of angle 0 and a spot of radius 0: delta, right direction, radiance S and
+    att * P / (4 pi d^2); each sample's pdf is its light's selection probability."""
+    to_sun, strength = unit([-0.4, 0.2, 0.9]), 2.0
+    pos, power = np.array([0.0, 0.0, 2.0]), 40.0
+    spot = Light("spot", power=power, position=tuple(pos), direction=(math.sin(0.1), 0.0, -math.cos(0.1)),
+                 spot_size=math.radians(60.0), spot_blend=0.3)
+    floor = emission_mesh([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], 0)  # gives the scene a size
+    scene = lights_scene([Light("sun", power=strength, direction=tuple(-to_sun), angle=0.0), spot],
+                         meshes=[floor], materials=[Material("diffuse")])
+    r = sample_lights(session, scene, P0, n=20_000, seed=10)
+    assert (r[:, 1, 2] > 0.5).all() and (r[:, 1, 3] > 0.5).all()
+    sun = r[:, 1, 1] >= DISTANT
+    assert 0 < sun.sum() < len(r)
+    np.testing.assert_allclose(r[sun, 0, :3], np.tile(to_sun, (sun.sum(), 1)), atol=1e-6)
+    np.testing.assert_allclose(r[sun, 1, 0], strength, rtol=1e-6)
+    np.testing.assert_allclose(r[~sun, 0, :3], np.tile(unit(pos), ((~sun).sum(), 1)), atol=1e-6)
+    np.testing.assert_allclose(r[~sun, 1, 0], power / (4 * math.pi * 4.0), rtol=1e-5)  # att = 1 at 0.1 rad
+    p_sun, p_spot = float(r[sun, 0, 3][0]), float(r[~sun, 0, 3][0])
+    assert np.all(r[sun, 0, 3] == p_sun) and np.all(r[~sun, 0, 3] == p_spot)
+    assert p_sun + p_spot == pytest.approx(1.0, rel=1e-6)
+    check_multinomial("sun vs spot (delta): fraction == pdf", [sun.sum(), (~sun).sum()], [p_sun, p_spot])
+    # delta lights have no density for a BSDF-sampled direction
+    assert np.all(light_pdf(session, P0)(np.stack([to_sun, unit(pos)]).astype(np.float32)) == 0.0)
+
+
+# ---- several lights together --------------------------------------------------------------
+
+def test_mixed_lights(session):
+    """Triangles, sphere, spot, rect, sun, a point light and a constant world in one scene:
+    chi-square of the non-delta samples against the summed pdf, and selection by power among
+    the lights whose power is defined in Watts (triangles, sphere, rect, point)."""
+    quad = np.array([[-0.3, -0.3, 2.0], [0.3, -0.3, 2.0], [0.3, 0.3, 2.0], [-0.3, 0.3, 2.0]])
+    em = 3.0
+    sph_c, sph_r, sph_p = np.array([1.5, 0.0, 1.0]), 0.3, 40.0
+    spot_c, spot_r, spot_p = np.array([0.0, -1.5, 1.2]), 0.2, 50.0
+    rect_c, rect_p, rect_size = np.array([-1.5, 0.5, 0.8]), 30.0, (0.7, 0.4)
+    point_c, point_p = np.array([0.5, 1.5, 1.5]), 20.0
+    to_sun = unit([0.5, -0.8, 0.6])
+    rect_n = unit(P0 - rect_c)
+    lights = [
+        Light("point", power=sph_p, position=tuple(sph_c), radius=sph_r),
+        Light("spot", power=spot_p, position=tuple(spot_c), radius=spot_r, direction=tuple(unit(P0 - spot_c)),
+              spot_size=math.radians(60.0), spot_blend=0.3),
+        Light("area", power=rect_p, position=tuple(rect_c), direction=tuple(rect_n), shape="rectangle",
+              size=rect_size[0], size_y=rect_size[1]),
+        Light("point", power=point_p, position=tuple(point_c)),
+        Light("sun", power=2.0, direction=tuple(-to_sun), angle=math.radians(10.0)),
+    ]
+    scene = lights_scene(lights, meshes=[emission_mesh(quad, 0)],
+                         materials=[Material("emission", emission=(em,) * 3)], world=World(color=(0.1, 0.1, 0.1)))
+    r = sample_lights(session, scene, P0, seed=12)
+    ok = r[:, 1, 2] > 0.5
+    assert ok.all()
+    delta = r[:, 1, 3] > 0.5
+    dist = r[:, 1, 1].astype(np.float64)
+    distant = dist >= DISTANT
+    q = P0 + r[:, 0, :3].astype(np.float64) * np.where(distant, 0.0, dist)[:, None]
+    on_sphere = ~delta & ~distant & (np.abs(np.linalg.norm(q - sph_c, axis=1) - sph_r) < 1e-3)
+    on_spot = ~delta & ~distant & (np.abs(np.linalg.norm(q - spot_c, axis=1) - spot_r) < 1e-3)
+    on_rect = ~delta & ~distant & (np.abs((q - rect_c) @ rect_n) < 1e-4)
+    on_quad = ~delta & ~distant & (np.abs(q[:, 2] - 2.0) < 1e-4)
+    groups = [on_quad, on_sphere, on_rect, delta]
+    assert np.all(np.sum([on_quad, on_sphere, on_spot, on_rect, delta, distant], axis=0) == 1)
+    area_q = 0.36
+    check_multinomial("mixed: selection by power (W)", [g.sum() for g in groups],
+                      [2 * math.pi * em * area_q, sph_p, rect_p, point_p])
+    # the delta point light's pdf is its selection probability = its share of the samples
+    assert float(r[delta, 0, 3][0]) == pytest.approx(delta.mean(), abs=4 * math.sqrt(delta.mean() / N))
+    check_fit("mixed lights (non-delta)", SphereGrid.sphere(16, 32), r[~delta, 0, :3], N,
+              light_pdf(session, P0), nsub=24)
