@@ -23,15 +23,25 @@ float spot_attenuation(Light l, vec3 from_light) {
 }
 
 // ---- environment ----------------------------------------------------------------------
-// Blender's equirectangular mapping: u = 0.5 - atan2(y, x) / 2pi, v = 0.5 + asin(z) / pi;
-// texel row 0 is the top (v = 1).
-vec2 env_direction_to_uv(vec3 d) {
-    return vec2(0.5 - atan(d.y, d.x) * (0.5 * INV_PI), 0.5 + asin(clamp(d.z, -1.0, 1.0)) * INV_PI);
+// atan2 refined by one Newton step: Vulkan allows atan/asin 4096 ulp, and lavapipe's are off
+// by up to ~4e-4 rad, which moved texel edges away from where env_sample puts them (a sample
+// near an edge then got the neighbour's radiance and MIS pdf: fireflies next to a bright sun).
+float atan2_accurate(float y, float x) {
+    float a = atan(y, x);
+    float c = cos(a), s = sin(a);
+    float den = x * c + y * s;  // |(x, y)| cos(error) > 0 unless x = y = 0
+    return den > 0.0 ? a + (y * c - x * s) / den : a;
 }
 
-uvec2 env_texel(vec2 uv) {
-    uint col = min(uint(uv.x * float(scene.env_width)), scene.env_width - 1u);
-    uint row = min(uint((1.0 - uv.y) * float(scene.env_height)), scene.env_height - 1u);
+// Blender's equirectangular mapping: u = 0.5 - atan2(y, x) / 2pi,
+// v = 0.5 + atan2(z, hypot(x, y)) / pi; texel row 0 is the top (v = 1).
+vec2 env_direction_to_uv(vec3 d) {
+    return vec2(0.5 - atan2_accurate(d.y, d.x) * (0.5 * INV_PI), 0.5 + atan2_accurate(d.z, length(d.xy)) * INV_PI);
+}
+
+uvec2 env_texel(vec2 uv) {  // uv may leave [0,1] by rounding (at the seam, the poles)
+    uint col = min(uint(clamp(uv.x, 0.0, 1.0) * float(scene.env_width)), scene.env_width - 1u);
+    uint row = min(uint(clamp(1.0 - uv.y, 0.0, 1.0) * float(scene.env_height)), scene.env_height - 1u);
     return uvec2(col, row);
 }
 

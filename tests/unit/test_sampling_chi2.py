@@ -485,7 +485,7 @@ def env_map(h=32, w=64):
     rows, cols = np.meshgrid(np.arange(h) + 0.5, np.arange(w) + 0.5, indexing="ij")
     u, v = cols / w, 1.0 - rows / h
     m = np.zeros((h, w, 3), np.float32)
-    grad = 0.2 + 0.8 * v + 0.3 * np.cos(2 * math.pi * u)  # brighter towards the zenith
+    grad = 0.4 + 0.8 * v + 0.3 * np.cos(2 * math.pi * u)  # brighter towards the zenith
     m[..., 0], m[..., 1], m[..., 2] = grad, 0.7 * grad, 0.4 + 0.2 * u
     blob = 60.0 * np.exp(-(((u - 0.3) / 0.05) ** 2 + ((v - 0.65) / 0.07) ** 2))
     m += blob[..., None].astype(np.float32) * np.array([1.0, 0.8, 0.5], np.float32)
