@@ -77,6 +77,17 @@ def _device_arg(value):
     return int(value) if isinstance(value, str) and value.isdigit() else value
 
 
+def _busy_cpu_s():
+    """Machine-wide busy CPU time (s) from /proc/stat, or None off Linux."""
+    try:
+        with open("/proc/stat") as f:
+            fields = [int(x) for x in f.readline().split()[1:]]
+        idle = fields[3] + (fields[4] if len(fields) > 4 else 0)  # idle + iowait
+        return (sum(fields[:8]) - idle) / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError, AttributeError):
+        return None
+
+
 def _is_cpu(session) -> bool:
     return session.device_type == "cpu"
 
@@ -110,6 +121,7 @@ def _measure(session, scene, spatial_order: bool, seconds: float) -> dict:
     st = session.stats()
     rays0, samples0 = st["rays"], st["samples"]
 
+    busy0 = _busy_cpu_s()
     if first_s >= seconds:
         # One frame is all the time we have: it is the measurement.
         frames, rays, samples, wall, cpu = 1, rays0, samples0, first_s, first_cpu
@@ -130,6 +142,12 @@ def _measure(session, scene, spatial_order: bool, seconds: float) -> dict:
         st = session.stats()
         rays, samples = st["rays"] - rays0, st["samples"] - samples0
 
+    busy1 = _busy_cpu_s()
+    if first_s >= seconds:
+        busy0 = None  # the first frame was not bracketed by /proc/stat reads
+    # CPU time other processes used while we measured: they compete with lavapipe's threads,
+    # so rays/s (wall) drops; rays per CPU-second is less affected.
+    other = max(0.0, busy1 - busy0 - cpu) if busy0 is not None and busy1 is not None else None
     image = session.read("combined")
     pixel_samples = samples * session.width * session.height
     return {
@@ -143,6 +161,8 @@ def _measure(session, scene, spatial_order: bool, seconds: float) -> dict:
         "rays_per_s": rays / wall if wall > 0 else 0.0,
         "rays_per_cpu_s": rays / cpu if cpu > 0 else 0.0,
         "samples_per_s": pixel_samples / wall if wall > 0 else 0.0,
+        "other_cpu_s": other,
+        "other_cpu_share": (other / (wall * (os.cpu_count() or 1))) if other is not None and wall > 0 else None,
         "image_mean": float(image[..., :3].mean()),
         "warnings": list(warnings),
     }
@@ -225,12 +245,19 @@ def run(sizes=(1_000, 100_000, 1_000_000), resolution=None, seconds=10.0, method
                        target=target, target_metric="rays_per_cpu_s" if cpu_device else "rays_per_s",
                        fraction_of_target=(achieved / target) if target else None, **m)
             rows.append(row)
-            pct = f"{100 * row['fraction_of_target']:.0f}% of target" if target else "no target"
+            pct = f"{_pct(row['fraction_of_target'])} of target" if target else "no target"
+            busy = (f", other processes {100 * m['other_cpu_share']:.0f}% of the CPUs"
+                    if m["other_cpu_share"] is not None else "")
             progress(f"{row['size']:>5} {label:<14} {row_res}x{row_res}: upload {m['upload_s']:.3f} s, "
                      f"first frame {m['first_frame_s']:.3f} s, {m['frames']} frames in {m['wall_s']:.1f} s, "
-                     f"{m['rays_per_s'] / 1e6:.3f} Mrays/s, {m['rays_per_cpu_s'] / 1e6:.3f} Mrays/CPU-s, {pct}"
+                     f"{m['rays_per_s'] / 1e6:.3f} Mrays/s, {m['rays_per_cpu_s'] / 1e6:.3f} Mrays/CPU-s, {pct}{busy}"
                      + (f"  [{note}]" if note else ""))
     return rows
+
+
+def _pct(fraction: float) -> str:
+    p = 100 * fraction
+    return f"{p:.0f}%" if p >= 9.5 else f"{p:.2g}%"
 
 
 def _fmt(x: float, digits: int = 3) -> str:
@@ -245,16 +272,17 @@ def markdown_table(rows: list[dict], info: dict) -> str:
     cpu = info.get("device_type") == "cpu"
     goal = GOAL_CPU if cpu else GOAL_GPU
     head = ("| scene | triangles | order | res | upload s | first frame s | Mrays/s | Mrays/CPU-s "
-            f"| % target ({'per CPU-s' if cpu else 'per s'}) | Msamples/s |")
-    lines = [head, "|" + "---|" * 10]
+            f"| % target ({'per CPU-s' if cpu else 'per s'}) | Msamples/s | others' CPU |")
+    lines = [head, "|" + "---|" * 11]
     for r in rows:
-        pct = f"{100 * r['fraction_of_target']:.0f}%" if r["fraction_of_target"] is not None else "—"
+        pct = _pct(r["fraction_of_target"]) if r["fraction_of_target"] is not None else "—"
+        other = f"{100 * r['other_cpu_share']:.0f}%" if r.get("other_cpu_share") is not None else "—"
         if r["fraction_of_target"] is not None and r["order"] != "shuffled":
             pct += " ✓" if r["fraction_of_target"] >= goal else " ✗"
         lines.append(
             f"| soup {r['size']} | {r['triangles']} | {r['order']} | {r['resolution']}² "
             f"| {r['upload_s']:.3f} | {r['first_frame_s']:.3f} | {_fmt(r['rays_per_s'] / 1e6)} "
-            f"| {_fmt(r['rays_per_cpu_s'] / 1e6)} | {pct} | {_fmt(r['samples_per_s'] / 1e6)} |")
+            f"| {_fmt(r['rays_per_cpu_s'] / 1e6)} | {pct} | {_fmt(r['samples_per_s'] / 1e6)} | {other} |")
     return "\n".join(lines)
 
 
@@ -272,6 +300,11 @@ def summary(rows: list[dict], info: dict) -> str:
             t = r["upload_s"] + r["first_frame_s"]
             ok = "✓" if t < FIRST_FRAME_GOAL_S else "✗"
             out.append(f"100k upload + first frame: {t:.3f} s (goal < {FIRST_FRAME_GOAL_S:.0f} s) {ok}")
+    shares = [r["other_cpu_share"] for r in rows if r.get("other_cpu_share") is not None]
+    if shares and max(shares) > 0.05:
+        out.append(f"warning: other processes used up to {100 * max(shares):.0f}% of the machine's CPUs "
+                   "during a measurement ('others' CPU' column): wall-clock rates are low there; "
+                   "rays per CPU-second is less affected.")
     notes = [f"soup {r['size']} {r['order']}: {r['note']}" for r in rows if r["note"]]
     if notes:
         out.append("notes: " + "; ".join(notes))
