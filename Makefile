@@ -31,7 +31,7 @@ test: setup
 demo: setup
 	@mkdir -p out
 	@$(VENV)/bin/parallax scene cornell_box -o out/cornell_box.npz --width 512 --height 512
-	@$(VENV)/bin/parallax render out/cornell_box.npz -o out/cornell_box.exr --png out/cornell_box.png --spp 256 --spp-per-frame 8
+	@$(VENV)/bin/parallax render out/cornell_box.npz -o out/cornell_box.exr --png out/cornell_box.png --spp 128 --spp-per-frame 8
 	@echo "wrote out/cornell_box.exr and out/cornell_box.png"
 
 bench: setup

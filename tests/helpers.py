@@ -23,13 +23,22 @@ def render(scene, method="mis", spp=64, spp_per_frame=None, seed=0, session=None
 
 
 def batches(scene, method, n_batches=8, spp=64, session=None, **params):
-    """Mean image and its standard error from n_batches independent renders (seeds differ)."""
+    """From n_batches independent renders (seeds differ): the mean image, its per-pixel
+    standard error, the session, and each batch's whole-image mean."""
     images = []
     for b in range(n_batches):
         img, session = render(scene, method, spp, seed=1000 + b, session=session, **params)
         images.append(img)
     stack = np.stack(images)
-    return stack.mean(0), stack.std(0, ddof=1) / np.sqrt(n_batches), session
+    return stack.mean(0), stack.std(0, ddof=1) / np.sqrt(n_batches), session, stack.mean(axis=(1, 2, 3))
+
+
+def means_agree(batch_means_a, batch_means_b, sigmas=5.0):
+    """Whether two estimates of a whole-image mean agree within `sigmas` standard errors
+    (each error from its batch-to-batch spread)."""
+    a, b = np.asarray(batch_means_a), np.asarray(batch_means_b)
+    se = np.hypot(a.std(ddof=1) / np.sqrt(a.size), b.std(ddof=1) / np.sqrt(b.size))
+    return abs(a.mean() - b.mean()) <= sigmas * se, a.mean(), b.mean(), se
 
 
 def block(img, k):

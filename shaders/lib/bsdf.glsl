@@ -84,13 +84,14 @@ vec3 bsdf_eval(Surface s, vec3 wo, vec3 wi, out float pdf) {
         return s.albedo * (wi.z * INV_PI);
     }
     if (s.type == MATERIAL_EMISSION || s.alpha < DELTA_ALPHA) return vec3(0.0);
-    if (s.type == MATERIAL_CONDUCTOR) {
+    if (HAS(FEATURE_CONDUCTOR) && s.type == MATERIAL_CONDUCTOR) {
         if (wi.z <= 0.0) return vec3(0.0);
         vec3 m = normalize(wo + wi);
         float d = ggx_d(m, s.alpha);
         pdf = ggx_g1(wo, s.alpha) * d / (4.0 * wo.z);
         return s.albedo * (d * ggx_g2(wo, wi, s.alpha) / (4.0 * wo.z));
     }
+    if (!HAS(FEATURE_DIELECTRIC)) return vec3(0.0);
     // rough dielectric
     if (wi.z > 0.0) {
         vec3 m = normalize(wo + wi);
@@ -126,7 +127,7 @@ bool bsdf_sample(Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
         bs.weight = s.albedo;
         return bs.wi.z > 0.0;
     }
-    if (s.type == MATERIAL_CONDUCTOR) {
+    if (HAS(FEATURE_CONDUCTOR) && s.type == MATERIAL_CONDUCTOR) {
         if (s.alpha < DELTA_ALPHA) {
             bs.wi = vec3(-wo.xy, wo.z);
             bs.pdf = 1.0;
@@ -141,6 +142,7 @@ bool bsdf_sample(Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
         bs.weight = s.albedo * (ggx_g2(wo, bs.wi, s.alpha) / ggx_g1(wo, s.alpha));
         return true;
     }
+    if (!HAS(FEATURE_DIELECTRIC)) return false;
     // dielectric
     vec3 m = s.alpha < DELTA_ALPHA ? vec3(0.0, 0.0, 1.0) : ggx_sample_vndf(wo, s.alpha, u.xy);
     float wo_m = dot(wo, m);

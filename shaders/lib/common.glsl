@@ -27,6 +27,10 @@ layout(set = 0, binding = BINDING_SCENE, scalar) readonly buffer SceneBuffer { S
 
 layout(push_constant, scalar) uniform PushConstants { FrameParams params; };
 
+// FEATURE_* bits of the scene this pipeline renders; code for anything else folds away.
+layout(constant_id = 2) const uint SCENE_FEATURES = FEATURE_ALL;
+#define HAS(FEATURE) ((SCENE_FEATURES & (FEATURE)) != 0u)
+
 float max3(vec3 v) { return max(v.x, max(v.y, v.z)); }
 float luminance(vec3 c) { return dot(c, vec3(0.2126, 0.7152, 0.0722)); }
 float sqr(float x) { return x * x; }

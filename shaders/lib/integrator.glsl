@@ -63,7 +63,8 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         // Analytic lights are not in the TLAS: test them against this segment.
         float t_light, light_pdf;
         vec3 light_radiance;
-        if (intersect_analytic_lights(origin, dir, t_surface, t_light, light_radiance, light_pdf) != NO_INDEX) {
+        if (HAS(FEATURE_SPHERE_LIGHTS | FEATURE_AREA_LIGHTS) &&
+            intersect_analytic_lights(origin, dir, t_surface, t_light, light_radiance, light_pdf) != NO_INDEX) {
             res.radiance += throughput * light_radiance * emission_weight(prev_delta, prev_pdf, light_pdf, opt.light_samples);
             if (res.segments == 1u) res.first_t = t_light;
             break;

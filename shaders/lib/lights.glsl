@@ -46,18 +46,18 @@ uvec2 env_texel(vec2 uv) {  // uv may leave [0,1] by rounding (at the seam, the 
 }
 
 vec3 env_radiance(vec3 d) {
-    if (scene.env_width == 0u) return scene.env_color;
+    if (!HAS(FEATURE_ENV_MAP) || scene.env_width == 0u) return scene.env_color;
     uvec2 t = env_texel(env_direction_to_uv(d));
     return env_texels[t.y * scene.env_width + t.x];
 }
 
 // Solid-angle pdf of sampling direction d from the environment (selection excluded).
 float env_pdf(vec3 d) {
-    if (scene.env_width == 0u) return 1.0 / (4.0 * PI);
+    if (!HAS(FEATURE_ENV_MAP) || scene.env_width == 0u) return 1.0 / (4.0 * PI);
     if (scene.env_total <= 0.0) return 0.0;
     uvec2 t = env_texel(env_direction_to_uv(d));
     uint w = scene.env_width, h = scene.env_height;
-    float sin_theta = sqrt(max(0.0, 1.0 - d.z * d.z));
+    float sin_theta = length(d.xy);  // not sqrt(1 - z^2): that cancels near the poles
     if (sin_theta <= 0.0) return 0.0;
     float p_row = env_marginal[t.y + 1u] - env_marginal[t.y];
     float p_col = env_conditional[t.y * (w + 1u) + t.x + 1u] - env_conditional[t.y * (w + 1u) + t.x];
@@ -65,7 +65,7 @@ float env_pdf(vec3 d) {
 }
 
 vec3 env_sample(vec2 u, out float pdf) {
-    if (scene.env_width == 0u) {
+    if (!HAS(FEATURE_ENV_MAP) || scene.env_width == 0u) {
         pdf = 1.0 / (4.0 * PI);
         return uniform_sphere(u);
     }
@@ -94,7 +94,7 @@ bool sample_one_light(uint index, vec3 p, vec2 u, out LightSample ls) {
     ls.radiance = vec3(0.0);
     ls.pdf = 0.0;
     ls.wi = vec3(0.0, 0.0, 1.0);
-    if (l.type == LIGHT_TRIANGLE) {
+    if (HAS(FEATURE_TRIANGLE_LIGHTS) && l.type == LIGHT_TRIANGLE) {
         float su = sqrt(u.x);
         vec3 q = l.position + (1.0 - su) * l.axis_u + (u.y * su) * l.axis_v;
         vec3 to = q - p;
@@ -107,7 +107,7 @@ bool sample_one_light(uint index, vec3 p, vec2 u, out LightSample ls) {
         ls.radiance = l.radiance;
         return true;
     }
-    if (l.type == LIGHT_SPHERE || l.type == LIGHT_SPOT) {
+    if (HAS(FEATURE_SPHERE_LIGHTS) && (l.type == LIGHT_SPHERE || l.type == LIGHT_SPOT)) {
         vec3 to = l.position - p;
         float d2 = dot(to, to);
         float d = sqrt(d2);
@@ -137,7 +137,7 @@ bool sample_one_light(uint index, vec3 p, vec2 u, out LightSample ls) {
         ls.radiance = l.radiance * att;
         return true;
     }
-    if (l.type == LIGHT_SUN) {
+    if (HAS(FEATURE_SUN) && l.type == LIGHT_SUN) {
         if (l.cos_half_angle >= 1.0) {
             ls.wi = l.direction;
             ls.radiance = l.radiance;
@@ -154,7 +154,7 @@ bool sample_one_light(uint index, vec3 p, vec2 u, out LightSample ls) {
         ls.radiance = l.radiance;
         return true;
     }
-    if (l.type == LIGHT_RECT || l.type == LIGHT_DISK) {
+    if (HAS(FEATURE_AREA_LIGHTS) && (l.type == LIGHT_RECT || l.type == LIGHT_DISK)) {
         vec2 o = l.type == LIGHT_RECT ? u - 0.5 : 0.5 * concentric_disk(u);
         vec3 q = l.position + o.x * l.axis_u + o.y * l.axis_v;
         vec3 to = q - p;
@@ -167,6 +167,7 @@ bool sample_one_light(uint index, vec3 p, vec2 u, out LightSample ls) {
         ls.radiance = l.radiance;
         return true;
     }
+    if (!HAS(FEATURE_ENV)) return false;
     // environment
     ls.wi = env_sample(u, ls.pdf);
     ls.radiance = env_radiance(ls.wi);
@@ -191,6 +192,47 @@ float triangle_light_pdf(uint index, float t, float cos_l) {
     return light_select_pdf(index) * t * t / (l.area * max(abs(cos_l), 1e-8));
 }
 
+// Analytic light `index` (sphere, spot, rect, disk; not the sun) along the ray o + t d,
+// 0 < t < t_max: true with t, radiance and pdf (incl. selection) as seen from o.
+bool analytic_light_hit(uint index, vec3 o, vec3 d, float t_max, out float t, out vec3 radiance, out float pdf) {
+    Light l = lights[index];
+    t = t_max;
+    radiance = vec3(0.0);
+    pdf = 0.0;
+    if (HAS(FEATURE_SPHERE_LIGHTS) && (l.type == LIGHT_SPHERE || l.type == LIGHT_SPOT)) {
+        if (l.radius <= 0.0) return false;
+        vec3 oc = o - l.position;
+        float b = dot(oc, d);
+        float c = dot(oc, oc) - l.radius * l.radius;
+        if (c <= 0.0) return false;  // origin inside: ignore
+        float disc = b * b - c;
+        if (disc < 0.0) return false;
+        t = -b - sqrt(disc);
+        if (t <= 0.0 || t >= t_max) return false;
+        float att = l.type == LIGHT_SPOT ? spot_attenuation(l, normalize(oc)) : 1.0;
+        radiance = l.radiance * att;
+        // outside a spot's cone sample_one_light gives up: NEE's density there is 0
+        float omc = one_minus_cos_from_sin2(l.radius * l.radius / dot(oc, oc));
+        pdf = att > 0.0 ? light_select_pdf(index) / (2.0 * PI * omc) : 0.0;
+        return true;
+    }
+    if (HAS(FEATURE_AREA_LIGHTS) && (l.type == LIGHT_RECT || l.type == LIGHT_DISK)) {
+        float denom = dot(d, l.direction);
+        if (denom >= 0.0) return false;  // back side or parallel: invisible
+        t = dot(l.position - o, l.direction) / denom;
+        if (t <= 0.0 || t >= t_max) return false;
+        vec3 q = o + t * d - l.position;
+        float su = dot(q, l.axis_u) / dot(l.axis_u, l.axis_u);
+        float sv = dot(q, l.axis_v) / dot(l.axis_v, l.axis_v);
+        bool inside = l.type == LIGHT_RECT ? (abs(su) <= 0.5 && abs(sv) <= 0.5) : (su * su + sv * sv <= 0.25);
+        if (!inside) return false;
+        radiance = l.radiance;
+        pdf = light_select_pdf(index) * t * t / (l.area * -denom);
+        return true;
+    }
+    return false;
+}
+
 // Nearest analytic light (sphere, spot, rect, disk) along the ray within t_max.
 // Returns its index or NO_INDEX; t_hit, radiance and pdf (incl. selection) as seen from o.
 uint intersect_analytic_lights(vec3 o, vec3 d, float t_max, out float t_hit, out vec3 radiance, out float pdf) {
@@ -199,38 +241,13 @@ uint intersect_analytic_lights(vec3 o, vec3 d, float t_max, out float t_hit, out
     radiance = vec3(0.0);
     pdf = 0.0;
     for (uint i = scene.analytic_first; i < scene.analytic_first + scene.analytic_count; ++i) {
-        Light l = lights[i];
-        if (l.type == LIGHT_SPHERE || l.type == LIGHT_SPOT) {
-            if (l.radius <= 0.0) continue;
-            vec3 oc = o - l.position;
-            float b = dot(oc, d);
-            float c = dot(oc, oc) - l.radius * l.radius;
-            if (c <= 0.0) continue;  // origin inside: ignore
-            float disc = b * b - c;
-            if (disc < 0.0) continue;
-            float t = -b - sqrt(disc);
-            if (t <= 0.0 || t >= t_hit) continue;
-            float att = l.type == LIGHT_SPOT ? spot_attenuation(l, normalize(oc)) : 1.0;
-            t_hit = t;
-            found = i;
-            radiance = l.radiance * att;
-            float omc = one_minus_cos_from_sin2(l.radius * l.radius / dot(oc, oc));
-            pdf = light_select_pdf(i) / (2.0 * PI * omc);
-        } else if (l.type == LIGHT_RECT || l.type == LIGHT_DISK) {
-            float denom = dot(d, l.direction);
-            if (denom >= 0.0) continue;  // back side or parallel: invisible
-            float t = dot(l.position - o, l.direction) / denom;
-            if (t <= 0.0 || t >= t_hit) continue;
-            vec3 q = o + t * d - l.position;
-            float su = dot(q, l.axis_u) / dot(l.axis_u, l.axis_u);
-            float sv = dot(q, l.axis_v) / dot(l.axis_v, l.axis_v);
-            bool inside = l.type == LIGHT_RECT ? (abs(su) <= 0.5 && abs(sv) <= 0.5) : (su * su + sv * sv <= 0.25);
-            if (!inside) continue;
-            t_hit = t;
-            found = i;
-            radiance = l.radiance;
-            pdf = light_select_pdf(i) * t * t / (l.area * -denom);
-        }
+        float t, p;
+        vec3 le;
+        if (!analytic_light_hit(i, o, d, t_hit, t, le, p)) continue;
+        t_hit = t;
+        found = i;
+        radiance = le;
+        pdf = p;
     }
     return found;
 }
@@ -240,11 +257,11 @@ uint intersect_analytic_lights(vec3 o, vec3 d, float t_max, out float t_hit, out
 vec3 distant_radiance(vec3 d, out float pdf) {
     vec3 radiance = vec3(0.0);
     pdf = 0.0;
-    if (scene.env_light != NO_INDEX) {
+    if (HAS(FEATURE_ENV) && scene.env_light != NO_INDEX) {
         radiance += env_radiance(d);
         pdf += light_select_pdf(scene.env_light) * env_pdf(d);
     }
-    for (uint i = scene.analytic_first; i < scene.analytic_first + scene.analytic_count; ++i) {
+    for (uint i = scene.analytic_first; HAS(FEATURE_SUN) && i < scene.analytic_first + scene.analytic_count; ++i) {
         Light l = lights[i];
         if (l.type != LIGHT_SUN || l.cos_half_angle >= 1.0) continue;
         if (dot(d, l.direction) >= l.cos_half_angle) {

@@ -22,7 +22,7 @@ SurfaceHit fetch_surface(uint instance_index, uint primitive, vec2 bary) {
     vec3 ng_obj = cross(p1 - p0, p2 - p0);
     h.ng = normalize(transform_vector(inst.normal_to_world, ng_obj));
     h.ns = h.ng;
-    if (mesh.has_normals != 0u) {
+    if (HAS(FEATURE_SHADING_NORMALS) && mesh.has_normals != 0u) {
         vec3 n = b.x * corner_normals[3u * tri] + b.y * corner_normals[3u * tri + 1u] + b.z * corner_normals[3u * tri + 2u];
         n = transform_vector(inst.normal_to_world, n);
         if (dot(n, n) > 1e-12) {
@@ -31,7 +31,7 @@ SurfaceHit fetch_surface(uint instance_index, uint primitive, vec2 bary) {
         }
     }
     h.uv = vec2(0.0);
-    if (mesh.has_uvs != 0u)
+    if (HAS(FEATURE_UVS) && mesh.has_uvs != 0u)
         h.uv = b.x * corner_uvs[3u * tri] + b.y * corner_uvs[3u * tri + 1u] + b.z * corner_uvs[3u * tri + 2u];
     h.material = triangle_material[tri];
     h.instance = instance_index;
@@ -62,6 +62,6 @@ vec3 sample_texture(int index, vec2 uv) {
 
 vec3 material_albedo(Material m, vec2 uv) {
     vec3 c = m.base_color;
-    if (m.base_color_texture >= 0) c *= sample_texture(m.base_color_texture, uv);
+    if (HAS(FEATURE_TEXTURES) && m.base_color_texture >= 0) c *= sample_texture(m.base_color_texture, uv);
     return c;
 }

@@ -75,6 +75,21 @@ PX_CONST uint CAMERA_ORTHOGRAPHIC = 1;
 
 PX_CONST uint NO_INDEX = 0xffffffffu;
 
+// Scene features: a specialization constant (DESIGN: "Specialise, don't branch"), so a
+// pipeline only carries the material, light and geometry code its scene uses.
+PX_CONST uint FEATURE_CONDUCTOR = 1u << 0;
+PX_CONST uint FEATURE_DIELECTRIC = 1u << 1;
+PX_CONST uint FEATURE_TEXTURES = 1u << 2;
+PX_CONST uint FEATURE_SHADING_NORMALS = 1u << 3;
+PX_CONST uint FEATURE_UVS = 1u << 4;
+PX_CONST uint FEATURE_TRIANGLE_LIGHTS = 1u << 5;
+PX_CONST uint FEATURE_SPHERE_LIGHTS = 1u << 6;  // point and spot
+PX_CONST uint FEATURE_AREA_LIGHTS = 1u << 7;    // rect and disk
+PX_CONST uint FEATURE_SUN = 1u << 8;
+PX_CONST uint FEATURE_ENV = 1u << 9;            // constant world or map
+PX_CONST uint FEATURE_ENV_MAP = 1u << 10;
+PX_CONST uint FEATURE_ALL = 0xffffffffu;
+
 // ---- scene records --------------------------------------------------------------------
 struct MeshInfo {
     uint first_triangle;

@@ -3,7 +3,8 @@
 // Runs one sampling routine of the real shader library many times so tests can compare
 // sampled directions against the routine's own pdf (chi-square, tests/unit).
 //   routine < TEST_EVAL: sample.  io[2i] = (wi, pdf), io[2i+1] = (weight.x, eval.x, eval pdf, ok)
-//   routine >= TEST_EVAL: evaluate at io[2i].xyz. io[2i+1] = (f cos .x, pdf, 0, 0)
+//   routine >= TEST_EVAL: evaluate at io[2i].xyz. io[2i+1] = (f cos .x, pdf, 0, 0) for BSDFs,
+//                         (radiance.x, light pdf, 0, 0) for lights (sums over all lights)
 // BSDFs: test_params = (wo, roughness), test_param0 = ior, albedo 1.
 // Lights: test_params.xyz = shading point; sampling includes light selection.
 #include "../lib/common.glsl"
@@ -17,12 +18,15 @@ layout(set = 0, binding = BINDING_TEST_IO, scalar) buffer TestIo { vec4 io[]; };
 
 const uint TEST_EVAL = 16u;
 
-// Sum over all lights of the density with which sample_light produces direction wi from p.
-float light_pdf_all(vec3 p, vec3 wi) {
+// Sum over all lights of the density with which sample_light produces direction wi from p,
+// and of the radiance arriving along wi (every light, occluded or not). Built from the
+// functions the integrator uses for MIS when a BSDF ray hits a light, so the chi-square
+// tests cover those too (triangle_light_pdf, analytic_light_hit, distant_radiance).
+float light_pdf_all(vec3 p, vec3 wi, out vec3 radiance) {
     float pdf = 0.0;
+    radiance = vec3(0.0);
     for (uint i = 0u; i < scene.light_count; ++i) {
         Light l = lights[i];
-        float sel = light_select_pdf(i);
         if (l.type == LIGHT_TRIANGLE) {  // Moller-Trumbore
             vec3 pv = cross(wi, l.axis_v);
             float det = dot(l.axis_u, pv);
@@ -33,32 +37,20 @@ float light_pdf_all(vec3 p, vec3 wi) {
             float bv = dot(wi, qv) / det;
             float t = dot(l.axis_v, qv) / det;
             if (bu < 0.0 || bv < 0.0 || bu + bv > 1.0 || t <= 0.0) continue;
-            pdf += sel * t * t / (l.area * abs(dot(l.direction, wi)));
-        } else if (l.type == LIGHT_SPHERE || l.type == LIGHT_SPOT) {
-            if (l.radius <= 0.0) continue;
-            vec3 oc = p - l.position;
-            float b = dot(oc, wi), c = dot(oc, oc) - l.radius * l.radius;
-            if (c <= 0.0 || b * b - c < 0.0 || -b - sqrt(b * b - c) <= 0.0) continue;
-            if (l.type == LIGHT_SPOT && spot_attenuation(l, normalize(oc)) <= 0.0) continue;
-            pdf += sel / (2.0 * PI * one_minus_cos_from_sin2(l.radius * l.radius / dot(oc, oc)));
-        } else if (l.type == LIGHT_RECT || l.type == LIGHT_DISK) {
-            float denom = dot(wi, l.direction);
-            if (denom >= 0.0) continue;
-            float t = dot(l.position - p, l.direction) / denom;
-            if (t <= 0.0) continue;
-            vec3 q = p + t * wi - l.position;
-            float su = dot(q, l.axis_u) / dot(l.axis_u, l.axis_u);
-            float sv = dot(q, l.axis_v) / dot(l.axis_v, l.axis_v);
-            bool inside = l.type == LIGHT_RECT ? (abs(su) <= 0.5 && abs(sv) <= 0.5) : (su * su + sv * sv <= 0.25);
-            if (inside) pdf += sel * t * t / (l.area * -denom);
-        } else if (l.type == LIGHT_SUN) {
-            if (l.cos_half_angle < 1.0 && dot(wi, l.direction) >= l.cos_half_angle)
-                pdf += sel / (2.0 * PI * (1.0 - l.cos_half_angle));
-        } else if (l.type == LIGHT_ENV) {
-            pdf += sel * env_pdf(wi);
+            pdf += triangle_light_pdf(i, t, dot(l.direction, wi));
+            radiance += l.radiance;
+        } else if (l.type != LIGHT_SUN && l.type != LIGHT_ENV) {
+            float t, lp;
+            vec3 le;
+            if (analytic_light_hit(i, p, wi, INFINITY_F, t, le, lp)) {
+                pdf += lp;
+                radiance += le;
+            }
         }
     }
-    return pdf;
+    float distant_pdf;
+    radiance += distant_radiance(wi, distant_pdf);
+    return pdf + distant_pdf;
 }
 
 void main() {
@@ -71,7 +63,9 @@ void main() {
     if (routine == TEST_LIGHT) {
         vec3 p = params.test_params.xyz;
         if (eval_mode) {
-            io[2u * i + 1u] = vec4(0.0, light_pdf_all(p, normalize(io[2u * i].xyz)), 0.0, 0.0);
+            vec3 radiance;
+            float pdf = light_pdf_all(p, normalize(io[2u * i].xyz), radiance);
+            io[2u * i + 1u] = vec4(radiance.x, pdf, 0.0, 0.0);
             return;
         }
         LightSample ls;

@@ -7,7 +7,7 @@ import parallax_core as pc
 from parallax_core import scenes
 from parallax_core.scene import Light, Material, SceneData, World
 
-from helpers import batches, rel_mse, render, z_scores
+from helpers import batches, means_agree, rel_mse, render, z_scores
 
 METHODS = ("pt", "nee", "mis")
 
@@ -43,10 +43,10 @@ def test_furnace_sphere(method):
 def test_constant_env_map_equals_constant_world():
     # The importance-sampled environment map path must give what a constant world gives.
     sc = scenes.furnace_sphere(albedo=0.8, width=16, height=16)
-    ref, _, s = batches(sc, "mis", n_batches=4, spp=64)
+    ref, _, s, _ = batches(sc, "mis", n_batches=4, spp=64)
     sc.world = World((1.0, 1.0, 1.0), 1.0, np.ones((8, 16, 3), np.float32))
     s.update(sc)
-    img, _, _ = batches(sc, "mis", n_batches=4, spp=64, session=s)
+    img = batches(sc, "mis", n_batches=4, spp=64, session=s)[0]
     assert abs(img.mean() - ref.mean()) < 0.01
 
 
@@ -61,12 +61,14 @@ def test_pt_nee_mis_agree_on_cornell_box(cornell):
     s.update(sc)
     results = {}
     for method, spp in (("pt", 512), ("nee", 128), ("mis", 128)):
-        results[method] = batches(sc, method, n_batches=8, spp=spp, session=s, max_depth=6)[:2]
+        results[method] = batches(sc, method, n_batches=8, spp=spp, session=s, max_depth=6)
     for a, b in (("pt", "mis"), ("nee", "mis"), ("pt", "nee")):
-        z = z_scores(*results[a], *results[b], k=4)
+        z = z_scores(*results[a][:2], *results[b][:2], k=4)
         assert np.abs(z).max() < 5.0, f"{a} vs {b}: max |z| = {np.abs(z).max():.2f}"
-        ma, mb = results[a][0].mean(), results[b][0].mean()
-        assert ma == pytest.approx(mb, rel=0.03), f"{a} vs {b}: image means {ma:.4f} vs {mb:.4f}"
+        # Whole-image means within 5 standard errors (from the batch spread): NEE is heavy-tailed
+        # here, the light hangs 2 cm below the ceiling and 1/d^2 is large next to it.
+        ok, ma, mb, se = means_agree(results[a][3], results[b][3])
+        assert ok, f"{a} vs {b}: image means {ma:.4f} vs {mb:.4f} (standard error {se:.4f})"
 
 
 def test_mis_beats_nee_and_pt_on_veach_scene():
@@ -209,24 +211,24 @@ def test_area_lights_pt_nee_mis_agree(light):
     sc = _lit_plane(light)
     s = pc.Session(16, 16)
     s.update(sc)
-    res = {m: batches(sc, m, n_batches=6, spp=spp, session=s, max_depth=1)[:2]
+    res = {m: batches(sc, m, n_batches=6, spp=spp, session=s, max_depth=1)
            for m, spp in (("pt", 1024), ("nee", 64), ("mis", 64))}
     for a, b in (("pt", "mis"), ("nee", "mis")):
-        z = z_scores(*res[a], *res[b], k=4)
+        z = z_scores(*res[a][:2], *res[b][:2], k=4)
         assert np.abs(z).max() < 5.0, f"{a} vs {b}: max |z| {np.abs(z).max():.2f}"
-        # Path tracing alone is heavy-tailed on small lights: a looser bound on the mean.
-        assert res[a][0].mean() == pytest.approx(res[b][0].mean(), rel=0.05 if a == "pt" else 0.02)
+        ok, ma, mb, se = means_agree(res[a][3], res[b][3])
+        assert ok, f"{a} vs {b}: image means {ma:.4f} vs {mb:.4f} (standard error {se:.4f})"
 
 
 def test_env_map_scene_methods_agree():
     sc = scenes.env_map_scene(16, 16, map_width=64)
     s = pc.Session(16, 16)
     s.update(sc)
-    res = {m: batches(sc, m, n_batches=6, spp=spp, session=s, max_depth=3)[:2]
+    res = {m: batches(sc, m, n_batches=6, spp=spp, session=s, max_depth=3)
            for m, spp in (("pt", 1024), ("mis", 128))}
-    z = z_scores(*res["pt"], *res["mis"], k=4)
+    z = z_scores(*res["pt"][:2], *res["mis"][:2], k=4)
     assert np.abs(z).max() < 5.0
-    assert res["pt"][0].mean() == pytest.approx(res["mis"][0].mean(), rel=0.03)
+    assert means_agree(res["pt"][3], res["mis"][3])[0]
 
 
 @pytest.mark.parametrize(

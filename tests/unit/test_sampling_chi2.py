@@ -3,16 +3,21 @@
 Each routine of shaders/lib/{bsdf,lights}.glsl is run through shaders/tests/sampling_test.comp
 (``Session.test_sampling``): sampled directions are binned on a (theta, phi) grid -- over the
 whole sphere, or over a cap around a light in a rotated frame -- and compared with the counts
-expected from integrating the routine's own pdf (eval mode) over each bin with a fine
-sub-grid (midpoint rule, each sub-cell weighted by its exact solid angle), as in Mitsuba's and
-pbrt's chi2 tests. Cells with fewer than 5 expected samples are pooled. A test passes when
-p > ALPHA, a Sidak-corrected 1 % level over all chi-square tests in this file. The integral of
-the pdf must also match the fraction of samples the routine accepted.
+expected from integrating the routine's own pdf (eval mode) over each bin, as in Mitsuba's
+and pbrt's chi2 tests. The integration is a midpoint rule on a sub-grid, each sub-cell
+weighted by its exact solid angle, with sub-cells next to a jump of the pdf redone finer
+(light outlines, the horizon), and sub-rows split at known jumps along a theta circle.
+Cells with fewer than 5 expected samples are pooled. A test passes when p > ALPHA, a
+Sidak-corrected 1 % level over all chi-square tests in this file. The integral of the pdf
+must also match the fraction of samples the routine accepted.
 
 Besides the chi-square tests: sampler pdf == eval pdf and weight == eval / pdf for every BSDF
-sample, light selection proportional to power, uniform area sampling of emitters, radiance
-and delta-light values in Cycles' units, and the irradiance of a sphere and a sun light.
-Everything is seeded: the same build gives the same p-values.
+sample; for lights, a BSDF ray along a light sample sees the radiance and pdf that NEE
+reported (eval mode uses the integrator's own MIS functions); light selection proportional
+to power; uniform area sampling of emitters; radiance and delta-light values in Cycles'
+units; the irradiance of a sphere and a sun light and the integral of an environment map.
+Everything is seeded (PARALLAX_CHI2_SEED shifts all seeds): the same build gives the same
+p-values, and over seeds they are uniform (checked over 16 seeds x 35 tests).
 """
 from __future__ import annotations
 
@@ -25,7 +30,7 @@ import pytest
 import parallax_core as pc
 from parallax_core import scenes
 from parallax_core.scene import (Light, Material, Mesh, SceneData, World,
-                                 direction_to_equirectangular)
+                                 direction_to_equirectangular, equirectangular_to_direction)
 
 TEST_DIFFUSE, TEST_CONDUCTOR, TEST_DIELECTRIC, TEST_LIGHT = 0, 1, 2, 3
 EVAL = 16                 # routine + EVAL: evaluate at given directions
@@ -222,6 +227,19 @@ class SphereGrid:
 RESULTS: list[str] = []  # one line per chi-square test; printed at the end (pytest -s)
 
 
+def assert_close_mostly(what, got, want, rtol=1e-3, loose=1e-2, fraction=1e-4):
+    """|got - want| <= rtol |want| everywhere but for a `fraction` of the values, which
+    must be within `loose`: near total internal reflection 1 - F cancels in float32, and the
+    sampler's F (at the sampled microfacet) and eval's (at the half vector rebuilt from wi)
+    differ by up to ~3e-3 for about 1 sample in 10^6."""
+    got, want = np.asarray(got, np.float64), np.asarray(want, np.float64)
+    rel = np.abs(got - want) / np.maximum(np.abs(want), 1e-12)
+    worst = int(np.argmax(rel))
+    assert rel.max() <= loose and (rel > rtol).mean() <= fraction, (
+        f"{what}: {(rel > rtol).sum()} of {rel.size} differ by more than {rtol:g} "
+        f"(worst {rel[worst]:.3g}: {got[worst]:.6g} vs {want[worst]:.6g})")
+
+
 def check_fit(label, grid, dirs, n_total, pdf, nsub=16, breaks=(), integral_rtol=0.01):
     """Chi-square test of ``dirs`` (the accepted samples out of n_total draws) against
     ``pdf``; also checks that pdf integrates to the accepted fraction."""
@@ -280,7 +298,19 @@ def sample_lights(session, scene, p, n=N, seed=0):
 
 
 def light_pdf(session, p):
+    """Eval mode: the summed light pdf of directions from p (triangle_light_pdf,
+    analytic_light_hit and distant_radiance: what MIS uses when a BSDF ray hits a light)."""
     return lambda d: session.test_sampling(TEST_LIGHT + EVAL, [*p, 0.0, 0.0], len(d), directions=d)[:, 1, 1]
+
+
+def check_light_hits(session, p, r):
+    """With one light, a BSDF ray along a light sample's direction must see the radiance and
+    pdf NEE reported (the sampler's pdf is the samples' density). A sample on the very edge
+    of a light may miss it in eval: 1e-4 of them may differ."""
+    ok = r[:, 1, 2] > 0.5
+    e = session.test_sampling(TEST_LIGHT + EVAL, [*p, 0.0, 0.0], int(ok.sum()), directions=r[ok, 0, :3])
+    assert_close_mostly("light hit pdf vs sampler pdf", e[:, 1, 1], r[ok, 0, 3], loose=np.inf)
+    assert_close_mostly("light hit radiance vs sampled radiance", e[:, 1, 0], r[ok, 1, 0], loose=np.inf)
 
 
 def smoothstep(x):
@@ -352,12 +382,12 @@ def test_bsdf_pdf_and_weight_consistent(session, case):
     assert np.all(r[~ok, 0, 3] == 0.0)
     pdf_s, weight, f_eval, pdf_e = r[ok, 0, 3], r[ok, 1, 0], r[ok, 1, 1], r[ok, 1, 2]
     assert np.all(pdf_s > 0.0) and np.all(pdf_e >= 0.0) and np.all(f_eval >= 0.0) and np.all(weight >= 0.0)
-    np.testing.assert_allclose(pdf_e, pdf_s, rtol=1e-3, err_msg="sampler pdf != eval pdf")
-    np.testing.assert_allclose(weight, f_eval / pdf_s, rtol=1e-3, atol=1e-6, err_msg="weight != f cos / pdf")
-    # eval mode at the sampled directions reproduces the in-shader evaluation
+    assert_close_mostly("sampler pdf vs eval pdf", pdf_e, pdf_s)
+    assert_close_mostly("weight vs f cos / pdf", weight, f_eval / pdf_s)
+    # eval mode at the sampled directions (re-normalised) reproduces the in-shader evaluation
     e = session.test_sampling(routine + EVAL, params, int(ok.sum()), directions=r[ok, 0, :3])
-    np.testing.assert_allclose(e[:, 1, 1], pdf_e, rtol=1e-3)
-    np.testing.assert_allclose(e[:, 1, 0], f_eval, rtol=1e-3)
+    assert_close_mostly("eval mode pdf", e[:, 1, 1], pdf_e)
+    assert_close_mostly("eval mode f cos", e[:, 1, 0], f_eval)
     if routine == TEST_DIFFUSE:  # Lambert with albedo 1: weight is exactly 1
         np.testing.assert_allclose(weight, 1.0, rtol=1e-6)
     else:  # energy conservation: G2 / G1 <= 1
@@ -404,6 +434,7 @@ def test_triangle_lights(session):
     n_t = unit(np.cross(tri[1] - tri[0], tri[2] - tri[0]))
     assert np.abs((q[~on_quad] - tri[0]) @ n_t).max() < 1e-4
     grid = SphereGrid.bounding(P0, np.concatenate([quad, tri]))
+    check_light_hits(session, P0, r)
     check_fit("triangle lights", grid, r[ok, 0, :3], N, light_pdf(session, P0))
 
 
@@ -419,6 +450,7 @@ def test_sphere_light(session):
     np.testing.assert_allclose(np.linalg.norm(q - c, axis=1), rad, atol=2e-4)  # on the sphere,
     assert np.all(r[:, 1, 1] <= math.sqrt(d * d - rad * rad) + 1e-4)          # the near side
     cos_max = math.sqrt(1 - (rad / d) ** 2)
+    check_light_hits(session, P0, r)
     check_fit("sphere light", SphereGrid.cone(c - P0, cos_max), r[:, 0, :3], N, light_pdf(session, P0))
 
 
@@ -461,6 +493,7 @@ def test_spot_light(session):
     np.testing.assert_allclose(r[:, 1, 0], att * power / (4 * math.pi ** 2 * 0.2 ** 2), rtol=1e-4)
     d = np.linalg.norm(pos - P0)
     cos_max = math.sqrt(1 - (0.2 / d) ** 2)
+    check_light_hits(session, P0, r)
     check_fit("spot light", SphereGrid.cone(pos - P0, cos_max), r[:, 0, :3], N, light_pdf(session, P0))
     # outside the cone: nothing to sample, zero pdf
     scene, _, _ = spot_scene(power, 35.0)
@@ -482,6 +515,7 @@ def test_sun_light(session):
     # irradiance at normal incidence is the strength
     e = np.mean(r[:, 1, 0] * (r[:, 0, :3].astype(np.float64) @ to_sun) / r[:, 0, 3])
     assert e == pytest.approx(strength, rel=0.01)
+    check_light_hits(session, P0, r)
     check_fit("sun (10 deg)", SphereGrid.cone(to_sun, math.cos(h)), r[:, 0, :3], N, light_pdf(session, P0))
 
 
@@ -516,6 +550,7 @@ def test_area_light(session, shape):
         a = np.linspace(0, 2 * math.pi, 64, endpoint=False)
         outline = pos + 0.5 * np.stack([size * np.cos(a), size_y * np.sin(a)], 1) @ np.stack([u, v])
     grid = SphereGrid.bounding(P0, outline)
+    check_light_hits(session, P0, r)
     check_fit(f"area light ({shape})", grid, r[:, 0, :3], N, light_pdf(session, P0))
     # one-sided: nothing from behind
     behind = pos + 1.0 * normal * -1.0
@@ -556,13 +591,20 @@ def test_environment_map(session):
     theta_c = math.pi * (np.arange(h) + 0.5) / h
     total = float((lum.astype(np.float64) * np.sin(theta_c)[:, None]).sum())
     rows_c, cols_c = np.meshgrid(np.arange(h) + 0.5, np.arange(w) + 0.5, indexing="ij")
-    from parallax_core.scene import equirectangular_to_direction
     centres = equirectangular_to_direction(cols_c / w, 1.0 - rows_c / h).reshape(-1, 3)
     got = light_pdf(session, P0)(centres.astype(np.float32))
     want = lum.ravel() * w * h / (2 * math.pi ** 2 * total)
     np.testing.assert_allclose(got, want, rtol=5e-3, atol=1e-4 * want.mean())
-    # theta-spaced bins whose sub-grid lines fall on texel edges: exact integration
-    check_fit("environment map", SphereGrid.sphere(16, 32), dirs, N, light_pdf(session, P0))
+    # NEE estimate of the integral of L over the sphere (red channel) with the sampler's pdf
+    omega = (np.cos(math.pi * np.arange(h) / h) - np.cos(math.pi * np.arange(1, h + 1) / h)) * (2 * math.pi / w)
+    exact = float((m[..., 0].astype(np.float64) * omega[:, None]).sum())
+    estimate = float(np.mean(np.where(ok, r[:, 1, 0] / np.where(ok, r[:, 0, 3], 1.0), 0.0)))
+    assert estimate == pytest.approx(exact, rel=0.01)
+    # Bins not aligned with texels (3 texel rows / columns per 4 bins), so the distribution
+    # within texels is tested too; texel edges fall on sub-cell edges (24 * 4 = 3 * 32,
+    # 48 * 4 = 3 * 64), where the pdf's jumps cost the midpoint rule nothing.
+    check_light_hits(session, P0, r)
+    check_fit("environment map", SphereGrid.sphere(24, 48), dirs, N, light_pdf(session, P0), nsub=4)
 
 
 def test_constant_world(session):
@@ -572,6 +614,7 @@ def test_constant_world(session):
     assert ok.all() and not (r[:, 1, 3] > 0.5).any()
     np.testing.assert_allclose(r[:, 1, 0], colour[0], rtol=1e-6)
     np.testing.assert_allclose(r[:, 0, 3], 1.0 / (4 * math.pi), rtol=1e-5)
+    check_light_hits(session, P0, r)
     check_fit("constant world", SphereGrid.sphere(16, 32), r[:, 0, :3], N, light_pdf(session, P0), nsub=4)
 
 

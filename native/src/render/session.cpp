@@ -75,7 +75,7 @@ void Session::reset() {
 }
 
 RayTracingPipeline& Session::pipeline() {
-    auto key = std::make_pair(params_.method, params_.mis_heuristic);
+    const std::array<uint32_t, 3> key = {params_.method, params_.mis_heuristic, scene_->host().features};
     auto it = pipelines_.find(key);
     if (it != pipelines_.end()) return *it->second;
     std::vector<ShaderStage> stages = {
@@ -91,7 +91,7 @@ RayTracingPipeline& Session::pipeline() {
         {VK_RAY_TRACING_SHADER_GROUP_TYPE_TRIANGLES_HIT_GROUP_KHR, VK_SHADER_UNUSED_KHR, 1},
     };
     auto p = std::make_unique<RayTracingPipeline>(*ctx_, set_->layout(), uint32_t(sizeof(FrameParams)), stages, groups,
-                                                  std::vector<uint32_t>{params_.method, params_.mis_heuristic});
+                                                  std::vector<uint32_t>(key.begin(), key.end()));
     return *pipelines_.emplace(key, std::move(p)).first->second;
 }
 

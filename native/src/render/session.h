@@ -4,6 +4,7 @@
 #include "scene/scene.h"
 #include "vk/pipeline.h"
 
+#include <array>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -67,7 +68,8 @@ private:
     std::unique_ptr<DescriptorSet> set_;
     std::unique_ptr<Scene> scene_;
     Buffer film_, ray_count_, test_io_;
-    std::map<std::pair<uint32_t, uint32_t>, std::unique_ptr<RayTracingPipeline>> pipelines_;
+    // One pipeline per (method, heuristic, scene features) combination, built on first use.
+    std::map<std::array<uint32_t, 3>, std::unique_ptr<RayTracingPipeline>> pipelines_;
     std::unique_ptr<ComputePipeline> test_pipeline_;
     RenderParams params_;
     SessionStats stats_;

@@ -152,6 +152,38 @@ Light analytic_light(uint type, vec3 pos, vec3 dir, vec3 axis_u, vec3 axis_v, fl
     return l;
 }
 
+// What the uploaded scene uses, for pipeline specialization.
+uint scene_features(const SceneHost& s) {
+    uint f = 0;
+    std::vector<bool> used(s.materials.size(), false);
+    for (const auto& inst : s.instances) {
+        const MeshInfo& mesh = s.meshes[inst.mesh];
+        if (mesh.has_normals) f |= FEATURE_SHADING_NORMALS;
+        if (mesh.has_uvs) f |= FEATURE_UVS;
+        for (uint t = mesh.first_triangle; t < mesh.first_triangle + mesh.triangle_count; ++t)
+            used[s.triangle_material[t]] = true;
+    }
+    for (size_t k = 0; k < s.materials.size(); ++k) {
+        if (!used[k]) continue;
+        const Material& m = s.materials[k];
+        if (m.type == MATERIAL_CONDUCTOR) f |= FEATURE_CONDUCTOR;
+        if (m.type == MATERIAL_DIELECTRIC) f |= FEATURE_DIELECTRIC;
+        if (m.base_color_texture >= 0) f |= FEATURE_TEXTURES;
+    }
+    for (const auto& l : s.lights) {
+        switch (l.type) {
+            case LIGHT_TRIANGLE: f |= FEATURE_TRIANGLE_LIGHTS; break;
+            case LIGHT_SPHERE:
+            case LIGHT_SPOT: f |= FEATURE_SPHERE_LIGHTS; break;
+            case LIGHT_RECT:
+            case LIGHT_DISK: f |= FEATURE_AREA_LIGHTS; break;
+            case LIGHT_SUN: f |= FEATURE_SUN; break;
+            case LIGHT_ENV: f |= FEATURE_ENV | (s.info.env_width ? FEATURE_ENV_MAP : 0u); break;
+        }
+    }
+    return f;
+}
+
 }  // namespace
 
 SceneHost prepare_scene(const SceneArrays& a, bool spatial_order) {
@@ -478,6 +510,7 @@ SceneHost prepare_scene(const SceneArrays& a, bool spatial_order) {
     s.info.clip = {std::max(clip.data[0], 0.0f), clip.data[1] > clip.data[0] ? clip.data[1] : 1e30f};
     s.info.scene_center = center;
     s.info.scene_radius = radius;
+    s.features = scene_features(s);
     return s;
 }
 

@@ -41,6 +41,7 @@ struct SceneHost {
     std::vector<vec3> env_texels;
     std::vector<float> env_marginal, env_conditional;
     SceneInfo info{};
+    uint features = 0;  // FEATURE_* bits of what this scene uses
     std::vector<std::string> warnings;
 };
 

@@ -1,0 +1,56 @@
+"""Textures (sRGB decode, orientation, bilinear) and the orthographic camera."""
+import numpy as np
+import pytest
+
+import parallax_core as pc
+from parallax_core.scene import Camera, Material, Mesh, SceneData, Texture, World
+
+
+def textured_quad(texture, width=32, height=32):
+    # Quad [-1,1]^2 at z=0, UVs as Blender unwraps it: (0,0) bottom-left, (1,1) top-right.
+    p = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float)
+    uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+    tris = np.array([[0, 1, 2], [0, 2, 3]])
+    mesh = Mesh(p, tris, uvs=uv[tris], name="quad")
+    mat = Material("diffuse", (1.0, 1.0, 1.0), base_color_texture=0)
+    # Orthographic camera 5 above, looking down, +Y up in the image; ortho_scale 2 spans the quad.
+    m = np.eye(4)
+    m[:3, 3] = (0, 0, 5)
+    cam = Camera.from_blender(m, width, height, type="ORTHO", ortho_scale=2.0)
+    return SceneData([mesh], [], [mat], [Texture(texture)], [], World((1, 1, 1), 1.0), cam, width, height)
+
+
+def albedo(scene):
+    s = pc.Session(scene.width, scene.height)
+    s.set_params(method="mis", samples_per_frame=16)
+    s.update(scene)
+    s.render(1)
+    return s.read("albedo"), s.read("depth")
+
+
+def test_texture_orientation_and_srgb_decode():
+    tex = np.zeros((4, 4, 3), np.uint8)  # four 2x2-texel quadrants
+    tex[:2, :2] = (255, 0, 0)      # top-left: red
+    tex[:2, 2:] = (0, 255, 0)      # top-right: green
+    tex[2:, :2] = (0, 0, 255)      # bottom-left: blue
+    tex[2:, 2:] = (128, 128, 128)  # bottom-right: sRGB 0.5 grey -> linear 0.2158
+    a, depth = albedo(textured_quad(tex))
+    # Between the texel centres of one quadrant bilinear filtering stays inside it.
+    assert np.allclose(a[7, 7], (1, 0, 0), atol=1e-3)
+    assert np.allclose(a[7, 24], (0, 1, 0), atol=1e-3)
+    assert np.allclose(a[24, 7], (0, 0, 1), atol=1e-3)
+    assert np.allclose(a[24, 24], 0.2158, atol=2e-3)
+    # Orthographic: every pixel is 5 units from the camera along its axis.
+    assert np.allclose(depth, 5.0, atol=1e-4)
+
+
+def test_texture_is_bilinear():
+    tex = np.zeros((1, 2, 3), np.uint8)
+    tex[0, 0] = 0
+    tex[0, 1] = 255
+    a, _ = albedo(textured_quad(tex, 64, 8))
+    row = a[4, :, 0]
+    # Repeat wrapping: the ramp rises across the middle and falls towards both edges.
+    assert row[32] == pytest.approx(0.5, abs=0.05) or row[31] == pytest.approx(0.5, abs=0.05)
+    assert row[16] < 0.05 and row[47] > 0.95
+    assert np.all(np.diff(row[16:48]) >= -1e-4)
