@@ -170,21 +170,23 @@ def _measure(session, scene, spatial_order: bool, seconds: float) -> dict:
 
 def run(sizes=(1_000, 100_000, 1_000_000), resolution=None, seconds=10.0, method="nee",
         max_depth=4, device="auto", unordered=True, unordered_resolution=64,
-        samples_per_frame=1, seed=0, progress=_log, info=None) -> list[dict]:
+        samples_per_frame=None, seed=0, progress=_log, info=None) -> list[dict]:
     """Measure every (size, order); returns one dict per row (see _measure for the raw
     fields, plus scene/order/resolution/target fields). ``resolution`` None: 512 on CPU
-    devices, 1024 on GPUs. ``info``, if a dict, receives device and pipeline details."""
+    devices, 1024 on GPUs. ``samples_per_frame`` None: 8 on CPU devices, 16 on GPUs (more
+    work per dispatch; the thesis' figure 5.2). ``info``, if a dict, receives device and
+    pipeline details."""
     from parallax_core import Session, scenes
 
     sizes = [parse_size(s) if isinstance(s, str) else int(s) for s in sizes]
     device = _device_arg(device)
-    params = dict(method=method, max_depth=max_depth, rr_start_depth=0,
-                  samples_per_frame=samples_per_frame, seed=seed)
-
     probe = Session(8, 8, device)  # to learn the device type before picking the resolution
     cpu_device = _is_cpu(probe)
     del probe
     res = int(resolution or (512 if cpu_device else 1024))
+    samples_per_frame = int(samples_per_frame or (8 if cpu_device else 16))
+    params = dict(method=method, max_depth=max_depth, rr_start_depth=0,
+                  samples_per_frame=samples_per_frame, seed=seed)
     main = Session(res, res, device)
     compile_s = _warm_up(main, params)
     progress(f"device: {main.device} ({main.device_type}), {res}x{res}, {method} "
@@ -290,7 +292,8 @@ def summary(rows: list[dict], info: dict) -> str:
     cpu = info.get("device_type") == "cpu"
     out = [f"device: {info.get('device')} ({info.get('device_type')}), {info.get('cpu_count')} CPUs, "
            f"{info.get('method')} max_depth={info.get('max_depth')} rr off, "
-           f"{info.get('resolution')}x{info.get('resolution')}, ~{info.get('seconds')} s per row, "
+           f"{info.get('resolution')}x{info.get('resolution')}, {info.get('samples_per_frame')} spp per frame, "
+           f"~{info.get('seconds')} s per row, "
            f"pipeline compile {info.get('pipeline_compile_s', 0):.2f} s"]
     targets = "2.1 / 1.05 / 0.55 M rays per CPU-s" if cpu else "3.0 / 1.9 / 1.4 G rays/s"
     out.append(f"% target = measured / minimal tracer ({targets}); goal >= "
@@ -327,7 +330,8 @@ def main(argv=None) -> int:
                    help="skip the shuffled mesh without spatial ordering (slow on lavapipe)")
     p.add_argument("--unordered-resolution", type=int, default=64,
                    help="resolution for the unordered case when full resolution is too slow (default 64)")
-    p.add_argument("--spp-per-frame", type=int, default=1, help="samples_per_frame (default 1)")
+    p.add_argument("--spp-per-frame", type=int, default=None,
+                   help="samples_per_frame (default 8 on CPU devices, 16 on GPUs)")
     p.add_argument("--json", metavar="OUT.json", help="also write the raw numbers as JSON")
     args = p.parse_args(argv)
 
