@@ -1,10 +1,10 @@
-// Random numbers: a TEA hash seeds a per-pixel, per-sample PCG stream (deterministic for
-// a fixed seed on a given device). Eight TEA rounds decorrelate neighbouring seeds
-// (Zafar et al. 2010) at half the cost of the usual sixteen.
+// Random numbers: a TEA hash (16 rounds, Zafar et al. 2010) seeds one PCG stream per pixel
+// and frame, which that frame's samples then share; deterministic for a fixed seed and
+// samples per frame on a given device.
 
 uint tea(uint v0, uint v1) {
     uint s0 = 0u;
-    for (int n = 0; n < 8; n++) {
+    for (int n = 0; n < 16; n++) {
         s0 += 0x9e3779b9u;
         v0 += ((v1 << 4) + 0xa341316cu) ^ (v1 + s0) ^ ((v1 >> 5) + 0xc8013ea4u);
         v1 += ((v0 << 4) + 0xad90777du) ^ (v0 + s0) ^ ((v0 >> 5) + 0x7e95761eu);
