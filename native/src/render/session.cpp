@@ -25,7 +25,7 @@ Session::Session(uint32_t width, uint32_t height, const std::string& device) : w
     if (width == 0 || height == 0 || width > 16384 || height > 16384)
         throw std::invalid_argument("image size " + std::to_string(width) + "x" + std::to_string(height) +
                                     " is out of range (1..16384)");
-    ctx_ = std::make_unique<Context>(device);
+    ctx_ = Context::shared(device);
     set_ = std::make_unique<DescriptorSet>(*ctx_, BINDING_COUNT, BINDING_TLAS);
     const size_t pixels = size_t(width) * height;
     film_ = Buffer(*ctx_, pixels * PASS_COUNT * sizeof(vec4), kStorageUsage);

@@ -63,7 +63,7 @@ public:
 
 private:
     RayTracingPipeline& pipeline();
-    std::unique_ptr<Context> ctx_;
+    std::shared_ptr<Context> ctx_;  // first member: destroyed after everything using it
     uint32_t width_, height_;
     std::unique_ptr<DescriptorSet> set_;
     std::unique_ptr<Scene> scene_;

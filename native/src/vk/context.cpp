@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <map>
 
 namespace px {
 
@@ -154,6 +155,17 @@ uint32_t Context::choose(const std::vector<DeviceReport>& reports, const std::st
     return uint32_t(pick);
 }
 
+std::shared_ptr<Context> Context::shared(const std::string& selector) {
+    static std::mutex mutex;
+    static std::map<uint32_t, std::weak_ptr<Context>> contexts;  // by device index
+    std::lock_guard<std::mutex> lock(mutex);
+    uint32_t index = choose(enumerate(), selector);
+    if (auto existing = contexts[index].lock()) return existing;
+    auto ctx = std::make_shared<Context>(std::to_string(index));
+    contexts[index] = ctx;
+    return ctx;
+}
+
 Context::Context(const std::string& selector) {
     auto reports = enumerate();
     uint32_t index = choose(reports, selector);
@@ -240,6 +252,7 @@ uint32_t Context::memory_type(uint32_t type_bits, VkMemoryPropertyFlags flags) c
 }
 
 void Context::submit_and_wait(const std::function<void(VkCommandBuffer)>& record) {
+    std::lock_guard<std::mutex> lock(submit_mutex_);
     VkCommandBufferAllocateInfo ainfo{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
     ainfo.commandPool = pool_;
     ainfo.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;

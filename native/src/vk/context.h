@@ -3,6 +3,8 @@
 #include <vulkan/vulkan.h>
 
 #include <functional>
+#include <memory>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -46,6 +48,10 @@ public:
     Context(const Context&) = delete;
     Context& operator=(const Context&) = delete;
 
+    // The process-wide context of the device `selector` picks: sessions on one device share
+    // its VkDevice (a device per session exhausts drivers; Blender has several sessions).
+    static std::shared_ptr<Context> shared(const std::string& selector);
+
     static std::vector<DeviceReport> enumerate();
     // Index that `selector` picks among `reports`; throws with the reason if none fits.
     static uint32_t choose(const std::vector<DeviceReport>& reports, const std::string& selector);
@@ -60,6 +66,7 @@ public:
 
     uint32_t memory_type(uint32_t type_bits, VkMemoryPropertyFlags flags) const;
     // Records with `record`, submits, and waits (device loss becomes an exception).
+    // Thread-safe: submissions of all sessions on this device are serialised.
     void submit_and_wait(const std::function<void(VkCommandBuffer)>& record);
 
 private:
@@ -70,6 +77,7 @@ private:
     uint32_t queue_family_ = 0;
     VkCommandPool pool_ = VK_NULL_HANDLE;
     VkFence fence_ = VK_NULL_HANDLE;
+    std::mutex submit_mutex_;  // guards pool_, fence_ and queue_
     RayTracingFunctions rt_{};
     VkPhysicalDeviceRayTracingPipelinePropertiesKHR rt_props_{};
     VkPhysicalDeviceMemoryProperties memory_props_{};
