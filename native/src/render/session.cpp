@@ -41,10 +41,12 @@ Session::~Session() = default;
 
 std::vector<std::string> Session::update(const SceneArrays& arrays, bool spatial_order) {
     SceneHost host = prepare_scene(arrays, spatial_order);  // validates before touching the GPU
-    std::lock_guard<std::mutex> lock(mutex_);
     auto warnings = host.warnings;
-    scene_.reset();  // free the old scene's memory first
-    scene_ = std::make_unique<Scene>(*ctx_, std::move(host));
+    // Upload next to the old scene: if this fails (out of memory, device lost), the session
+    // keeps rendering what it had.
+    auto next = std::make_unique<Scene>(*ctx_, std::move(host));
+    std::lock_guard<std::mutex> lock(mutex_);
+    scene_ = std::move(next);
     scene_->bind(*set_);
     stats_ = {};
     film_.fill_zero();

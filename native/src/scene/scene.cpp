@@ -184,11 +184,8 @@ uint scene_features(const SceneHost& s) {
     return f;
 }
 
-}  // namespace
-
-SceneHost prepare_scene(const SceneArrays& a, bool spatial_order) {
-    SceneHost s;
-    // ---- geometry ----
+// Positions, triangles, per-corner normals/uvs and meshes; triangles Morton-ordered per mesh.
+void prepare_geometry(const SceneArrays& a, bool spatial_order, SceneHost& s) {
     auto positions = get<float>(a, "positions", 'f', {3});
     auto indices = get<uint32_t>(a, "indices", 'u', {3});
     auto tri_mat = get<uint32_t>(a, "triangle_material", 'u', {});
@@ -264,8 +261,11 @@ SceneHost prepare_scene(const SceneArrays& a, bool spatial_order) {
         permute(s.corner_normals, 3);
         permute(s.corner_uvs, 3);
     }
+}
 
-    // ---- materials and textures ----
+void prepare_materials(const SceneArrays& a, SceneHost& s) {
+    auto materials_type = get<uint32_t>(a, "material_type", 'u', {});
+    const size_t K = materials_type.rows;
     auto base_color = get<float>(a, "material_base_color", 'f', {3});
     auto roughness = get<float>(a, "material_roughness", 'f', {});
     auto ior = get<float>(a, "material_ior", 'f', {});
@@ -305,8 +305,11 @@ SceneHost prepare_scene(const SceneArrays& a, bool spatial_order) {
         m.emission = vmax(v3(emission.data + 3 * k), {0, 0, 0});
         m.base_color_texture = std::max(texture.data[k], -1);
     }
+}
 
-    // ---- instances (spatially ordered for the TLAS) ----
+// Instances in TLAS order (Morton order of their bounds) and the scene's bounding sphere.
+void prepare_instances(const SceneArrays& a, bool spatial_order, SceneHost& s) {
+    const size_t M = s.meshes.size();
     auto inst_xf = get<float>(a, "instance_transform", 'f', {3, 4});
     auto inst_mesh = get<uint32_t>(a, "instance_mesh", 'u', {});
     if (inst_mesh.rows != inst_xf.rows) bad("instance_transform and instance_mesh differ in length");
@@ -360,8 +363,14 @@ SceneHost prepare_scene(const SceneArrays& a, bool spatial_order) {
     bool has_geometry = !s.instances.empty();
     vec3 center = has_geometry ? (scene_lo + scene_hi) * 0.5f : vec3{0, 0, 0};
     float radius = has_geometry ? std::max(length(scene_hi - scene_lo) * 0.5f, 1e-3f) : 1.0f;
+    s.info.scene_center = center;
+    s.info.scene_radius = radius;
+}
 
-    // ---- lights: emissive triangles, analytic lights, environment ----
+// The light table: emissive triangles, analytic lights (Cycles units -> radiance), the
+// environment and its sampling tables, and the selection CDF by emitted power.
+void prepare_lights(const SceneArrays& a, SceneHost& s) {
+    const float radius = s.info.scene_radius;
     std::vector<float> power;  // selection weight of each light
     for (auto& inst : s.instances) {
         const MeshInfo& mesh = s.meshes[inst.mesh];
@@ -493,8 +502,9 @@ SceneHost prepare_scene(const SceneArrays& a, bool spatial_order) {
     }
     if (!power.empty()) s.light_cdf.back() = 1.0f;
     s.info.light_count = uint(s.lights.size());
+}
 
-    // ---- camera ----
+void prepare_camera(const SceneArrays& a, SceneHost& s) {
     auto cam = get<float>(a, "camera_to_world", 'f', {4});
     auto cam_type = get<uint32_t>(a, "camera_type", 'u', {});
     auto window = get<float>(a, "camera_window", 'f', {});
@@ -508,8 +518,17 @@ SceneHost prepare_scene(const SceneArrays& a, bool spatial_order) {
     s.info.camera_window = {window.data[0], window.data[1], window.data[2], window.data[3]};
     if (!(window.data[1] > window.data[0]) || !(window.data[3] > window.data[2])) bad("camera_window is empty or NaN");
     s.info.clip = {std::max(clip.data[0], 0.0f), clip.data[1] > clip.data[0] ? clip.data[1] : 1e30f};
-    s.info.scene_center = center;
-    s.info.scene_radius = radius;
+}
+
+}  // namespace
+
+SceneHost prepare_scene(const SceneArrays& a, bool spatial_order) {
+    SceneHost s;
+    prepare_geometry(a, spatial_order, s);
+    prepare_materials(a, s);
+    prepare_instances(a, spatial_order, s);
+    prepare_lights(a, s);
+    prepare_camera(a, s);
     s.features = scene_features(s);
     return s;
 }
