@@ -113,15 +113,24 @@ static DeviceReport inspect(VkPhysicalDevice pd, uint32_t index) {
     return rep;
 }
 
+// One VkInstance for the process, never destroyed: NVIDIA's driver (seen on the H200
+// machines) stops creating instances after a few hundred create/destroy cycles.
+static VkInstance process_instance() {
+    static std::mutex mutex;
+    static VkInstance instance = VK_NULL_HANDLE;
+    std::lock_guard<std::mutex> lock(mutex);
+    if (!instance) instance = create_instance();  // throws (and retries next time) without a driver
+    return instance;
+}
+
 std::vector<DeviceReport> Context::enumerate() {
-    VkInstance instance = create_instance();
+    VkInstance instance = process_instance();
     uint32_t n = 0;
     vkEnumeratePhysicalDevices(instance, &n, nullptr);
     std::vector<VkPhysicalDevice> pds(n);
     vkEnumeratePhysicalDevices(instance, &n, pds.data());
     std::vector<DeviceReport> reports;
     for (uint32_t i = 0; i < n; ++i) reports.push_back(inspect(pds[i], i));
-    vkDestroyInstance(instance, nullptr);
     return reports;
 }
 
@@ -173,12 +182,14 @@ uint32_t Context::choose(const std::vector<DeviceReport>& reports, const std::st
 
 std::shared_ptr<Context> Context::shared(const std::string& selector) {
     static std::mutex mutex;
-    static std::map<uint32_t, std::weak_ptr<Context>> contexts;  // by device index
+    // By device index. Devices, like the instance, live as long as the process (created on
+    // first use, then reused: re-creating them per session is slow and wears drivers out);
+    // the map is never destroyed, so no Vulkan call runs during static destruction at exit.
+    static auto* contexts = new std::map<uint32_t, std::shared_ptr<Context>>();
     std::lock_guard<std::mutex> lock(mutex);
     uint32_t index = choose(enumerate(), selector);
-    if (auto existing = contexts[index].lock()) return existing;
-    auto ctx = std::make_shared<Context>(std::to_string(index));
-    contexts[index] = ctx;
+    auto& ctx = (*contexts)[index];
+    if (!ctx) ctx = std::make_shared<Context>(std::to_string(index));
     return ctx;
 }
 
@@ -186,7 +197,7 @@ Context::Context(const std::string& selector) {
     auto reports = enumerate();
     uint32_t index = choose(reports, selector);
     report_ = reports[index];
-    instance_ = create_instance();
+    instance_ = process_instance();
     uint32_t n = 0;
     vkEnumeratePhysicalDevices(instance_, &n, nullptr);
     std::vector<VkPhysicalDevice> pds(n);
@@ -258,7 +269,6 @@ Context::~Context() {
         vkDestroyCommandPool(device_, pool_, nullptr);
         vkDestroyDevice(device_, nullptr);
     }
-    if (instance_) vkDestroyInstance(instance_, nullptr);
 }
 
 uint32_t Context::memory_type(uint32_t type_bits, VkMemoryPropertyFlags flags) const {

@@ -49,7 +49,8 @@ public:
     Context& operator=(const Context&) = delete;
 
     // The process-wide context of the device `selector` picks: sessions on one device share
-    // its VkDevice (a device per session exhausts drivers; Blender has several sessions).
+    // its VkDevice, which lives as long as the process (a device per session exhausts
+    // drivers; Blender has several sessions).
     static std::shared_ptr<Context> shared(const std::string& selector);
 
     static std::vector<DeviceReport> enumerate();
@@ -70,7 +71,7 @@ public:
     void submit_and_wait(const std::function<void(VkCommandBuffer)>& record);
 
 private:
-    VkInstance instance_ = VK_NULL_HANDLE;
+    VkInstance instance_ = VK_NULL_HANDLE;  // the process-wide instance, not owned
     VkPhysicalDevice physical_ = VK_NULL_HANDLE;
     VkDevice device_ = VK_NULL_HANDLE;
     VkQueue queue_ = VK_NULL_HANDLE;
