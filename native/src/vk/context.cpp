@@ -187,22 +187,20 @@ std::shared_ptr<Context> Context::shared(const std::string& selector) {
     // the map is never destroyed, so no Vulkan call runs during static destruction at exit.
     static auto* contexts = new std::map<uint32_t, std::shared_ptr<Context>>();
     std::lock_guard<std::mutex> lock(mutex);
-    uint32_t index = choose(enumerate(), selector);
+    auto reports = enumerate();
+    uint32_t index = choose(reports, selector);
     auto& ctx = (*contexts)[index];
-    if (!ctx) ctx = std::make_shared<Context>(std::to_string(index));
+    if (!ctx) ctx = std::make_shared<Context>(reports[index]);
     return ctx;
 }
 
-Context::Context(const std::string& selector) {
-    auto reports = enumerate();
-    uint32_t index = choose(reports, selector);
-    report_ = reports[index];
+Context::Context(const DeviceReport& report) : report_(report) {
     instance_ = process_instance();
     uint32_t n = 0;
     vkEnumeratePhysicalDevices(instance_, &n, nullptr);
     std::vector<VkPhysicalDevice> pds(n);
     vkEnumeratePhysicalDevices(instance_, &n, pds.data());
-    physical_ = pds.at(index);
+    physical_ = pds.at(report_.index);
 
     uint32_t qn = 0;
     vkGetPhysicalDeviceQueueFamilyProperties(physical_, &qn, nullptr);

@@ -41,14 +41,14 @@ struct RayTracingFunctions {
 
 class Context {
 public:
-    // selector: "auto" (discrete GPU first, else any GPU, else lavapipe), "cpu", "gpu" or a
-    // device index as printed by `parallax info`.
-    explicit Context(const std::string& selector);
+    // The device `report` describes (an index from enumerate()); use shared() instead.
+    explicit Context(const DeviceReport& report);
     ~Context();
     Context(const Context&) = delete;
     Context& operator=(const Context&) = delete;
 
-    // The process-wide context of the device `selector` picks: sessions on one device share
+    // The process-wide context of the device `selector` picks ("auto": discrete GPU first,
+    // else any GPU, else lavapipe; "cpu", "gpu" or an index): sessions on one device share
     // its VkDevice, which lives as long as the process (a device per session exhausts
     // drivers; Blender has several sessions).
     static std::shared_ptr<Context> shared(const std::string& selector);
