@@ -2,6 +2,8 @@
 
   parallax info                              list Vulkan devices, say which one is used
   parallax render SCENE.npz -o OUT.exr ...   render a saved SceneData to a multilayer EXR
+  parallax render FILE.blend -o OUT.exr ...  render a .blend with bpy, exactly like F12
+  parallax export FILE.blend -o SCENE.npz    write the SceneData an F12 render would upload
   parallax scene NAME -o SCENE.npz ...       write a procedural scene (see scenes.SCENES)
 """
 from __future__ import annotations
@@ -54,7 +56,51 @@ def _progress(done, total, rays_per_s, width=30):
     sys.stderr.flush()
 
 
+def _blender_cli():
+    try:
+        from parallax_blender import cli
+    except ImportError as e:
+        raise RuntimeError(f"the Blender add-on (parallax_blender) is not installed: {e}") from e
+    return cli
+
+
+def cmd_render_blend(args):
+    cli = _blender_cli()
+    engine = (args.engine or "PARALLAX").upper()
+    if engine not in ("PARALLAX", "CYCLES"):
+        raise ValueError(f"--engine {args.engine}: PARALLAX or CYCLES")
+    samples = args.samples if args.samples is not None else None
+    try:
+        cli.render(args.scene, args.output, engine=engine, samples=samples,
+                   device=args.device,
+                   assignments=args.set or (), png=args.png)
+    except cli.CommandError as e:
+        raise RuntimeError(str(e)) from e
+    print(f"{engine.lower()}: {args.scene} -> {args.output}" + (f", {args.png}" if args.png else ""))
+    return 0
+
+
+def cmd_export(args):
+    cli = _blender_cli()
+    try:
+        data, warnings = cli.export(args.scene, args.output)
+    except cli.CommandError as e:
+        raise RuntimeError(str(e)) from e
+    for w in warnings:
+        print(f"parallax: warning: {w}", file=sys.stderr)
+    tris = sum(len(m.indices) for m in data.meshes)
+    print(f"{args.scene}: {len(data.meshes)} meshes, {len(data.instances)} instances, {tris} "
+          f"triangles, {len(data.materials)} materials, {len(data.lights)} lights, "
+          f"{data.width}x{data.height} -> {args.output}")
+    return 0
+
+
 def cmd_render(args):
+    if args.scene.lower().endswith(".blend"):
+        return cmd_render_blend(args)
+    for flag in ("engine", "set"):
+        if getattr(args, flag):
+            raise ValueError(f"--{flag} applies to .blend files only")
     from .exr import write_exr, write_png
     from .scene import SceneData
 
@@ -72,7 +118,7 @@ def cmd_render(args):
     for w in scene.validate():
         print(f"parallax: warning: {w}", file=sys.stderr)
 
-    spp = max(1, args.spp)
+    spp = max(1, args.samples if args.samples is not None else args.spp)
     per_frame = max(1, min(args.spp_per_frame, spp))
     frames = math.ceil(spp / per_frame)
     if frames * per_frame != spp:
@@ -81,7 +127,7 @@ def cmd_render(args):
 
     from . import Session
 
-    session = Session(width, height, device=_device_arg(args.device))
+    session = Session(width, height, device=_device_arg(args.device or "auto"))
     params = dict(method=args.method, samples_per_frame=per_frame)
     for key in ("seed", "max_depth", "light_samples"):
         if getattr(args, key) is not None:
@@ -141,12 +187,18 @@ def build_parser():
 
     sub.add_parser("info", help="list Vulkan devices and the one that would be used")
 
-    r = sub.add_parser("render", help="render a scene .npz to an EXR")
-    r.add_argument("scene", help="scene file written by SceneData.save")
+    r = sub.add_parser("render", help="render a scene .npz or a .blend to an EXR")
+    r.add_argument("scene", help="a .blend file, or a scene .npz written by SceneData.save")
     r.add_argument("-o", "--output", required=True, help="output .exr")
-    r.add_argument("--spp", type=int, default=64, help="samples per pixel (default 64)")
+    r.add_argument("--spp", type=int, default=64, help="samples per pixel for .npz (default 64)")
+    r.add_argument("--samples", type=int, help="samples per pixel (default: the .blend's "
+                   "setting; for .npz the same as --spp)")
+    r.add_argument("--engine", help=".blend only: PARALLAX (default) or CYCLES")
+    r.add_argument("--set", action="append", metavar="PROP=VALUE",
+                   help=".blend only: a Parallax setting (samples=64) or a path from the scene "
+                   "(render.resolution_x=320, cycles.samples=64); repeatable")
     r.add_argument("--method", choices=("pt", "nee", "mis"), default="mis")
-    r.add_argument("--device", default="auto", help="auto, cpu, gpu or a device index")
+    r.add_argument("--device", help="auto (default), cpu, gpu or a device index")
     r.add_argument("--seed", type=int)
     r.add_argument("--width", type=int, help="override the scene's resolution")
     r.add_argument("--height", type=int)
@@ -155,6 +207,10 @@ def build_parser():
                    help="samples per render() call (default 1)")
     r.add_argument("--light-samples", type=int)
     r.add_argument("--png", help="also write the combined pass as an sRGB PNG")
+
+    e = sub.add_parser("export", help="write the SceneData an F12 render of a .blend uploads")
+    e.add_argument("scene", help=".blend file")
+    e.add_argument("-o", "--output", required=True, help="output .npz")
 
     s = sub.add_parser("scene", help="write a procedural scene to .npz")
     s.add_argument("name", choices=sorted(SCENES))
@@ -169,7 +225,8 @@ def build_parser():
 
 def main(argv=None):
     args = build_parser().parse_args(argv)
-    command = {"info": cmd_info, "render": cmd_render, "scene": cmd_scene}[args.command]
+    command = {"info": cmd_info, "render": cmd_render, "scene": cmd_scene,
+               "export": cmd_export}[args.command]
     try:
         return command(args)
     except (ValueError, RuntimeError, OSError) as e:

@@ -1,0 +1,118 @@
+"""``parallax render FILE.blend`` and ``parallax export FILE.blend``: bpy in the background,
+through the same engine code as F12 (see parallax_core.cli for the command line)."""
+import ast
+import os
+
+
+class CommandError(Exception):
+    pass
+
+
+def _bpy():
+    try:
+        import bpy
+    except ImportError as e:
+        raise CommandError(f"rendering .blend files needs Blender's Python module: "
+                           f"pip install bpy==5.0.1 ({e})") from e
+    return bpy
+
+
+def open_blend(path, engine="PARALLAX"):
+    """Registers the add-on (once) and opens ``path``; returns the scene."""
+    bpy = _bpy()
+    if not os.path.isfile(path):
+        raise CommandError(f"{path}: no such file")
+    if not hasattr(bpy.types.Scene, "parallax"):
+        from . import register
+        register()
+    bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path), load_ui=False)
+    scene = bpy.context.scene
+    scene.render.engine = engine
+    return scene
+
+
+def apply_settings(scene, assignments):
+    """``PROP=VALUE`` pairs: PROP is a Parallax setting (``samples``) or a path from the
+    scene (``render.resolution_x``, ``cycles.samples``); VALUE is a Python literal or a word."""
+    for item in assignments:
+        name, sep, text = item.partition("=")
+        if not sep:
+            raise CommandError(f"--set {item!r}: expected PROP=VALUE")
+        path = name.strip() if "." in name else f"parallax.{name.strip()}"
+        owner_path, _, attr = path.rpartition(".")
+        try:
+            owner = scene.path_resolve(owner_path)
+        except ValueError as e:
+            raise CommandError(f"--set {item!r}: scene has no '{owner_path}'") from e
+        if not hasattr(owner, attr):
+            raise CommandError(f"--set {item!r}: '{owner_path}' has no property '{attr}'")
+        try:
+            value = ast.literal_eval(text.strip())
+        except (ValueError, SyntaxError):
+            value = text.strip()
+        try:
+            setattr(owner, attr, value)
+        except (TypeError, ValueError, AttributeError) as e:
+            raise CommandError(f"--set {item!r}: {e}") from e
+
+
+def set_exr_output(image_settings):
+    if hasattr(image_settings, "media_type"):  # Blender 5: the media type decides the formats
+        image_settings.media_type = "MULTI_LAYER_IMAGE"
+    image_settings.file_format = "OPEN_EXR_MULTILAYER"
+    image_settings.color_depth = "32"
+
+
+def set_png_output(image_settings):
+    if hasattr(image_settings, "media_type"):
+        image_settings.media_type = "IMAGE"
+    image_settings.file_format = "PNG"
+    image_settings.color_mode = "RGB"
+    image_settings.color_depth = "8"
+
+
+def render(path, output, engine="PARALLAX", samples=None, device=None, assignments=(), png=None):
+    """Renders a .blend's active scene to a multilayer EXR (and a colour-managed PNG)."""
+    bpy = _bpy()
+    scene = open_blend(path, engine)
+    if samples is not None:
+        (scene.parallax if engine == "PARALLAX" else scene.cycles).samples = samples
+    if device is not None:
+        if engine == "PARALLAX":
+            scene.parallax.device = device
+        else:
+            scene.cycles.device = device.upper()
+    apply_settings(scene, assignments)
+    from .engine import final
+
+    bpy.ops.render.render()
+    if engine == "PARALLAX" and final.last_errors:
+        raise CommandError("; ".join(final.last_errors))
+    result = bpy.data.images["Render Result"]
+    set_exr_output(scene.render.image_settings)
+    result.save_render(os.path.abspath(output), scene=scene)
+    if png:
+        set_png_output(scene.render.image_settings)
+        result.save_render(os.path.abspath(png), scene=scene)
+    return scene
+
+
+def export(path, output):
+    """Writes the SceneData the core would receive for an F12 render of ``path``."""
+    bpy = _bpy()
+    scene = open_blend(path)
+    from .engine import final
+
+    captured = []
+    final.scene_hook = lambda data, warnings: captured.append((data, warnings))
+    try:
+        bpy.ops.render.render()
+    finally:
+        final.scene_hook = None
+    if final.last_errors:
+        raise CommandError("; ".join(final.last_errors))
+    if not captured:
+        raise CommandError(f"{path}: the scene was not exported (no view layer rendered)")
+    data, warnings = captured[0]
+    data.save(output)
+    return data, warnings

@@ -1,0 +1,164 @@
+"""F12 and background (``blender -b -f``) renders: progressive, cancellable.
+
+A worker thread drives the core (``Session.render`` releases the GIL) and keeps the latest
+snapshot of the passes; Blender's thread copies snapshots into the render result about twice
+a second and polls ``test_break``, so a cancel returns within ``POLL_SECONDS`` with the last
+snapshot as the partial image while the frame in flight finishes in the background.
+"""
+import threading
+import time
+
+import numpy as np
+
+from .. import core, passes, sync
+
+UPDATE_SECONDS = 0.5
+POLL_SECONDS = 0.05
+
+# Errors of the latest render. Background renders have no other way to hand them to the
+# caller (bpy.ops.render.render still returns FINISHED); the CLI reads this.
+last_errors = []
+
+# parallax export: when set, render() hands (SceneData, warnings) to it instead of rendering,
+# so the exported file is exactly what an F12 render would upload.
+scene_hook = None
+
+
+def stop_requested(engine):
+    return engine.test_break()
+
+
+def render_size(render):
+    scale = render.resolution_percentage / 100.0
+    return max(1, int(render.resolution_x * scale)), max(1, int(render.resolution_y * scale))
+
+
+def border_region(render, width, height):
+    """(x, y, w, h) of the border in pixels (y from the bottom), or None for the whole frame."""
+    if not render.use_border:
+        return None
+    x0, x1 = round(render.border_min_x * width), round(render.border_max_x * width)
+    y0, y1 = round(render.border_min_y * height), round(render.border_max_y * height)
+    if x1 <= x0 or y1 <= y0 or (x1 - x0, y1 - y0) == (width, height):
+        return None
+    return x0, y0, x1 - x0, y1 - y0
+
+
+class _Worker(threading.Thread):
+    """Renders frames until the sample count, the time limit or ``stop()``; keeps snapshots."""
+
+    def __init__(self, session, frames, samples_per_frame, time_limit, core_passes):
+        super().__init__(name="parallax-render", daemon=True)
+        self.session = session
+        self.frames = frames
+        self.samples_per_frame = samples_per_frame
+        self.time_limit = time_limit
+        self.core_passes = core_passes
+        self.snapshot = None  # (samples, seconds, rays, {core pass: image})
+        self.error = None
+        self._stop_event = threading.Event()
+        self.start_time = time.perf_counter()
+
+    def stop(self):
+        self._stop_event.set()
+
+    def run(self):
+        try:
+            last_snapshot = 0.0
+            for frame in range(self.frames):
+                elapsed = time.perf_counter() - self.start_time
+                if self._stop_event.is_set() or (self.time_limit and frame and elapsed >= self.time_limit):
+                    break
+                self.session.render(1)
+                now = time.perf_counter()
+                if now - last_snapshot >= UPDATE_SECONDS or frame == self.frames - 1:
+                    self._take_snapshot()
+                    last_snapshot = now
+            if self.snapshot is None or self.snapshot[0] != self.session.stats().get("samples"):
+                self._take_snapshot()
+        except Exception as e:  # reported by the Blender thread
+            self.error = e
+
+    def _take_snapshot(self):
+        stats = self.session.stats()
+        images = {name: self.session.read(name) for name in self.core_passes}
+        self.snapshot = (int(stats.get("samples", 0)), time.perf_counter() - self.start_time,
+                         int(stats.get("rays", 0)), images)
+
+
+def _write_result(result, snapshot):
+    images = snapshot[3]
+    for render_pass in result.layers[0].passes:
+        spec = passes.BY_NAME.get(render_pass.name)
+        if spec is None or spec.core not in images:
+            continue
+        image = images[spec.core][::-1, :, :render_pass.channels]  # Blender's rows go bottom-up
+        flat = np.ascontiguousarray(image, dtype=np.float32).ravel()
+        try:
+            render_pass.rect.foreach_set(flat)
+        except AttributeError:  # older Blender: plain assignment
+            render_pass.rect = flat.reshape(-1, render_pass.channels)
+
+
+def render(engine, depsgraph):
+    scene = depsgraph.scene
+    settings = scene.parallax
+    view_layer = depsgraph.view_layer
+    last_errors.clear()
+
+    width, height = render_size(scene.render)
+    region = border_region(scene.render, width, height)
+    x, y, w, h = region or (0, 0, width, height)
+    try:
+        parallax_core = core.load()
+        data, warnings = sync.export_scene(depsgraph, width, height, region)
+        if scene_hook is not None:
+            scene_hook(data, warnings)
+            return
+        session = parallax_core.Session(w, h, settings.device)
+        session.set_params(**settings.render_params())
+        warnings += [m for m in session.update(data) if m not in warnings]
+    except (ImportError, ValueError, RuntimeError, TypeError) as e:
+        last_errors.append(str(e))
+        engine.report({"ERROR"}, f"Parallax: {e}")
+        return
+    for message in warnings:
+        engine.report({"WARNING"}, f"Parallax: {message}")
+
+    wanted = passes.enabled(view_layer)
+    per_frame = settings.samples_per_frame
+    frames = -(-settings.samples // per_frame)
+    total = frames * per_frame
+    worker = _Worker(session, frames, per_frame, settings.time_limit, {p.core for p in wanted})
+    result = engine.begin_result(x, y, w, h, layer=view_layer.name)
+    worker.start()
+    shown = None
+    cancelled = False
+    while True:
+        finished = not worker.is_alive()
+        snapshot = worker.snapshot
+        if snapshot is not None and snapshot is not shown:
+            shown = snapshot
+            _write_result(result, snapshot)
+            engine.update_result(result)
+            samples, seconds, rays, _ = snapshot
+            rate = rays / seconds / 1e6 if seconds > 0 else 0.0
+            engine.update_stats("", f"Sample {samples}/{total} | {rate:.1f} M rays/s | "
+                                    f"{seconds:.1f} s")
+            progress = samples / total
+            if settings.time_limit:
+                progress = max(progress, min(1.0, seconds / settings.time_limit))
+            engine.update_progress(progress)
+        if finished:
+            break
+        if stop_requested(engine):
+            worker.stop()
+            cancelled = True
+            break
+        time.sleep(POLL_SECONDS)
+    engine.end_result(result)
+    if worker.error is not None:
+        last_errors.append(str(worker.error))
+        engine.report({"ERROR"}, f"Parallax: {worker.error}")
+    elif cancelled:
+        engine.update_stats("", f"Cancelled at sample {shown[0] if shown else 0}/{total}")

@@ -1,0 +1,58 @@
+"""Blender lights -> Parallax lights, in Cycles' units (the core converts power to radiance).
+
+Point/spot: power in W, radius = ``shadow_soft_size``, rendered as a true sphere (Cycles with
+Soft Falloff off). Sun: strength in W/m^2 and angular diameter. Area: power in W over the
+shape scaled by the object (square, rectangle, disk, ellipse), one-sided along local -Z.
+"""
+import numpy as np
+
+# Sizes are scaled per axis by the object, so squares and disks may stretch.
+AREA_SHAPES = {"SQUARE": "rectangle", "RECTANGLE": "rectangle", "DISK": "ellipse", "ELLIPSE": "ellipse"}
+
+
+def export_lights(depsgraph, data, warnings):
+    from ..core import load
+
+    Light = load().scene.Light
+    for inst in depsgraph.object_instances:
+        obj = inst.object
+        if obj.type != "LIGHT" or not (inst.is_instance or inst.show_self):
+            continue
+        light = obj.data
+        label = f"light '{obj.name}'"
+        m = np.array(inst.matrix_world, dtype=np.float64)
+        axis_x, axis_y, axis_z = m[:3, 0], m[:3, 1], m[:3, 2]
+        if np.linalg.norm(axis_z) == 0.0:
+            warnings.add(f"{label}: zero scale, skipped")
+            continue
+        common = dict(color=tuple(light.color), position=tuple(m[:3, 3]),
+                      direction=tuple(-axis_z / np.linalg.norm(axis_z)), name=obj.name)
+        if getattr(light, "use_nodes", False) and light.node_tree is not None:
+            warnings.add(f"{label}: light node trees are ignored (colour x power is used)")
+        if light.type in ("POINT", "SPOT"):
+            if getattr(light, "use_soft_falloff", False) and light.shadow_soft_size > 0:
+                warnings.add(f"{label}: Soft Falloff is rendered as off (a true sphere light); "
+                             "it differs only close to the light")
+            kind = "point" if light.type == "POINT" else "spot"
+            extra = dict(radius=float(light.shadow_soft_size))
+            if kind == "spot":
+                extra.update(spot_size=float(light.spot_size), spot_blend=float(light.spot_blend))
+            data.lights.append(Light(type=kind, power=float(light.energy), **common, **extra))
+        elif light.type == "SUN":
+            data.lights.append(Light(type="sun", power=float(light.energy),
+                                     angle=float(light.angle), **common))
+        elif light.type == "AREA":
+            scale_x, scale_y = np.linalg.norm(axis_x), np.linalg.norm(axis_y)
+            if scale_x == 0.0 or scale_y == 0.0:
+                warnings.add(f"{label}: zero scale, skipped")
+                continue
+            if getattr(light, "spread", np.pi) < np.pi - 1e-6:
+                warnings.add(f"{label}: Spread below 180 degrees is ignored")
+            shape = AREA_SHAPES.get(light.shape, "rectangle")
+            size_y = light.size_y if light.shape in ("RECTANGLE", "ELLIPSE") else light.size
+            data.lights.append(Light(
+                type="area", power=float(light.energy), shape=shape,
+                size=float(light.size * scale_x), size_y=float(size_y * scale_y),
+                axis_u=tuple(axis_x / scale_x), axis_v=tuple(axis_y / scale_y), **common))
+        else:
+            warnings.add(f"{label}: {light.type} lights are not supported, skipped")

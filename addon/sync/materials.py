@@ -1,0 +1,286 @@
+"""Blender materials (Cycles node trees) -> Parallax materials.
+
+A node tree is reduced to weighted BSDF lobes plus one emission colour:
+  Diffuse BSDF -> diffuse; Glossy BSDF -> GGX conductor (colour = reflectance, like Cycles);
+  Glass BSDF -> GGX dielectric; Emission -> emission;
+  Principled BSDF -> metallic * conductor + (1 - metallic) * (transmission * dielectric +
+      (1 - transmission) * diffuse), plus emission colour * strength;
+  Mix Shader (constant factor) and Add Shader -> weighted sums of their inputs;
+  Image Texture (UV mapped) into a colour input -> that lobe's sRGB base-colour texture.
+Several lobes become a chain of core materials picked stochastically per hit with
+probability weight / total (``Material.mix_next``/``mix_weight``); the total weight scales the
+lobes' colours. Documented approximations, each warned about once: multiscatter GGX and
+Beckmann are rendered as single-scatter GGX; Principled's dielectric specular layer over the
+diffuse base, coat, sheen, subsurface and alpha are ignored; its metal uses the base colour
+as a constant Fresnel; linked factors and colours other than an Image Texture use the
+socket's own value; any other shader node renders as a diffuse surface of its colour.
+"""
+import numpy as np
+
+DEFAULT_COLOR = (0.8, 0.8, 0.8)  # Cycles' surface for objects without a material
+
+
+class MaterialTable:
+    """Global material indices for Blender materials; fills ``data.materials``/``textures``."""
+
+    def __init__(self, data, warnings):
+        from ..core import load
+
+        self._scene = load().scene
+        self._data = data
+        self._warnings = warnings
+        self._index = {}
+        self._textures = {}
+        self.has_emission = False
+
+    def index(self, material):
+        key = material.name_full if material is not None else None
+        if key not in self._index:
+            self._index[key] = self._add(material)
+        return self._index[key]
+
+    # -- building core materials --
+
+    def _add(self, material):
+        if material is None:
+            return self._append_chain("", [(1.0, _lobe("diffuse", DEFAULT_COLOR))], np.zeros(3))
+        tree = node_tree(material)
+        output = tree.get_output_node("CYCLES") if tree is not None else None
+        if output is None:
+            color = tuple(material.diffuse_color[:3])
+            return self._append_chain(material.name, [(1.0, _lobe("diffuse", color))], np.zeros(3))
+        reader = _NodeReader(material.name, self._warnings, self._texture)
+        surface = output.inputs.get("Surface")
+        lobes, emission = reader.shader(surface)
+        return self._append_chain(material.name, lobes, emission)
+
+    def _append_chain(self, name, lobes, emission):
+        """Appends the head material (which carries the emission) and its chain; returns the
+        head's index."""
+        lobes = [(w, lobe) for w, lobe in lobes if w > 0.0]
+        total = sum(w for w, _ in lobes)
+        if np.any(emission > 0):
+            self.has_emission = True
+        Material = self._scene.Material
+        if not lobes:
+            head = Material(type="emission", base_color=(0.0, 0.0, 0.0), emission=tuple(emission),
+                            name=name)
+            self._data.materials.append(head)
+            return len(self._data.materials) - 1
+        first = len(self._data.materials)
+        remaining = 1.0
+        for i, (w, lobe) in enumerate(lobes):
+            p = w / total
+            last = i == len(lobes) - 1
+            self._data.materials.append(Material(
+                type=lobe["type"], base_color=tuple(np.asarray(lobe["base_color"]) * total),
+                roughness=lobe["roughness"], ior=lobe["ior"],
+                emission=tuple(emission) if i == 0 else (0.0, 0.0, 0.0),
+                base_color_texture=lobe["texture"], name=name if i == 0 else f"{name} (lobe {i})",
+                mix_next=None if last else first + i + 1,
+                mix_weight=1.0 if last else min(1.0, p / remaining)))
+            remaining -= p
+        return first
+
+    def _texture(self, image, node_label):
+        """Index of ``image`` in data.textures (uint8 sRGB, row 0 at the top), or None."""
+        key = image.name_full
+        if key not in self._textures:
+            self._textures[key] = self._load_texture(image, node_label)
+        return self._textures[key]
+
+    def _load_texture(self, image, node_label):
+        width, height = image.size
+        channels = image.channels
+        if width == 0 or height == 0 or channels == 0:
+            self._warnings.add(f"{node_label}: image '{image.name}' has no pixels (missing "
+                               "file?); using the input's colour")
+            return None
+        pixels = np.empty(width * height * channels, dtype=np.float32)
+        image.pixels.foreach_get(pixels)
+        pixels = pixels.reshape(height, width, channels)[::-1, :, :min(channels, 3)]
+        if pixels.shape[2] == 1:
+            pixels = np.repeat(pixels, 3, axis=2)
+        stored_as_srgb = not image.is_float and image.colorspace_settings.name == "sRGB"
+        if not stored_as_srgb:  # linear data: encode to sRGB bytes like the core expects
+            pixels = _linear_to_srgb(pixels)
+        texels = np.clip(np.rint(pixels * 255.0), 0, 255).astype(np.uint8)
+        self._data.textures.append(self._scene.Texture(np.ascontiguousarray(texels), name=image.name))
+        return len(self._data.textures) - 1
+
+
+def node_tree(id_block):
+    """The material/world node tree Cycles would use, or None (Blender 5 always uses nodes)."""
+    import bpy
+
+    if bpy.app.version < (5, 0, 0) and not id_block.use_nodes:
+        return None
+    return id_block.node_tree
+
+
+def _linear_to_srgb(x):
+    x = np.clip(x, 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+
+
+def _lobe(type, base_color, roughness=0.5, ior=1.45, texture=None):
+    return dict(type=type, base_color=np.asarray(base_color[:3], dtype=np.float64),
+                roughness=float(roughness), ior=float(ior), texture=texture)
+
+
+class _NodeReader:
+    """Walks one material's node tree from its output's Surface socket."""
+
+    def __init__(self, material_name, warnings, texture_loader):
+        self.name = material_name
+        self.warnings = warnings
+        self.texture_loader = texture_loader
+
+    def warn(self, text):
+        self.warnings.add(f"material '{self.name}': {text}")
+
+    # -- sockets --
+
+    def _source(self, socket):
+        """The (node, output socket) feeding ``socket``, through reroutes; None if unlinked."""
+        while socket is not None and socket.is_linked:
+            link = socket.links[0]
+            if getattr(link, "is_muted", False):
+                return None
+            node = link.from_node
+            if node.type == "REROUTE":
+                socket = node.inputs[0]
+                continue
+            return node, link.from_socket
+        return None
+
+    def value(self, node, name, default):
+        socket = node.inputs.get(name)
+        if socket is None:
+            return default
+        if self._source(socket) is not None:
+            self.warn(f"'{node.name}' {name} is driven by nodes; using its value "
+                      f"{socket.default_value:.3g}")
+        return float(socket.default_value)
+
+    def color(self, node, name, default=DEFAULT_COLOR):
+        """(rgb, texture index or None) of a colour input."""
+        socket = node.inputs.get(name)
+        if socket is None:
+            return np.asarray(default, dtype=np.float64), None
+        constant = np.asarray(socket.default_value[:3], dtype=np.float64)
+        source = self._source(socket)
+        if source is None:
+            return constant, None
+        src, out = source
+        if src.type == "TEX_IMAGE" and out.name == "Color" and src.image is not None:
+            label = f"material '{self.name}'"
+            if self._source(src.inputs["Vector"]) is not None:
+                self.warn(f"image texture '{src.name}' has a mapped Vector input; "
+                          "using the UV map as is")
+            if src.projection != "FLAT" or src.extension != "REPEAT":
+                self.warn(f"image texture '{src.name}' uses {src.projection} projection / "
+                          f"{src.extension} extension; rendered as flat, repeating")
+            texture = self.texture_loader(src.image, label)
+            if texture is not None:
+                return np.ones(3), texture
+            return constant, None
+        self.warn(f"'{node.name}' {name} is driven by a '{src.bl_label}' node (not supported); "
+                  "using its colour value")
+        return constant, None
+
+    # -- shaders --
+
+    def shader(self, socket):
+        """(list of (weight, lobe), emission rgb) for a shader socket."""
+        source = self._source(socket) if socket is not None else None
+        if source is None:
+            return [], np.zeros(3)  # no surface shader: black, like Cycles
+        node = source[0]
+        handler = getattr(self, "_" + node.type.lower(), None)
+        if handler is None:
+            return self._unsupported(node)
+        return handler(node)
+
+    def _mix_shader(self, node):
+        f = min(max(self.value(node, node.inputs[0].name, 0.5), 0.0), 1.0)
+        a_lobes, a_emission = self.shader(node.inputs[1])
+        b_lobes, b_emission = self.shader(node.inputs[2])
+        lobes = [((1.0 - f) * w, l) for w, l in a_lobes] + [(f * w, l) for w, l in b_lobes]
+        return lobes, (1.0 - f) * a_emission + f * b_emission
+
+    def _add_shader(self, node):
+        a_lobes, a_emission = self.shader(node.inputs[0])
+        b_lobes, b_emission = self.shader(node.inputs[1])
+        return a_lobes + b_lobes, a_emission + b_emission
+
+    def _emission(self, node):
+        color, texture = self.color(node, "Color", (1.0, 1.0, 1.0))
+        if texture is not None:
+            self.warn(f"'{node.name}': textured emission is not supported; using white")
+        return [], color * self.value(node, "Strength", 1.0)
+
+    def _bsdf_diffuse(self, node):
+        color, texture = self.color(node, "Color")
+        if self.value(node, "Roughness", 0.0) > 0.0:
+            self.warn(f"'{node.name}': Oren-Nayar roughness is rendered as Lambert (roughness 0)")
+        return [(1.0, _lobe("diffuse", color, texture=texture))], np.zeros(3)
+
+    def _distribution(self, node, roughness):
+        distribution = getattr(node, "distribution", "GGX")
+        if roughness > 0.0 and distribution not in ("GGX", "SHARP"):
+            self.warn(f"'{node.name}': {distribution} is rendered as single-scatter GGX")
+        return 0.0 if distribution == "SHARP" else roughness
+
+    def _bsdf_glossy(self, node):
+        color, texture = self.color(node, "Color")
+        roughness = self._distribution(node, self.value(node, "Roughness", 0.5))
+        if abs(self.value(node, "Anisotropy", 0.0)) > 0.0:
+            self.warn(f"'{node.name}': anisotropy is ignored")
+        return [(1.0, _lobe("conductor", color, roughness, texture=texture))], np.zeros(3)
+
+    _bsdf_anisotropic = _bsdf_glossy
+
+    def _bsdf_metallic(self, node):
+        self.warn(f"'{node.name}': Metallic BSDF uses its base colour as a constant Fresnel")
+        color, texture = self.color(node, "Base Color")
+        roughness = self._distribution(node, self.value(node, "Roughness", 0.5))
+        return [(1.0, _lobe("conductor", color, roughness, texture=texture))], np.zeros(3)
+
+    def _bsdf_glass(self, node):
+        color, texture = self.color(node, "Color", (1.0, 1.0, 1.0))
+        roughness = self._distribution(node, self.value(node, "Roughness", 0.0))
+        ior = self.value(node, "IOR", 1.5)
+        return [(1.0, _lobe("dielectric", color, roughness, ior, texture))], np.zeros(3)
+
+    def _bsdf_principled(self, node):
+        def first(*names):
+            return next((n for n in names if n in node.inputs), names[0])
+
+        color, texture = self.color(node, "Base Color")
+        metallic = min(max(self.value(node, "Metallic", 0.0), 0.0), 1.0)
+        transmission = min(max(self.value(node, first("Transmission Weight", "Transmission"), 0.0), 0.0), 1.0)
+        roughness = self._distribution(node, self.value(node, "Roughness", 0.5))
+        ior = self.value(node, "IOR", 1.45)
+        for name in ("Coat Weight", "Clearcoat", "Sheen Weight", "Sheen", "Subsurface Weight", "Subsurface"):
+            if name in node.inputs and self.value(node, name, 0.0) > 0.0:
+                self.warn(f"'{node.name}': {name} is ignored")
+        if self.value(node, "Alpha", 1.0) < 1.0:
+            self.warn(f"'{node.name}': Alpha is ignored (rendered opaque)")
+        lobes = [
+            (metallic, _lobe("conductor", color, roughness, ior, texture)),
+            ((1.0 - metallic) * transmission, _lobe("dielectric", color, roughness, ior, texture)),
+            ((1.0 - metallic) * (1.0 - transmission), _lobe("diffuse", color, roughness, ior, texture)),
+        ]
+        emission_color, emission_texture = self.color(node, first("Emission Color", "Emission"), (0.0, 0.0, 0.0))
+        if emission_texture is not None:
+            self.warn(f"'{node.name}': textured emission is not supported; using white")
+        emission = emission_color * self.value(node, "Emission Strength", 1.0)
+        return lobes, emission
+
+    def _unsupported(self, node):
+        name = next((n for n in ("Color", "Base Color") if n in node.inputs), None)
+        color = np.asarray(node.inputs[name].default_value[:3]) if name else np.asarray(DEFAULT_COLOR)
+        self.warn(f"'{node.bl_label}' node '{node.name}' is not supported; rendered as a diffuse "
+                  "surface of its colour")
+        return [(1.0, _lobe("diffuse", color))], np.zeros(3)

@@ -1,0 +1,103 @@
+"""Mesh geometry and instances.
+
+Every renderable object instance of the evaluated depsgraph (plain objects, collection
+instances, geometry-nodes instances, particles) becomes one ``Instance``; instances of the
+same evaluated geometry with the same materials share one ``Mesh`` (one BLAS in the core).
+"""
+import numpy as np
+
+GEOMETRY_TYPES = {"MESH", "CURVE", "CURVES", "SURFACE", "META", "FONT"}
+
+
+def export_geometry(depsgraph, data, material_table, warnings):
+    from ..core import load
+
+    scene_module = load().scene
+    mesh_index = {}  # sharing key -> index into data.meshes, or None for empty geometry
+    for inst in depsgraph.object_instances:
+        obj = inst.object
+        if obj.type not in GEOMETRY_TYPES or not (inst.is_instance or inst.show_self):
+            continue
+        slots = tuple(material_table.index(slot.material) for slot in obj.material_slots)
+        key = (_geometry_key(obj), slots)
+        if key not in mesh_index:
+            mesh = _extract(obj, slots, material_table, warnings)
+            if mesh is None:
+                mesh_index[key] = None
+            else:
+                mesh_index[key] = len(data.meshes)
+                data.meshes.append(scene_module.Mesh(**mesh))
+        if mesh_index[key] is not None:
+            data.instances.append(scene_module.Instance(
+                mesh_index[key], np.array(inst.matrix_world, dtype=np.float64)))
+
+
+def _geometry_key(obj):
+    """Evaluated objects that share mesh data share geometry; anything else is per object."""
+    if obj.type == "MESH" and obj.data is not None:
+        return ("mesh", obj.data.as_pointer())
+    return ("object", obj.original.name if obj.original else obj.name)
+
+
+def _extract(obj, slots, material_table, warnings):
+    """The object's evaluated geometry as Mesh keyword arguments, or None if it has none."""
+    try:
+        mesh = obj.to_mesh()
+    except RuntimeError:
+        mesh = None
+    if mesh is None:
+        return None
+    try:
+        return _mesh_arrays(mesh, obj.name, slots, material_table, warnings)
+    finally:
+        obj.to_mesh_clear()
+
+
+def _mesh_arrays(mesh, name, slots, material_table, warnings):
+    if hasattr(mesh, "calc_loop_triangles"):
+        mesh.calc_loop_triangles()
+    if hasattr(mesh, "calc_normals_split"):  # Blender < 4.1 computes split normals on request
+        mesh.calc_normals_split()
+    tris = mesh.loop_triangles
+    T, V = len(tris), len(mesh.vertices)
+    if T == 0:
+        warnings.add(f"object '{name}': no faces, skipped")
+        return None
+    positions = _get(mesh.vertices, "co", V * 3, np.float32).reshape(V, 3)
+    indices = _get(tris, "vertices", T * 3, np.int32).reshape(T, 3)
+    loops = _get(tris, "loops", T * 3, np.int32).reshape(T, 3)
+    normals = _get(tris, "split_normals", T * 9, np.float32).reshape(T, 3, 3)
+    slot_of_triangle = _get(tris, "material_index", T, np.int32)
+
+    uvs = None
+    uv_layer = mesh.uv_layers.active
+    if uv_layer is not None:
+        loop_uvs = _get(uv_layer.data, "uv", len(mesh.loops) * 2, np.float32).reshape(-1, 2)
+        uvs = loop_uvs[loops]
+
+    if slots:
+        table = np.asarray(slots, dtype=np.int64)
+        material_indices = table[np.clip(slot_of_triangle, 0, len(table) - 1)]
+    else:
+        material_indices = np.full(T, material_table.index(None), dtype=np.int64)
+
+    bad_vertex = ~np.isfinite(positions).all(axis=1)
+    keep = ~bad_vertex[indices].any(axis=1) & np.isfinite(normals).reshape(T, -1).all(axis=1)
+    if uvs is not None:
+        keep &= np.isfinite(uvs).reshape(T, -1).all(axis=1)
+    if not keep.all():
+        warnings.add(f"object '{name}': {int((~keep).sum())} triangles with NaN/Inf vertices, "
+                     "normals or UVs skipped")
+        if not keep.any():
+            return None
+        indices, normals, material_indices = indices[keep], normals[keep], material_indices[keep]
+        uvs = uvs[keep] if uvs is not None else None
+        positions = np.where(bad_vertex[:, None], 0.0, positions).astype(np.float32)
+    return dict(positions=positions, indices=indices, normals=normals, uvs=uvs,
+                material_indices=material_indices, name=name)
+
+
+def _get(collection, attribute, count, dtype):
+    array = np.empty(count, dtype=dtype)
+    collection.foreach_get(attribute, array)
+    return array

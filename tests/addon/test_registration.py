@@ -1,0 +1,70 @@
+"""The add-on registers, unregisters and re-registers cleanly; its settings live in the .blend."""
+import addon
+
+
+def engines(bpy):
+    """bl_idnames of the registered render engines."""
+    return {getattr(e, "bl_idname", None) for e in bpy.types.RenderEngine.__subclasses__()
+            if e.is_registered}
+
+
+def test_register_unregister_register(bpy):
+    for _ in range(2):
+        addon.unregister()
+        assert not hasattr(bpy.types.Scene, "parallax")
+        assert "PARALLAX" not in engines(bpy)
+        addon.register()
+        assert hasattr(bpy.types.Scene, "parallax")
+        assert "PARALLAX" in engines(bpy)
+    # Shared Blender panels (dimensions, output, Cycles' material nodes) show for Parallax.
+    assert "PARALLAX" in bpy.types.RENDER_PT_format.COMPAT_ENGINES
+
+
+def test_engine_identity(bpy):
+    from addon.engine import ParallaxRenderEngine
+
+    assert ParallaxRenderEngine.bl_idname == "PARALLAX"
+    assert ParallaxRenderEngine.bl_label == "Parallax"
+    assert ParallaxRenderEngine.bl_use_shading_nodes_custom is False
+
+
+def test_every_setting_has_a_description(bpy):
+    from addon.properties import ParallaxRenderSettings, ParallaxViewLayerSettings
+
+    for group in (ParallaxRenderSettings, ParallaxViewLayerSettings):
+        for prop in group.bl_rna.properties:
+            if prop.identifier not in ("rna_type", "name"):
+                assert prop.description, f"{group.__name__}.{prop.identifier} has no description"
+
+
+def test_settings_survive_save_and_load(fresh, bpy, tmp_path):
+    settings = fresh.parallax
+    settings.samples, settings.method, settings.mis_heuristic = 77, "pt", "balance"
+    settings.max_depth, settings.use_russian_roulette, settings.time_limit = 5, False, 12.5
+    settings.device = "cpu"
+    fresh.view_layers[0].parallax.use_pass_ray_depth = True
+    path = str(tmp_path / "settings.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    assert bpy.context.scene.parallax.samples == 128  # defaults in a new file
+    bpy.ops.wm.open_mainfile(filepath=path)
+    scene = bpy.context.scene
+    assert scene.render.engine == "PARALLAX"
+    loaded = scene.parallax
+    assert (loaded.samples, loaded.method, loaded.mis_heuristic) == (77, "pt", "balance")
+    assert (loaded.max_depth, loaded.use_russian_roulette, loaded.time_limit) == (5, False, 12.5)
+    assert loaded.device == "cpu" and scene.view_layers[0].parallax.use_pass_ray_depth
+    params = loaded.render_params()
+    assert params["rr_start_depth"] == 0 and params["method"] == "pt" and params["max_depth"] == 5
+
+
+def test_render_params_match_the_core(bpy):
+    import dataclasses
+
+    from parallax_core import RenderParams
+    from addon.properties import ParallaxRenderSettings
+
+    scene = bpy.context.scene
+    assert isinstance(scene.parallax, ParallaxRenderSettings)
+    fields = {f.name for f in dataclasses.fields(RenderParams)}
+    assert set(scene.parallax.render_params()) == fields
