@@ -71,6 +71,17 @@ def set_png_output(image_settings):
     image_settings.color_depth = "8"
 
 
+def _render(bpy, final):
+    """Runs the render operator; Parallax's errors become CommandError."""
+    final.last_report = final.RenderReport()
+    try:
+        bpy.ops.render.render()
+    except RuntimeError as e:  # Blender raises when the engine reported an error
+        raise CommandError("; ".join(final.last_report.errors) or str(e)) from e
+    if bpy.context.scene.render.engine == "PARALLAX" and final.last_report.errors:
+        raise CommandError("; ".join(final.last_report.errors))
+
+
 def render(path, output, engine="PARALLAX", samples=None, device=None, assignments=(), png=None):
     """Renders a .blend's active scene to a multilayer EXR (and a colour-managed PNG)."""
     bpy = _bpy()
@@ -85,9 +96,7 @@ def render(path, output, engine="PARALLAX", samples=None, device=None, assignmen
     apply_settings(scene, assignments)
     from .engine import final
 
-    bpy.ops.render.render()
-    if engine == "PARALLAX" and final.last_errors:
-        raise CommandError("; ".join(final.last_errors))
+    _render(bpy, final)
     result = bpy.data.images["Render Result"]
     set_exr_output(scene.render.image_settings)
     result.save_render(os.path.abspath(output), scene=scene)
@@ -106,11 +115,9 @@ def export(path, output):
     captured = []
     final.scene_hook = lambda data, warnings: captured.append((data, warnings))
     try:
-        bpy.ops.render.render()
+        _render(bpy, final)
     finally:
         final.scene_hook = None
-    if final.last_errors:
-        raise CommandError("; ".join(final.last_errors))
     if not captured:
         raise CommandError(f"{path}: the scene was not exported (no view layer rendered)")
     data, warnings = captured[0]

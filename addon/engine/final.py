@@ -15,9 +15,17 @@ from .. import core, passes, sync
 UPDATE_SECONDS = 0.5
 POLL_SECONDS = 0.05
 
-# Errors of the latest render. Background renders have no other way to hand them to the
-# caller (bpy.ops.render.render still returns FINISHED); the CLI reads this.
-last_errors = []
+
+class RenderReport:
+    """What the latest render reported. Background renders have no other way to hand it to
+    the caller (bpy.ops.render.render returns FINISHED either way); the CLI and tests read it."""
+
+    def __init__(self):
+        self.errors, self.warnings = [], []
+        self.samples, self.cancelled = 0, False
+
+
+last_report = RenderReport()
 
 # parallax export: when set, render() hands (SceneData, warnings) to it instead of rendering,
 # so the exported file is exactly what an F12 render would upload.
@@ -34,11 +42,12 @@ def render_size(render):
 
 
 def border_region(render, width, height):
-    """(x, y, w, h) of the border in pixels (y from the bottom), or None for the whole frame."""
+    """(x, y, w, h) of the border in pixels (y from the bottom), or None for the whole frame.
+    Truncates like Blender's own render rectangle (``disprect``), which sizes the result."""
     if not render.use_border:
         return None
-    x0, x1 = round(render.border_min_x * width), round(render.border_max_x * width)
-    y0, y1 = round(render.border_min_y * height), round(render.border_max_y * height)
+    x0, x1 = int(render.border_min_x * width), int(render.border_max_x * width)
+    y0, y1 = int(render.border_min_y * height), int(render.border_max_y * height)
     if x1 <= x0 or y1 <= y0 or (x1 - x0, y1 - y0) == (width, height):
         return None
     return x0, y0, x1 - x0, y1 - y0
@@ -104,11 +113,12 @@ def render(engine, depsgraph):
     scene = depsgraph.scene
     settings = scene.parallax
     view_layer = depsgraph.view_layer
-    last_errors.clear()
+    global last_report
+    last_report = report = RenderReport()
 
     width, height = render_size(scene.render)
     region = border_region(scene.render, width, height)
-    x, y, w, h = region or (0, 0, width, height)
+    _, _, w, h = region or (0, 0, width, height)
     try:
         parallax_core = core.load()
         data, warnings = sync.export_scene(depsgraph, width, height, region)
@@ -119,9 +129,10 @@ def render(engine, depsgraph):
         session.set_params(**settings.render_params())
         warnings += [m for m in session.update(data) if m not in warnings]
     except (ImportError, ValueError, RuntimeError, TypeError) as e:
-        last_errors.append(str(e))
+        report.errors.append(str(e))
         engine.report({"ERROR"}, f"Parallax: {e}")
         return
+    report.warnings = list(warnings)
     for message in warnings:
         engine.report({"WARNING"}, f"Parallax: {message}")
 
@@ -130,7 +141,8 @@ def render(engine, depsgraph):
     frames = -(-settings.samples // per_frame)
     total = frames * per_frame
     worker = _Worker(session, frames, per_frame, settings.time_limit, {p.core for p in wanted})
-    result = engine.begin_result(x, y, w, h, layer=view_layer.name)
+    # With a border, Blender's result covers just the border: its pixel (0, 0) is (x, y).
+    result = engine.begin_result(0, 0, w, h, layer=view_layer.name)
     worker.start()
     shown = None
     cancelled = False
@@ -157,8 +169,9 @@ def render(engine, depsgraph):
             break
         time.sleep(POLL_SECONDS)
     engine.end_result(result)
+    report.samples, report.cancelled = (shown[0] if shown else 0), cancelled
     if worker.error is not None:
-        last_errors.append(str(worker.error))
+        report.errors.append(str(worker.error))
         engine.report({"ERROR"}, f"Parallax: {worker.error}")
     elif cancelled:
         engine.update_stats("", f"Cancelled at sample {shown[0] if shown else 0}/{total}")

@@ -15,7 +15,8 @@ def export_camera(depsgraph, width, height, region=None):
     if obj.type != "CAMERA":
         raise ValueError(f"the active camera '{obj.name}' is a {obj.type.lower()}, not a camera")
     if cam.type not in ("PERSP", "ORTHO"):
-        raise ValueError(f"camera '{obj.name}': {cam.type.lower()} cameras are not supported "
+        kind = {"PANO": "panoramic"}.get(cam.type, cam.type.lower())
+        raise ValueError(f"camera '{obj.name}': {kind} cameras are not supported "
                          "(perspective and orthographic are)")
     render = scene.render
     camera = Camera.from_blender(

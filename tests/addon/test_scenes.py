@@ -19,7 +19,7 @@ def test_scene_renders_every_pass(bpy, tmp_path, name):
     from addon.engine import final
 
     passes = render(bpy, tmp_path / f"{name}.exr")
-    assert not final.last_errors
+    assert not final.last_report.errors
     assert {k: v.shape[2] for k, v in passes.items()} == ALL_PASSES
     for image in passes.values():
         assert image.shape[:2] == (30, 40) and np.isfinite(image).all()

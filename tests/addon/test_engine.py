@@ -1,0 +1,157 @@
+"""F12 behaviour: progressive updates, cancel, limits, border and resolution, bad scenes."""
+import time
+
+import numpy as np
+import pytest
+from addon.engine import final
+from blender_helpers import open_scene, render
+
+
+def test_cancel_returns_within_a_second_with_a_partial_image(bpy, tmp_path, monkeypatch):
+    scene = open_scene(bpy, "cornell_box", 96, 96)
+    # Frames of 64 spp take seconds on a CPU: the cancel must not wait for the one in flight.
+    scene.parallax.samples, scene.parallax.samples_per_frame = 4096, 64
+    scene.parallax.samples_per_frame = 8
+    asked = []
+
+    def stop_after_first_update(engine):
+        if final_snapshot_shown():
+            asked.append(time.perf_counter())
+            return True
+        return False
+
+    shown = []
+    real_write = final._write_result
+    monkeypatch.setattr(final, "_write_result", lambda *a: (shown.append(1), real_write(*a)))
+    final_snapshot_shown = lambda: bool(shown)  # noqa: E731
+    monkeypatch.setattr(final, "stop_requested", stop_after_first_update)
+    passes = render(bpy, tmp_path / "cancelled.exr")
+    returned = time.perf_counter()
+    assert asked and returned - asked[0] < 1.0
+    report = final.last_report
+    assert report.cancelled and not report.errors
+    assert 0 < report.samples < 4096
+    assert passes["Combined"][..., :3].mean() > 0.01  # the partial image, not black
+
+
+def test_samples_end_the_render_and_time_limit_stops_early(bpy, tmp_path):
+    scene = open_scene(bpy, "cornell_box", 32, 32)
+    scene.parallax.samples, scene.parallax.samples_per_frame = 12, 4
+    render(bpy, tmp_path / "a.exr")
+    assert final.last_report.samples == 12 and not final.last_report.cancelled
+    scene.parallax.samples, scene.parallax.samples_per_frame = 100000, 1
+    scene.parallax.time_limit = 1.0
+    start = time.perf_counter()
+    render(bpy, tmp_path / "b.exr")
+    assert time.perf_counter() - start < 30.0
+    assert 0 < final.last_report.samples < 100000
+
+
+def test_resolution_percentage_and_border(bpy, tmp_path):
+    scene = open_scene(bpy, "cornell_box", 64, 48)
+    scene.parallax.samples = 8
+    scene.render.resolution_percentage = 50
+    full = render(bpy, tmp_path / "full.exr")
+    assert full["Combined"].shape == (24, 32, 4)
+
+    scene.render.use_border, scene.render.use_crop_to_border = True, True
+    scene.render.border_min_x, scene.render.border_max_x = 0.25, 0.75
+    scene.render.border_min_y, scene.render.border_max_y = 0.5, 1.0
+    cropped = render(bpy, tmp_path / "crop.exr")
+    assert cropped["Combined"].shape == (12, 16, 4)
+    # The border shows the same part of the picture as the full frame (top half, middle).
+    a, b = cropped["Combined"][..., :3].mean((0, 1)), full["Combined"][:12, 8:24, :3].mean((0, 1))
+    np.testing.assert_allclose(a, b, rtol=0.25)
+
+    scene.render.use_crop_to_border = False
+    uncropped = render(bpy, tmp_path / "border.exr")["Combined"]
+    assert uncropped.shape == (24, 32, 4)
+    assert uncropped[12:, :, :3].max() == 0.0 and uncropped[:12, 8:24, :3].mean() > 0.01
+
+
+def _add_mesh(bpy, scene, name, vertices, faces, material=None):
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata(vertices, [], faces)
+    if material is not None:
+        mesh.materials.append(material)
+    obj = bpy.data.objects.new(name, mesh)
+    scene.collection.objects.link(obj)
+    return obj
+
+
+def _add_light(bpy, scene, kind="POINT", power=500.0, location=(0.0, -3.0, 2.0)):
+    light = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", kind))
+    light.data.energy = power
+    light.location = location
+    scene.collection.objects.link(light)
+    return light
+
+
+QUAD = [(-1, 0, -1), (1, 0, -1), (1, 0, 1), (-1, 0, 1)]
+
+
+def test_unsupported_node_renders_with_one_warning(fresh, bpy, tmp_path):
+    material = bpy.data.materials.new("Velvet")
+    nodes = material.node_tree.nodes
+    nodes.clear()
+    sheen = nodes.new("ShaderNodeBsdfSheen")
+    out = nodes.new("ShaderNodeOutputMaterial")
+    material.node_tree.links.new(sheen.outputs[0], out.inputs["Surface"])
+    _add_mesh(bpy, fresh, "Quad", QUAD, [(0, 1, 2, 3)], material)
+    _add_mesh(bpy, fresh, "Quad2", [(x, 0.5, z) for x, _, z in QUAD], [(0, 1, 2, 3)], material)
+    _add_light(bpy, fresh)
+    passes = render(bpy, tmp_path / "velvet.exr")
+    report = final.last_report
+    assert not report.errors
+    about_sheen = [w for w in report.warnings if "Sheen" in w]
+    assert len(about_sheen) == 1 and "Velvet" in about_sheen[0]
+    assert passes["Combined"][..., :3].mean() > 0.0
+
+
+def test_no_lights_renders_black_with_a_warning(fresh, bpy, tmp_path):
+    fresh.world = None
+    _add_mesh(bpy, fresh, "Quad", QUAD, [(0, 1, 2, 3)])
+    passes = render(bpy, tmp_path / "dark.exr")
+    assert not final.last_report.errors
+    assert any("no lights" in w for w in final.last_report.warnings)
+    assert passes["Combined"][..., :3].max() == 0.0
+
+
+def test_nan_vertex_and_empty_mesh_render_with_warnings(fresh, bpy, tmp_path):
+    nan = float("nan")
+    _add_mesh(bpy, fresh, "Broken", QUAD + [(nan, 0, 0)], [(0, 1, 2, 3), (0, 1, 4)])
+    _add_mesh(bpy, fresh, "Empty", [], [])
+    _add_light(bpy, fresh)
+    passes = render(bpy, tmp_path / "broken.exr")
+    report = final.last_report
+    assert not report.errors, report.errors
+    assert any("'Broken'" in w and "NaN" in w for w in report.warnings)
+    assert any("'Empty'" in w for w in report.warnings)
+    assert np.isfinite(passes["Combined"]).all() and passes["Combined"][..., :3].mean() > 0.0
+
+
+def test_unsupported_camera_is_a_clear_error_and_bpy_goes_on(fresh, bpy, tmp_path):
+    _add_mesh(bpy, fresh, "Quad", QUAD, [(0, 1, 2, 3)])
+    _add_light(bpy, fresh)
+    fresh.camera.data.type = "PANO"
+    # Blender turns the engine's error report into an exception of the render operator.
+    with pytest.raises(RuntimeError, match="panoramic cameras are not supported"):
+        bpy.ops.render.render()
+    assert final.last_report.errors == [
+        "camera 'Camera': panoramic cameras are not supported (perspective and orthographic are)"]
+    fresh.camera.data.type = "PERSP"
+    render(bpy, tmp_path / "again.exr")
+    assert not final.last_report.errors and final.last_report.samples == fresh.parallax.samples
+
+
+def test_bad_device_is_reported(fresh, bpy, monkeypatch):
+    _add_mesh(bpy, fresh, "Quad", QUAD, [(0, 1, 2, 3)])
+    fresh.parallax.device = "gpu"
+    import parallax_core
+
+    has_gpu = any(d.get("type") == "discrete" and d.get("ray_tracing") for d in parallax_core.devices())
+    if has_gpu:
+        pytest.skip("this machine has a ray-tracing GPU")
+    with pytest.raises(RuntimeError, match="Parallax"):
+        bpy.ops.render.render()
+    assert final.last_report.errors and "gpu" in final.last_report.errors[0].lower()
