@@ -50,3 +50,17 @@ def block_means(image, block):
     h, w = image.shape[0] // block * block, image.shape[1] // block * block
     c = image.shape[2]
     return image[:h, :w].reshape(h // block, block, w // block, block, c).mean(axis=(1, 3))
+
+
+def export_current(bpy):
+    """(SceneData, warnings) that an F12 render of the current scene would upload."""
+    from addon.engine import final
+
+    captured = []
+    final.scene_hook = lambda data, warnings: captured.append((data, warnings))
+    try:
+        bpy.ops.render.render()
+    finally:
+        final.scene_hook = None
+    assert captured, final.last_report.errors
+    return captured[0]

@@ -1,0 +1,218 @@
+"""bpy data -> SceneData: geometry, instancing, materials, lights, world and camera."""
+import math
+
+import numpy as np
+import pytest
+from blender_helpers import export_current
+
+
+def _cube(bpy, scene, name="Cube", material=None, location=(0, 0, 0)):
+    bpy.ops.mesh.primitive_cube_add(size=2.0, location=location)
+    obj = bpy.context.active_object
+    obj.name = name
+    if material is not None:
+        obj.data.materials.append(material)
+    return obj
+
+
+def _material(bpy, name, node_type, **inputs):
+    material = bpy.data.materials.new(name)
+    tree = material.node_tree
+    tree.nodes.clear()
+    node = tree.nodes.new(node_type)
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    tree.links.new(node.outputs[0], out.inputs["Surface"])
+    for key, value in inputs.items():
+        if key in node.inputs:
+            node.inputs[key].default_value = value
+        else:
+            setattr(node, key, value)
+    return material, node
+
+
+def test_instances_share_one_mesh_and_modifiers_apply(fresh, bpy):
+    cube = _cube(bpy, fresh)
+    cube.modifiers.new("Subdivision", "SUBSURF").levels = 1
+    cube.modifiers["Subdivision"].render_levels = 1
+    collection = bpy.data.collections.new("Props")
+    collection.objects.link(cube)
+    fresh.collection.objects.unlink(cube)
+    for i in range(3):
+        empty = bpy.data.objects.new(f"Instance{i}", None)
+        empty.instance_type, empty.instance_collection = "COLLECTION", collection
+        empty.location = (3.0 * i, 0.0, 0.0)
+        fresh.collection.objects.link(empty)
+    data, _ = export_current(bpy)
+    assert len(data.meshes) == 1 and len(data.instances) == 3
+    assert len(data.meshes[0].indices) == 6 * 4 * 2  # one subdivision level, triangulated
+    offsets = sorted(np.asarray(i.transform)[0, 3] for i in data.instances)
+    np.testing.assert_allclose(offsets, [0.0, 3.0, 6.0], atol=1e-6)
+
+
+def test_smooth_normals_uvs_and_material_slots(fresh, bpy):
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=16, ring_count=8, radius=1.0)
+    sphere = bpy.context.active_object
+    bpy.ops.object.shade_smooth()
+    red, _ = _material(bpy, "Red", "ShaderNodeBsdfDiffuse", Color=(1, 0, 0, 1))
+    blue, _ = _material(bpy, "Blue", "ShaderNodeBsdfDiffuse", Color=(0, 0, 1, 1))
+    sphere.data.materials.append(red)
+    sphere.data.materials.append(blue)
+    for polygon in sphere.data.polygons:
+        polygon.material_index = int(polygon.center.z > 0)
+    data, _ = export_current(bpy)
+    mesh = data.meshes[0]
+    corners = mesh.positions[mesh.indices]
+    # Smooth: close to radial (Blender weights face normals by angle), unlike flat normals.
+    radial = corners / np.linalg.norm(corners, axis=-1, keepdims=True)
+    np.testing.assert_allclose(mesh.normals, radial, atol=0.03)
+    flat = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    flat /= np.linalg.norm(flat, axis=-1, keepdims=True)
+    assert np.abs(mesh.normals - flat[:, None]).max() > 0.1
+    assert mesh.uvs is not None and mesh.uvs.shape == (len(mesh.indices), 3, 2)
+    top = corners.mean(axis=1)[:, 2] > 0
+    names = np.array([data.materials[k].name for k in mesh.material_indices])
+    assert set(names[top]) == {"Blue"} and set(names[~top]) == {"Red"}
+
+
+def test_principled_becomes_a_weighted_lobe_chain(fresh, bpy):
+    material, _ = _material(bpy, "Mixed", "ShaderNodeBsdfPrincipled", **{
+        "Base Color": (0.5, 0.4, 0.3, 1.0), "Metallic": 0.25, "Transmission Weight": 0.5,
+        "Roughness": 0.3, "IOR": 1.33, "Emission Color": (1.0, 0.5, 0.0, 1.0),
+        "Emission Strength": 2.0, "distribution": "GGX"})
+    _cube(bpy, fresh, material=material)
+    data, warnings = export_current(bpy)
+    head = data.materials[data.meshes[0].material_indices[0]]
+    chain = [head]
+    while chain[-1].mix_next is not None:
+        chain.append(data.materials[chain[-1].mix_next])
+    assert [m.type for m in chain] == ["conductor", "dielectric", "diffuse"]
+    # P(conductor) = metallic, P(dielectric) = (1 - metallic) transmission, rest diffuse.
+    np.testing.assert_allclose([m.mix_weight for m in chain], [0.25, 0.5, 1.0], rtol=1e-6)
+    for m in chain:
+        np.testing.assert_allclose(m.base_color, (0.5, 0.4, 0.3), rtol=1e-6)
+        assert m.roughness == pytest.approx(0.3) and m.ior == pytest.approx(1.33)
+    np.testing.assert_allclose(head.emission, (2.0, 1.0, 0.0))
+    assert all(m.emission == (0.0, 0.0, 0.0) for m in chain[1:])
+    assert not any("Mixed" in w for w in warnings)
+
+
+def test_mix_shader_with_emission_scales_the_bsdf(fresh, bpy):
+    material = bpy.data.materials.new("Glow")
+    tree = material.node_tree
+    tree.nodes.clear()
+    diffuse = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    diffuse.inputs["Color"].default_value = (0.8, 0.6, 0.4, 1.0)
+    glow = tree.nodes.new("ShaderNodeEmission")
+    glow.inputs["Strength"].default_value = 5.0
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    mix.inputs[0].default_value = 0.25
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    tree.links.new(diffuse.outputs[0], mix.inputs[1])
+    tree.links.new(glow.outputs[0], mix.inputs[2])
+    tree.links.new(mix.outputs[0], out.inputs["Surface"])
+    _cube(bpy, fresh, material=material)
+    data, _ = export_current(bpy)
+    m = data.materials[data.meshes[0].material_indices[0]]
+    assert m.type == "diffuse" and m.mix_next is None
+    np.testing.assert_allclose(m.base_color, (0.6, 0.45, 0.3), rtol=1e-6)
+    np.testing.assert_allclose(m.emission, (1.25, 1.25, 1.25), rtol=1e-6)
+
+
+def test_glossy_glass_and_multiscatter_warning(fresh, bpy):
+    glossy, _ = _material(bpy, "Metal", "ShaderNodeBsdfAnisotropic", Roughness=0.4, distribution="GGX")
+    glass, _ = _material(bpy, "Glass", "ShaderNodeBsdfGlass", Roughness=0.2, IOR=1.6,
+                         distribution="MULTI_GGX")
+    _cube(bpy, fresh, "A", glossy)
+    _cube(bpy, fresh, "B", glass, location=(3, 0, 0))
+    data, warnings = export_current(bpy)
+    by_name = {m.name: m for m in data.materials}
+    assert by_name["Metal"].type == "conductor" and by_name["Metal"].roughness == pytest.approx(0.4)
+    assert by_name["Glass"].type == "dielectric" and by_name["Glass"].ior == pytest.approx(1.6)
+    assert [w for w in warnings if "single-scatter GGX" in w] == [
+        "material 'Glass': 'Glass BSDF': MULTI_GGX is rendered as single-scatter GGX"]
+
+
+def test_image_texture_into_base_color(fresh, bpy):
+    image = bpy.data.images.new("Checker", 4, 2, alpha=True)
+    pixels = np.zeros((2, 4, 4), np.float32)
+    pixels[..., 3] = 1.0
+    pixels[1, :, 0] = 1.0  # Blender row 1 = the top row: red
+    image.pixels.foreach_set(pixels.ravel())
+    material, diffuse = _material(bpy, "Textured", "ShaderNodeBsdfDiffuse")
+    tex = material.node_tree.nodes.new("ShaderNodeTexImage")
+    tex.image = image
+    material.node_tree.links.new(tex.outputs["Color"], diffuse.inputs["Color"])
+    _cube(bpy, fresh, material=material)
+    data, _ = export_current(bpy)
+    m = data.materials[data.meshes[0].material_indices[0]]
+    texels = data.textures[m.base_color_texture].pixels
+    assert texels.shape[:2] == (2, 4) and texels.dtype == np.uint8
+    assert (texels[0, :, 0] == 255).all() and (texels[1, :, 0] == 0).all()  # row 0 = top
+
+
+def test_lights_in_cycles_units(fresh, bpy):
+    def light(kind, **props):
+        obj = bpy.data.objects.new(kind, bpy.data.lights.new(kind, kind))
+        for key, value in props.items():
+            setattr(obj.data, key, value)
+        fresh.collection.objects.link(obj)
+        return obj
+
+    area = light("AREA", energy=40.0, shape="RECTANGLE", size=2.0, size_y=1.0)
+    area.scale = (1.5, 2.0, 1.0)
+    area.rotation_euler = (math.pi / 2, 0.0, 0.0)
+    light("SUN", energy=3.0, angle=0.1)
+    light("SPOT", energy=100.0, spot_size=0.8, spot_blend=0.3, shadow_soft_size=0.2)
+    light("POINT", energy=10.0, shadow_soft_size=0.5, color=(1.0, 0.5, 0.25))
+    data, _ = export_current(bpy)
+    by = {l.name: l for l in data.lights}
+    a = by["AREA"]
+    assert (a.type, a.shape, a.power) == ("area", "rectangle", 40.0)
+    assert (a.size, a.size_y) == pytest.approx((3.0, 2.0))
+    np.testing.assert_allclose(a.direction, (0.0, 1.0, 0.0), atol=1e-6)  # local -Z, rotated
+    sun = by["SUN"]
+    assert sun.type == "sun" and (sun.power, sun.angle) == pytest.approx((3.0, 0.1))
+    s = by["SPOT"]
+    assert s.type == "spot" and (s.spot_size, s.spot_blend, s.radius) == pytest.approx((0.8, 0.3, 0.2))
+    p = by["POINT"]
+    assert p.type == "point" and p.radius == pytest.approx(0.5) and p.power == 10.0
+    np.testing.assert_allclose(p.color, (1.0, 0.5, 0.25))
+
+
+def test_world_color_and_environment_texture(fresh, bpy):
+    world = bpy.data.worlds.new("World")
+    fresh.world = world
+    tree = world.node_tree
+    background = next(n for n in tree.nodes if n.type == "BACKGROUND")
+    background.inputs["Color"].default_value = (0.2, 0.4, 0.6, 1.0)
+    background.inputs["Strength"].default_value = 2.0
+    data, _ = export_current(bpy)
+    assert data.world.map is None and data.world.strength == pytest.approx(2.0)
+    np.testing.assert_allclose(data.world.color, (0.2, 0.4, 0.6), rtol=1e-6)
+
+    image = bpy.data.images.new("Sky", 8, 4, float_buffer=True)
+    pixels = np.ones((4, 8, 4), np.float32)
+    pixels[3, :, :3] = (5.0, 0.0, 0.0)  # Blender's last row is the top: the zenith
+    image.pixels.foreach_set(pixels.ravel())
+    env = tree.nodes.new("ShaderNodeTexEnvironment")
+    env.image = image
+    tree.links.new(env.outputs["Color"], background.inputs["Color"])
+    data, _ = export_current(bpy)
+    assert data.world.map.shape == (4, 8, 3)
+    np.testing.assert_allclose(data.world.map[0, 0], (5.0, 0.0, 0.0))  # row 0 = zenith
+    np.testing.assert_allclose(data.world.map[1:], 1.0)
+
+
+def test_camera_shift_and_orthographic(fresh, bpy):
+    fresh.render.resolution_x, fresh.render.resolution_y = 64, 32
+    cam = fresh.camera.data
+    cam.lens, cam.sensor_width, cam.shift_x = 50.0, 36.0, 0.1
+    data, _ = export_current(bpy)
+    left, right, bottom, top = data.camera.window
+    assert (data.width, data.height) == (64, 32)
+    assert right - left == pytest.approx(36.0 / 50.0) and top - bottom == pytest.approx(18.0 / 50.0)
+    assert (left + right) / 2 == pytest.approx(0.1 * 36.0 / 50.0)
+    cam.type, cam.ortho_scale, cam.shift_x = "ORTHO", 4.0, 0.0
+    data, _ = export_current(bpy)
+    assert data.camera.type == "orthographic"
+    assert data.camera.window == pytest.approx((-2.0, 2.0, -1.0, 1.0))
