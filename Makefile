@@ -6,7 +6,7 @@ PY := $(VENV)/bin/python
 PIP := $(VENV)/bin/pip
 STAMP := $(VENV)/.deps-stamp
 
-.PHONY: setup system venv build test demo bench clean
+.PHONY: setup system venv build test demo bench extension scenes clean
 
 setup: system venv build
 
@@ -28,14 +28,26 @@ build: venv
 test: setup
 	@$(PY) -m pytest -q -p no:cacheprovider
 
+# The demo is the Blender scene, rendered through bpy exactly as F12 would.
 demo: setup
 	@mkdir -p out
-	@$(VENV)/bin/parallax scene cornell_box -o out/cornell_box.npz --width 512 --height 512
-	@$(VENV)/bin/parallax render out/cornell_box.npz -o out/cornell_box.exr --png out/cornell_box.png --spp 128 --spp-per-frame 8
+	@$(VENV)/bin/parallax render blender_scenes/cornell_box.blend -o out/cornell_box.exr --png out/cornell_box.png
 	@echo "wrote out/cornell_box.exr and out/cornell_box.png"
+
+# Rebuilds the .blend files from blender_scenes/build.py.
+scenes: setup
+	@$(PY) blender_scenes/build.py
+
+# The installable Blender extension: the add-on plus the native core as a cp311 wheel.
+BLENDER_EXT = $(wildcard $(VENV)/lib/python3.11/site-packages/bpy/*/scripts/addons_core/bl_pkg/cli/blender_ext.py)
+extension: setup
+	@rm -rf addon/wheels dist/parallax-*.zip && mkdir -p dist
+	@$(PIP) wheel -q --no-build-isolation --no-deps -w addon/wheels .
+	@$(PY) $(BLENDER_EXT) build --source-dir addon --output-dir dist
+	@ls dist/parallax-*.zip
 
 bench: setup
 	@$(PY) bench/throughput.py
 
 clean:
-	rm -rf build out
+	rm -rf build out dist addon/wheels addon/_site

@@ -1,0 +1,53 @@
+"""`parallax render FILE.blend` / `parallax export`: bpy in a subprocess, the F12 code path."""
+import subprocess
+import sys
+
+import numpy as np
+from blender_helpers import SCENES, read_layers
+
+from parallax_core.scene import SceneData
+
+PARALLAX = [sys.executable, "-m", "parallax_core"]
+CORNELL = f"{SCENES}/cornell_box.blend"
+SMALL = ["--set", "render.resolution_x=24", "--set", "render.resolution_y=16"]
+
+
+def run(*args, check=True):
+    return subprocess.run([*PARALLAX, *args], capture_output=True, text=True, check=check, timeout=300)
+
+
+def test_render_blend_with_both_engines(tmp_path):
+    images = {}
+    for engine in ("PARALLAX", "CYCLES"):
+        exr, png = tmp_path / f"{engine}.exr", tmp_path / f"{engine}.png"
+        r = run("render", CORNELL, "-o", str(exr), "--png", str(png), "--engine", engine,
+                "--samples", "8", *SMALL, "--set", "seed=3", "--set", "method='nee'")
+        assert f"{engine.lower()}: " in r.stdout
+        images[engine] = read_layers(exr)["Combined"]
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    for image in images.values():
+        assert image.shape == (16, 24, 4) and 0.02 < image[..., :3].mean() < 1.0
+
+
+def test_export_writes_what_the_core_receives(tmp_path):
+    npz = tmp_path / "cornell.npz"
+    r = run("export", CORNELL, "-o", str(npz))
+    assert "36 triangles" in r.stdout
+    scene = SceneData.load(str(npz))
+    assert (scene.width, scene.height) == (512, 512)
+    assert any(np.any(np.asarray(m.emission) > 0) for m in scene.materials)
+    # And it renders without Blender.
+    run("render", str(npz), "-o", str(tmp_path / "x.exr"), "--spp", "2", "--width", "16")
+
+
+def test_bad_arguments_exit_with_a_clear_error(tmp_path):
+    out = str(tmp_path / "x.exr")
+    for args, message in (
+            ((str(tmp_path / "missing.blend"),), "no such file"),
+            ((CORNELL, "--set", "no_such_setting=1"), "has no property 'no_such_setting'"),
+            ((CORNELL, "--set", "samples"), "expected PROP=VALUE"),
+            ((CORNELL, "--set", "method='bogus'"), "bogus"),
+            ((CORNELL, "--engine", "EEVEE"), "PARALLAX or CYCLES")):
+        r = run("render", *args, "-o", out, check=False)
+        assert r.returncode == 2, (args, r.stderr)
+        assert "parallax: error:" in r.stderr and message in r.stderr and "Traceback" not in r.stderr
