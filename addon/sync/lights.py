@@ -1,7 +1,7 @@
 """Blender lights -> Parallax lights, in Cycles' units (the core converts power to radiance).
 
-Point/spot: power in W, radius = ``shadow_soft_size``, rendered as a true sphere (Cycles with
-Soft Falloff off). Sun: strength in W/m^2 and angular diameter. Area: power in W over the
+Power is ``energy * 2^exposure``. Point/spot: in W, radius = ``shadow_soft_size``, rendered
+as a true sphere (Cycles with Soft Falloff off). Sun: strength in W/m^2 and angular diameter. Area: power in W over the
 shape scaled by the object (square, rectangle, disk, ellipse), one-sided along local -Z.
 """
 import numpy as np
@@ -27,6 +27,11 @@ def export_lights(depsgraph, data, warnings):
             continue
         common = dict(color=tuple(light.color), position=tuple(m[:3, 3]),
                       direction=tuple(-axis_z / np.linalg.norm(axis_z)), name=obj.name)
+        power = float(light.energy) * 2.0 ** float(getattr(light, "exposure", 0.0))
+        if not getattr(obj, "visible_camera", True) and light.type != "SUN":
+            warnings.add(f"{label}: hidden from the camera in Blender, but Parallax shows it")
+        if not getattr(light, "normalize", True) and light.type != "AREA":
+            warnings.add(f"{label}: Normalize off is ignored (power is used as if on)")
         if getattr(light, "use_nodes", False) and light.node_tree is not None:
             warnings.add(f"{label}: light node trees are ignored (colour x power is used)")
         if light.type in ("POINT", "SPOT"):
@@ -37,9 +42,9 @@ def export_lights(depsgraph, data, warnings):
             extra = dict(radius=float(light.shadow_soft_size))
             if kind == "spot":
                 extra.update(spot_size=float(light.spot_size), spot_blend=float(light.spot_blend))
-            data.lights.append(Light(type=kind, power=float(light.energy), **common, **extra))
+            data.lights.append(Light(type=kind, power=power, **common, **extra))
         elif light.type == "SUN":
-            data.lights.append(Light(type="sun", power=float(light.energy),
+            data.lights.append(Light(type="sun", power=power,
                                      angle=float(light.angle), **common))
         elif light.type == "AREA":
             scale_x, scale_y = np.linalg.norm(axis_x), np.linalg.norm(axis_y)
@@ -49,10 +54,12 @@ def export_lights(depsgraph, data, warnings):
             if getattr(light, "spread", np.pi) < np.pi - 1e-6:
                 warnings.add(f"{label}: Spread below 180 degrees is ignored")
             shape = AREA_SHAPES.get(light.shape, "rectangle")
-            size_y = light.size_y if light.shape in ("RECTANGLE", "ELLIPSE") else light.size
+            size_x = light.size * scale_x
+            size_y = (light.size_y if light.shape in ("RECTANGLE", "ELLIPSE") else light.size) * scale_y
+            if not getattr(light, "normalize", True):  # power is per unit area: undo the core's 1/A
+                power *= size_x * size_y * (np.pi / 4.0 if shape == "ellipse" else 1.0)
             data.lights.append(Light(
-                type="area", power=float(light.energy), shape=shape,
-                size=float(light.size * scale_x), size_y=float(size_y * scale_y),
+                type="area", power=power, shape=shape, size=float(size_x), size_y=float(size_y),
                 axis_u=tuple(axis_x / scale_x), axis_v=tuple(axis_y / scale_y), **common))
         else:
             warnings.add(f"{label}: {light.type} lights are not supported, skipped")
