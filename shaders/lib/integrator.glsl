@@ -31,6 +31,27 @@ bool trace_shadow(vec3 origin, vec3 dir, float t_max) {
     return shadow_visible != 0u;
 }
 
+// The material of a mix chain whose BSDF scatters at this hit (Material.mix_next). One
+// uniform number picks link i with probability w_i prod_{j<i} (1 - w_j) and is rescaled at
+// each link it passes, so one draw serves the whole chain. Estimating the chosen lobe's
+// integral on its own (with its own NEE/BSDF MIS) is an unbiased one-sample estimator of
+// the mixture f = sum_i P(i) f_i: stochastic selection of BSDF components, as pbrt-v4's
+// MixMaterial resolves a mix to one material at the intersection (pbrt-v3's MixMaterial
+// instead sums scaled BxDFs), i.e. Veach's one-sample model over lobes (Veach 1997,
+// sec. 9.2.4). The host guarantees the chain ends within MIX_CHAIN_MAX materials.
+Material select_mix_material(Material head, inout uint rng) {
+    Material m = head;
+    if (!HAS(FEATURE_MIX) || head.mix_next < 0) return m;
+    float u = rnd(rng);
+    for (uint i = 1u; i < MIX_CHAIN_MAX && m.mix_next >= 0; ++i) {
+        if (u < m.mix_weight) break;
+        // u >= w and u < 1 imply w < 1; the rescaled u is uniform on [0,1) again.
+        u = min((u - m.mix_weight) / (1.0 - m.mix_weight), 0.99999994);
+        m = materials[m.mix_next];
+    }
+    return m;
+}
+
 // Weight of emission found by a ray that left a vertex by BSDF sampling (pdf prev_pdf, or
 // delta / a camera ray) and hit an emitter that NEE samples with density light_pdf.
 float emission_weight(bool prev_delta, float prev_pdf, float light_pdf, uint light_samples) {
@@ -90,7 +111,10 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
             }
             res.radiance += throughput * mat.emission * emission_weight(prev_delta, prev_pdf, lp, opt.light_samples);
         }
-        if (mat.type == MATERIAL_EMISSION || bounces > opt.max_depth) break;
+        if (bounces > opt.max_depth) break;
+        // Emission above is the head material's; the BSDF may come from its mix chain.
+        mat = select_mix_material(mat, rng);
+        if (mat.type == MATERIAL_EMISSION) break;
 
         // Shading frame. Reflective materials are two-sided: face the normals towards wo.
         // Glass keeps the geometric side to know whether the ray enters or leaves.

@@ -75,6 +75,10 @@ PX_CONST uint CAMERA_ORTHOGRAPHIC = 1;
 
 PX_CONST uint NO_INDEX = 0xffffffffu;
 
+// Most materials one mix chain may hold, its head included (Material.mix_next); the host
+// rejects longer chains, so the shader's bounded walk always reaches the selected link.
+PX_CONST uint MIX_CHAIN_MAX = 16;
+
 // Scene features: a specialization constant (DESIGN: "Specialise, don't branch"), so a
 // pipeline only carries the material, light and geometry code its scene uses.
 PX_CONST uint FEATURE_CONDUCTOR = 1u << 0;
@@ -88,6 +92,7 @@ PX_CONST uint FEATURE_AREA_LIGHTS = 1u << 7;    // rect and disk
 PX_CONST uint FEATURE_SUN = 1u << 8;
 PX_CONST uint FEATURE_ENV = 1u << 9;            // constant world or map
 PX_CONST uint FEATURE_ENV_MAP = 1u << 10;
+PX_CONST uint FEATURE_MIX = 1u << 11;           // some used material has mix_next >= 0
 PX_CONST uint FEATURE_ALL = 0xffffffffu;
 
 // ---- scene records --------------------------------------------------------------------
@@ -113,7 +118,11 @@ struct Material {
     float ior;
     uint type;
     int base_color_texture;  // -1: none
-    float pad0, pad1;
+    // Stochastic mix chain (Mix Shader): at a hit this material's BSDF is used with
+    // probability mix_weight, otherwise the hit continues to materials[mix_next] (which may
+    // chain further). -1: no mix (mix_weight ignored). Acyclic, validated on the host.
+    int mix_next;
+    float mix_weight;  // in [0,1]
 };
 
 struct TextureInfo {

@@ -2,8 +2,11 @@
 import numpy as np
 import pytest
 
+import copy
+
 import parallax_core as pc
-from parallax_core.scene import Camera, Material, Mesh, SceneData, Texture, World
+from parallax_core import scenes
+from parallax_core.scene import Camera, Instance, Material, Mesh, SceneData, Texture, World
 
 
 def textured_quad(texture, width=32, height=32):
@@ -54,3 +57,39 @@ def test_texture_is_bilinear():
     assert row[32] == pytest.approx(0.5, abs=0.05) or row[31] == pytest.approx(0.5, abs=0.05)
     assert row[16] < 0.05 and row[47] > 0.95
     assert np.all(np.diff(row[16:48]) >= -1e-4)
+
+
+def test_instance_transform_matches_baked_geometry():
+    """An instance's rotation and non-uniform scale act on its normals like on baked vertices
+    (normals go through the inverse transpose)."""
+    base = scenes.cornell_box(32, 32)
+    angle, scale = 0.6, np.diag([0.7, 1.3, 1.0])
+    rotation = np.array([[np.cos(angle), -np.sin(angle), 0], [np.sin(angle), np.cos(angle), 0], [0, 0, 1]])
+    linear = rotation @ scale
+    box = scenes.box((0.0, 0.0, 0.5), (0.4, 0.4, 1.0))
+    corners = box.positions[box.indices]
+    face = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    face /= np.linalg.norm(face, axis=-1, keepdims=True)
+    box.normals = np.repeat(face[:, None], 3, axis=1).astype(np.float32)  # explicit shading normals
+    transform = np.eye(4)
+    transform[:3, :3], transform[:3, 3] = linear, (0.1, 0.1, 0.0)
+
+    instanced, baked = copy.deepcopy(base), copy.deepcopy(base)
+    instanced.meshes.append(box)
+    instanced.instances = instanced.effective_instances()[:-1] + [Instance(len(base.meshes), transform)]
+    flat = copy.deepcopy(box)
+    flat.positions = (box.positions @ linear.T + transform[:3, 3]).astype(np.float32)
+    normals = box.normals @ np.linalg.inv(linear)  # n' = A^-T n, as row vectors
+    flat.normals = (normals / np.linalg.norm(normals, axis=-1, keepdims=True)).astype(np.float32)
+    baked.meshes.append(flat)
+    baked.instances = baked.effective_instances()
+
+    images = []
+    for scene in (instanced, baked):
+        s = pc.Session(32, 32)
+        s.set_params(samples_per_frame=4)
+        s.update(scene)
+        s.render(1)
+        images.append((s.read("normal"), s.read("combined")))
+    np.testing.assert_allclose(images[0][0], images[1][0], atol=1e-3)
+    np.testing.assert_allclose(images[0][1], images[1][1], atol=1e-3)

@@ -370,6 +370,78 @@ def test_npz_missing_array(tmp_path):
         SceneData.load(tmp_path / "bad.npz")
 
 
+# ---- mix chains --------------------------------------------------------------------------
+
+def test_mix_chain_validation():
+    mats = lambda *m: scene_with(materials=[Material(name="a"), *m])
+    expect_error(mats(Material(mix_next=2, name="b"), Material(mix_next=1)),
+                 "material 'b' (material 1): mix chain has a cycle (1 -> 2 -> 1)")
+    expect_error(mats(Material(mix_next=1)), "material 1: mix chain has a cycle (1 -> 1)")
+    # A chain running into a cycle names the first material of the cycle.
+    expect_error(mats(Material(mix_next=2), Material(mix_next=3), Material(mix_next=2)),
+                 "material 2: mix chain has a cycle (2 -> 3 -> 2)")
+    expect_error(mats(Material(mix_next=5)), "material 1: mix_next 5 out of range (2 materials)")
+    expect_error(mats(Material(mix_next=-1)), "material 1: mix_next -1 out of range")
+    expect_error(mats(Material(mix_next=0.0)), "material 1: mix_next must be None or a material index")
+    expect_error(mats(Material(mix_next=True)), "material 1: mix_next must be None")
+    expect_error(mats(Material(mix_next=0, mix_weight=float("nan"), name="m")),
+                 "material 'm' (material 1): mix_weight is NaN/Inf")
+    expect_error(mats(Material(mix_next=0, mix_weight=float("inf"))), "material 1: mix_weight")
+    expect_error(mats(Material(mix_weight=(0.5, 0.5))), "material 1: mix_weight")
+    n = scene.MIX_CHAIN_MAX
+    chain = [Material(mix_next=k + 1) for k in range(n)] + [Material()]   # n + 1 materials
+    expect_error(scene_with(materials=chain), f"material 0: mix chain of {n + 1} materials "
+                                              f"is longer than the limit of {n}")
+    chain[0].mix_next = None                                              # n: allowed
+    assert scene_with(materials=chain).validate() == []
+
+
+def test_mix_chain_limit_matches_the_shader():
+    header = (_PKG_DIR.parents[2] / "shaders" / "shared" / "types.h").read_text()
+    line = next(l for l in header.splitlines() if "uint MIX_CHAIN_MAX" in l)
+    assert int(line.split("=")[1].strip(" ;")) == scene.MIX_CHAIN_MAX
+
+
+def test_mix_chain_flatten():
+    s = scene_with(materials=[Material(mix_next=1, mix_weight=1.7), Material(mix_next=2, mix_weight=-0.5),
+                              Material(mix_next=np.int64(3), mix_weight=0.25), Material(mix_weight=0.3)])
+    flat = s.flatten()
+    assert flat["material_mix_next"].dtype == np.int32
+    assert flat["material_mix_weight"].dtype == np.float32
+    assert flat["material_mix_next"].tolist() == [1, 2, 3, -1]
+    assert flat["material_mix_weight"].tolist() == [1.0, 0.0, 0.25, 1.0]  # clamped; None: 1
+    flat = scene_with().flatten()
+    assert flat["material_mix_next"].tolist() == [-1]
+    assert flat["material_mix_weight"].tolist() == [1.0]
+
+
+def test_mix_chain_npz_round_trip(tmp_path):
+    s = rich_scene()
+    s.materials[0].mix_next, s.materials[0].mix_weight = 1, 0.25
+    s.materials[1].mix_next, s.materials[1].mix_weight = 2, 0.6
+    s.materials[3].mix_weight = 0.1          # ignored without mix_next
+    flat = s.flatten()
+    assert flat["material_mix_next"].tolist() == [1, 2, -1, -1]
+    np.testing.assert_array_equal(flat["material_mix_weight"], np.float32([0.25, 0.6, 1.0, 1.0]))
+    s.save(tmp_path / "mix.npz")
+    loaded = SceneData.load(tmp_path / "mix.npz")
+    assert [(m.mix_next, m.mix_weight) for m in loaded.materials] == [
+        (1, 0.25), (2, pytest.approx(0.6)), (None, 1.0), (None, 1.0)]
+    assert_flat_equal(flat, loaded.flatten())
+    assert_flat_equal(flat, SceneData.from_flat(flat).flatten())
+    # Files and dicts from before mix chains (no mix keys) load as "no mixes".
+    old = {k: v for k, v in flat.items() if not k.startswith("material_mix_")}
+    np.savez(tmp_path / "old.npz", **old)
+    loaded = SceneData.load(tmp_path / "old.npz")
+    assert all(m.mix_next is None and m.mix_weight == 1.0 for m in loaded.materials)
+    again = loaded.flatten()
+    assert again["material_mix_next"].tolist() == [-1] * 4
+    assert again["material_mix_weight"].tolist() == [1.0] * 4
+    for k in old:
+        assert again[k].tobytes() == flat[k].tobytes(), k
+    assert_flat_equal(again, SceneData.from_flat(old).flatten())
+
+
 # ---- cameras -----------------------------------------------------------------------------
 
 def window(cam):

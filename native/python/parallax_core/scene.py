@@ -15,7 +15,7 @@ import numpy as np
 
 __all__ = [
     "Mesh", "Instance", "Material", "Texture", "Light", "World", "Camera", "SceneData",
-    "FLAT_KEYS", "MATERIAL_TYPES", "LIGHT_TYPES",
+    "FLAT_KEYS", "MATERIAL_TYPES", "LIGHT_TYPES", "MIX_CHAIN_MAX",
     "direction_to_equirectangular", "equirectangular_to_direction",
 ]
 
@@ -44,6 +44,8 @@ FLAT_KEYS = {
     "material_ior": (np.float32, "(K,)"),
     "material_emission": (np.float32, "(K,3)"),
     "material_texture": (np.int32, "(K,)"),
+    "material_mix_next": (np.int32, "(K,)"),
+    "material_mix_weight": (np.float32, "(K,)"),
     "texture_texels": (np.uint8, "(N,4)"),
     "texture_info": (np.uint32, "(X,3)"),
     "light_type": (np.uint32, "(L,)"),
@@ -63,6 +65,12 @@ FLAT_KEYS = {
     "camera_window": (np.float32, "(4,)"),
     "camera_clip": (np.float32, "(2,)"),
 }
+
+# Keys added after version 1 files were written, with the value a missing key stands for.
+_OPTIONAL_KEY_DEFAULTS = {"material_mix_next": -1, "material_mix_weight": 1.0}
+
+# Most materials one mix chain may hold, head included (MIX_CHAIN_MAX in shared/types.h).
+MIX_CHAIN_MAX = 16
 
 _META_KEY = "__meta__"
 
@@ -159,6 +167,16 @@ class Material:
 
     type: "diffuse" (Lambert), "conductor" (GGX, colour = reflectance), "dielectric" (glass),
     "emission" (emits only). roughness is clamped to [0,1] (alpha = roughness^2).
+
+    Mixes (Blender's Mix Shader, Principled BSDF blends) are chains of materials:
+    ``mix_next`` is the global index of another material and ``mix_weight`` (clamped to
+    [0,1]) the probability of using THIS material's BSDF at a hit; with probability
+    1 - mix_weight the hit continues to ``materials[mix_next]``, which may chain further. The
+    surface's BSDF is f = w0 f0 + (1-w0) (w1 f1 + (1-w1) (...)). Emission comes from the
+    HEAD material only (the one the triangle references): materials reached through the
+    chain contribute only their BSDF, so put a mix's combined emission on its head. Chains
+    must be acyclic and hold at most MIX_CHAIN_MAX materials; ``mix_next=None`` (no mix)
+    ignores ``mix_weight``.
     """
     type: str = "diffuse"
     base_color: tuple = (0.8, 0.8, 0.8)
@@ -168,6 +186,8 @@ class Material:
     emission_strength: float = 1.0
     base_color_texture: int | None = None
     name: str = ""
+    mix_next: int | None = None
+    mix_weight: float = 1.0
 
 
 @dataclass
@@ -365,6 +385,16 @@ class SceneData:
             t = mat.base_color_texture
             if t is not None and not (0 <= int(t) < X):
                 raise ValueError(f"{lbl}: base_color_texture {t} out of range ({X} textures)")
+            if np.ndim(mat.mix_weight) != 0 or not _finite(mat.mix_weight):
+                raise ValueError(f"{lbl}: mix_weight is NaN/Inf or not a number")
+            n = mat.mix_next
+            if n is not None:
+                if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)):
+                    raise ValueError(f"{lbl}: mix_next must be None or a material index, "
+                                     f"got {n!r}")
+                if not 0 <= int(n) < K:
+                    raise ValueError(f"{lbl}: mix_next {n} out of range ({K} materials)")
+        _check_mix_chains(materials)
         for x, tex in enumerate(self.textures):
             _texture_rgba(tex.pixels, _label("texture", x, tex.name))
         light_keep = []
@@ -493,6 +523,11 @@ class SceneData:
         out["material_texture"] = np.array(
             [-1 if m.base_color_texture is None else int(m.base_color_texture) for m in mats],
             np.int32)
+        out["material_mix_next"] = np.array(
+            [-1 if m.mix_next is None else int(m.mix_next) for m in mats], np.int32)
+        out["material_mix_weight"] = np.array(
+            [1.0 if m.mix_next is None else min(max(float(m.mix_weight), 0.0), 1.0)
+             for m in mats], np.float32)
         texels, info, first = [], [], 0
         for tex in self.textures:
             rgba = _texture_rgba(tex.pixels, "texture")
@@ -558,6 +593,7 @@ class SceneData:
         with np.load(path, allow_pickle=False) as f:
             flat = {k: f[k] for k in f.files}
         meta = json.loads(str(flat.pop(_META_KEY))) if _META_KEY in flat else {}
+        flat = _with_optional_defaults(flat)
         missing = [k for k in FLAT_KEYS if k not in flat]
         if missing:
             raise ValueError(f"scene file {path}: missing arrays {missing}")
@@ -567,6 +603,7 @@ class SceneData:
     def from_flat(cls, flat, meta=None):
         """Rebuild a SceneData from flatten() output; flatten() of the result is identical."""
         meta = meta or {}
+        flat = _with_optional_defaults(flat)
         a = {k: np.asarray(flat[k]) for k in FLAT_KEYS}
         M = len(a["mesh_first_triangle"])
         first_vertex = meta.get("mesh_first_vertex")
@@ -600,7 +637,10 @@ class SceneData:
                      emission_strength=1.0,
                      base_color_texture=(None if a["material_texture"][k] < 0
                                          else int(a["material_texture"][k])),
-                     name=mnames[k])
+                     name=mnames[k],
+                     mix_next=(None if a["material_mix_next"][k] < 0
+                               else int(a["material_mix_next"][k])),
+                     mix_weight=float(a["material_mix_weight"][k]))
             for k in range(len(a["material_type"]))]
         tnames = meta.get("texture_names") or [""] * len(a["texture_info"])
         textures = [Texture(a["texture_texels"][o:o + w * h].reshape(h, w, 4).copy(), tnames[x])
@@ -676,6 +716,39 @@ def _check_mesh(mesh, i, K):
     scale = np.maximum(ax * ax + ay * ay + az * az, bx * bx + by * by + bz * bz)
     keep = area2 > 1e-24 * scale * scale
     return keep, int(T - keep.sum())
+
+
+def _with_optional_defaults(flat):
+    """``flat`` with the keys newer than its file filled in (no mixes), as a new dict."""
+    flat = dict(flat)
+    K = len(flat["material_type"]) if "material_type" in flat else 0
+    for k, default in _OPTIONAL_KEY_DEFAULTS.items():
+        if k not in flat:
+            flat[k] = np.full(K, default, dtype=FLAT_KEYS[k][0])
+    return flat
+
+
+def _check_mix_chains(materials):
+    """Raise ValueError naming a material whose mix chain loops or is longer than
+    MIX_CHAIN_MAX (mix_next already checked to be None or in range)."""
+    length = {}  # materials in the chain starting at k, for chains known to end
+    for k in range(len(materials)):
+        walk, j = [], k
+        while j is not None and j not in length:
+            if j in walk:
+                lbl = _label("material", j, materials[j].name)
+                cycle = " -> ".join(str(i) for i in walk[walk.index(j):] + [j])
+                raise ValueError(f"{lbl}: mix chain has a cycle ({cycle})")
+            walk.append(j)
+            j = materials[j].mix_next
+            j = None if j is None else int(j)
+        n = 0 if j is None else length[j]
+        for i in reversed(walk):
+            n += 1
+            length[i] = n
+            if n > MIX_CHAIN_MAX:
+                raise ValueError(f"{_label('material', i, materials[i].name)}: mix chain of "
+                                 f"{n} materials is longer than the limit of {MIX_CHAIN_MAX}")
 
 
 def _texture_rgba(pixels, lbl):

@@ -163,6 +163,13 @@ uint scene_features(const SceneHost& s) {
         for (uint t = mesh.first_triangle; t < mesh.first_triangle + mesh.triangle_count; ++t)
             used[s.triangle_material[t]] = true;
     }
+    // Materials reached through a used material's mix chain are used too (acyclic, checked).
+    for (size_t k = 0; k < s.materials.size(); ++k) {
+        if (!used[k] || s.materials[k].mix_next < 0) continue;
+        f |= FEATURE_MIX;
+        for (int j = s.materials[k].mix_next; j >= 0 && !used[size_t(j)]; j = s.materials[size_t(j)].mix_next)
+            used[size_t(j)] = true;
+    }
     for (size_t k = 0; k < s.materials.size(); ++k) {
         if (!used[k]) continue;
         const Material& m = s.materials[k];
@@ -271,10 +278,16 @@ void prepare_materials(const SceneArrays& a, SceneHost& s) {
     auto ior = get<float>(a, "material_ior", 'f', {});
     auto emission = get<float>(a, "material_emission", 'f', {3});
     auto texture = get<int32_t>(a, "material_texture", 'i', {});
+    // Optional (files written before mix chains): absent means no mixes.
+    auto mix_next = get<int32_t>(a, "material_mix_next", 'i', {}, true);
+    auto mix_weight = get<float>(a, "material_mix_weight", 'f', {}, true);
     auto texels = get<uint8_t>(a, "texture_texels", 'u', {4});
     auto tex_info = get<uint32_t>(a, "texture_info", 'u', {3});
     if (base_color.rows != K || roughness.rows != K || ior.rows != K || emission.rows != K || texture.rows != K)
         bad("material_* arrays differ in length");
+    if ((mix_next.data && mix_next.rows != K) || (mix_weight.data && mix_weight.rows != K))
+        bad("material_mix_* arrays differ in length from material_type");
+    if (!mix_next.data != !mix_weight.data) bad("material_mix_next and material_mix_weight must be given together");
     for (size_t x = 0; x < tex_info.rows; ++x) {
         const uint32_t* ti = tex_info.data + 3 * x;
         if (ti[1] == 0 || ti[2] == 0) bad("texture " + std::to_string(x) + " has zero size");
@@ -304,6 +317,44 @@ void prepare_materials(const SceneArrays& a, SceneHost& s) {
         m.ior = ior.data[k];
         m.emission = vmax(v3(emission.data + 3 * k), {0, 0, 0});
         m.base_color_texture = std::max(texture.data[k], -1);
+        m.mix_next = -1;
+        m.mix_weight = 1.0f;
+        if (mix_next.data) {
+            int32_t next = mix_next.data[k];
+            float w = mix_weight.data[k];
+            if (next < -1 || next >= int64_t(K))
+                bad(id + ": mix_next " + std::to_string(next) + " out of range (" + std::to_string(K) + " materials)");
+            if (!std::isfinite(w)) bad(id + ": mix_weight is NaN or infinite");
+            if (next >= 0) {
+                m.mix_next = next;
+                m.mix_weight = std::min(std::max(w, 0.0f), 1.0f);
+            }
+        }
+    }
+    // Mix chains must end (no cycle) within MIX_CHAIN_MAX materials: the shader walks at
+    // most that many links.
+    std::vector<uint8_t> state(K, 0);  // 0 unvisited, 1 on the current walk, 2 known good
+    std::vector<uint32_t> length(K, 1);  // materials in the chain starting here
+    for (size_t k = 0; k < K; ++k) {
+        std::vector<size_t> walk;
+        size_t j = k;
+        while (state[j] == 0) {
+            state[j] = 1;
+            walk.push_back(j);
+            if (s.materials[j].mix_next < 0) break;
+            j = size_t(s.materials[j].mix_next);
+            if (state[j] == 1)
+                bad("material " + std::to_string(j) + ": mix chain has a cycle (material " + std::to_string(j) +
+                    " is reached again through mix_next)");
+        }
+        for (auto it = walk.rbegin(); it != walk.rend(); ++it) {
+            const Material& m = s.materials[*it];
+            length[*it] = m.mix_next < 0 ? 1u : 1u + length[size_t(m.mix_next)];
+            state[*it] = 2;
+            if (length[*it] > MIX_CHAIN_MAX)
+                bad("material " + std::to_string(*it) + ": mix chain of " + std::to_string(length[*it]) +
+                    " materials is longer than the limit of " + std::to_string(MIX_CHAIN_MAX));
+        }
     }
 }
 
@@ -331,15 +382,16 @@ void prepare_instances(const SceneArrays& a, bool spatial_order, SceneHost& s) {
         if (s.meshes[mesh].triangle_count == 0) { ++skipped; continue; }
         InstanceInfo inst{};
         for (int r = 0; r < 3; ++r) inst.object_to_world[r] = {x[4 * r], x[4 * r + 1], x[4 * r + 2], x[4 * r + 3]};
-        // Normal matrix: inverse transpose of the 3x3 part (cofactor matrix / det).
+        // Normal matrix: inverse transpose of the 3x3 part A. With rows r0, r1, r2 of A, the
+        // cofactors c0 = r1 x r2, c1 = r2 x r0, c2 = r0 x r1 are the rows of det(A) A^-T.
         vec3 r0{x[0], x[1], x[2]}, r1{x[4], x[5], x[6]}, r2{x[8], x[9], x[10]};
         vec3 c0 = cross(r1, r2), c1 = cross(r2, r0), c2 = cross(r0, r1);
         float det = dot(r0, c0);
         if (std::fabs(det) < 1e-20f) { ++skipped; continue; }  // flattened to nothing
         float inv = 1.0f / det;
-        inst.normal_to_world[0] = {c0.x * inv, c1.x * inv, c2.x * inv, 0};
-        inst.normal_to_world[1] = {c0.y * inv, c1.y * inv, c2.y * inv, 0};
-        inst.normal_to_world[2] = {c0.z * inv, c1.z * inv, c2.z * inv, 0};
+        inst.normal_to_world[0] = {c0.x * inv, c0.y * inv, c0.z * inv, 0};
+        inst.normal_to_world[1] = {c1.x * inv, c1.y * inv, c1.z * inv, 0};
+        inst.normal_to_world[2] = {c2.x * inv, c2.y * inv, c2.z * inv, 0};
         inst.mesh = mesh;
         inst.light_offset = NO_INDEX;
         vec3 lo{INFINITY, INFINITY, INFINITY}, hi{-INFINITY, -INFINITY, -INFINITY};
