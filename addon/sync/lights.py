@@ -26,10 +26,9 @@ def export_lights(depsgraph, data, warnings):
             warnings.add(f"{label}: zero scale, skipped")
             continue
         common = dict(color=tuple(light.color), position=tuple(m[:3, 3]),
-                      direction=tuple(-axis_z / np.linalg.norm(axis_z)), name=obj.name)
+                      direction=tuple(-axis_z / np.linalg.norm(axis_z)), name=obj.name,
+                      camera_visible=bool(getattr(obj, "visible_camera", True)))
         power = float(light.energy) * 2.0 ** float(getattr(light, "exposure", 0.0))
-        if not getattr(obj, "visible_camera", True) and light.type != "SUN":
-            warnings.add(f"{label}: hidden from the camera in Blender, but Parallax shows it")
         if not getattr(light, "normalize", True) and light.type != "AREA":
             warnings.add(f"{label}: Normalize off is ignored (power is used as if on)")
         if getattr(light, "use_nodes", False) and light.node_tree is not None:

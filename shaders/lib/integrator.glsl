@@ -85,13 +85,14 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         float t_light, light_pdf;
         vec3 light_radiance;
         if (HAS(FEATURE_SPHERE_LIGHTS | FEATURE_AREA_LIGHTS) &&
-            intersect_analytic_lights(origin, dir, t_surface, t_light, light_radiance, light_pdf) != NO_INDEX) {
+            intersect_analytic_lights(origin, dir, t_surface, res.segments == 1u, t_light, light_radiance,
+                                      light_pdf) != NO_INDEX) {
             res.radiance += throughput * light_radiance * emission_weight(prev_delta, prev_pdf, light_pdf, opt.light_samples);
             if (res.segments == 1u) res.first_t = t_light;
             break;
         }
         if (hit.t < 0.0) {
-            vec3 le = distant_radiance(dir, light_pdf);
+            vec3 le = distant_radiance(dir, res.segments == 1u, light_pdf);
             res.radiance += throughput * le * emission_weight(prev_delta, prev_pdf, light_pdf, opt.light_samples);
             break;
         }

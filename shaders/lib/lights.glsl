@@ -233,14 +233,21 @@ bool analytic_light_hit(uint index, vec3 o, vec3 d, float t_max, out float t, ou
     return false;
 }
 
+// Analytic lights a ray can see: camera rays only those visible to the camera (Blender's
+// per-object ray visibility), which the host puts first.
+uint analytic_end(bool camera_ray) {
+    return scene.analytic_first + (camera_ray ? scene.analytic_camera_count : scene.analytic_count);
+}
+
 // Nearest analytic light (sphere, spot, rect, disk) along the ray within t_max.
 // Returns its index or NO_INDEX; t_hit, radiance and pdf (incl. selection) as seen from o.
-uint intersect_analytic_lights(vec3 o, vec3 d, float t_max, out float t_hit, out vec3 radiance, out float pdf) {
+uint intersect_analytic_lights(vec3 o, vec3 d, float t_max, bool camera_ray, out float t_hit, out vec3 radiance,
+                               out float pdf) {
     uint found = NO_INDEX;
     t_hit = t_max;
     radiance = vec3(0.0);
     pdf = 0.0;
-    for (uint i = scene.analytic_first; i < scene.analytic_first + scene.analytic_count; ++i) {
+    for (uint i = scene.analytic_first; i < analytic_end(camera_ray); ++i) {
         float t, p;
         vec3 le;
         if (!analytic_light_hit(i, o, d, t_hit, t, le, p)) continue;
@@ -254,14 +261,14 @@ uint intersect_analytic_lights(vec3 o, vec3 d, float t_max, out float t_hit, out
 
 // Radiance and MIS pdf (incl. selection) of everything at infinity in direction d:
 // the environment plus any sun disc containing d.
-vec3 distant_radiance(vec3 d, out float pdf) {
+vec3 distant_radiance(vec3 d, bool camera_ray, out float pdf) {
     vec3 radiance = vec3(0.0);
     pdf = 0.0;
     if (HAS(FEATURE_ENV) && scene.env_light != NO_INDEX) {
         radiance += env_radiance(d);
         pdf += light_select_pdf(scene.env_light) * env_pdf(d);
     }
-    for (uint i = scene.analytic_first; HAS(FEATURE_SUN) && i < scene.analytic_first + scene.analytic_count; ++i) {
+    for (uint i = scene.analytic_first; HAS(FEATURE_SUN) && i < analytic_end(camera_ray); ++i) {
         Light l = lights[i];
         if (l.type != LIGHT_SUN || l.cos_half_angle >= 1.0) continue;
         if (dot(d, l.direction) >= l.cos_half_angle) {

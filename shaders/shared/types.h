@@ -162,6 +162,7 @@ struct SceneInfo {
     uint analytic_count;
     vec3 scene_center;        // bounding sphere of the geometry (sun/env sampling)
     float scene_radius;
+    uint analytic_camera_count;  // the first ones of the analytic lights are visible to the camera
 };
 
 // Per-frame parameters (push constants).

@@ -49,7 +49,7 @@ float light_pdf_all(vec3 p, vec3 wi, out vec3 radiance) {
         }
     }
     float distant_pdf;
-    radiance += distant_radiance(wi, distant_pdf);
+    radiance += distant_radiance(wi, false, distant_pdf);
     return pdf + distant_pdf;
 }
 

@@ -160,6 +160,7 @@ def test_lights_in_cycles_units(fresh, bpy):
 
     area = light("AREA", energy=40.0, shape="RECTANGLE", size=2.0, size_y=1.0)
     area.scale = (1.5, 2.0, 1.0)
+    area.visible_camera = True  # new lights are hidden from the camera in Blender 5
     area.rotation_euler = (math.pi / 2, 0.0, 0.0)
     light("SUN", energy=3.0, angle=0.1)
     light("SPOT", energy=100.0, spot_size=0.8, spot_blend=0.3, shadow_soft_size=0.2)
@@ -169,6 +170,7 @@ def test_lights_in_cycles_units(fresh, bpy):
     a = by["AREA"]
     assert (a.type, a.shape, a.power) == ("area", "rectangle", 40.0)
     assert (a.size, a.size_y) == pytest.approx((3.0, 2.0))
+    assert a.camera_visible and not any(l.camera_visible for l in data.lights if l is not a)
     np.testing.assert_allclose(a.direction, (0.0, 1.0, 0.0), atol=1e-6)  # local -Z, rotated
     sun = by["SUN"]
     assert sun.type == "sun" and (sun.power, sun.angle) == pytest.approx((3.0, 0.1))

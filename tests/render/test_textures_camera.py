@@ -6,7 +6,7 @@ import copy
 
 import parallax_core as pc
 from parallax_core import scenes
-from parallax_core.scene import Camera, Instance, Material, Mesh, SceneData, Texture, World
+from parallax_core.scene import Camera, Instance, Light, Material, Mesh, SceneData, Texture, World
 
 
 def textured_quad(texture, width=32, height=32):
@@ -93,3 +93,31 @@ def test_instance_transform_matches_baked_geometry():
         images.append((s.read("normal"), s.read("combined")))
     np.testing.assert_allclose(images[0][0], images[1][0], atol=1e-3)
     np.testing.assert_allclose(images[0][1], images[1][1], atol=1e-3)
+
+
+@pytest.mark.parametrize("kind", ["point", "area", "sun"])
+def test_lights_hidden_from_the_camera_still_light_the_scene(kind):
+    """Blender's per-light Camera visibility: camera rays pass through the light, every other
+    ray sees it (so the lighting is unchanged)."""
+    floor = scenes.quad([(-6, -6, 0), (6, -6, 0), (6, 6, 0), (-6, 6, 0)])
+    light = {"point": Light("point", power=400.0, position=(0, 0, 1.5), radius=0.4),
+             "area": Light("area", power=400.0, position=(0, 0, 1.5), size=1.0, direction=(0, 0, -1)),
+             "sun": Light("sun", power=3.0, direction=(0.3, 0.2, -1.0), angle=0.5)}[kind]
+    # Looking up at the light over the floor it lights (or into the sun).
+    eye, target = ((0, -3, 0.3), (0, 0, 1.5)) if kind != "sun" else ((0, 0, 1), (-0.3, -0.2, 2.0))
+    camera = Camera.look_at(eye, target, fov_y_degrees=60, width=24, height=24)
+    meshes = [floor] if kind != "sun" else []
+    images = {}
+    for visible in (True, False):
+        light.camera_visible = visible
+        scene = SceneData(meshes, [], [Material()], [], [light], World((0, 0, 0), 0.0), camera, 24, 24)
+        s = pc.Session(24, 24)
+        s.set_params(samples_per_frame=64, seed=1)
+        s.update(scene)
+        s.render(1)
+        images[visible] = s.read("combined")[..., :3]
+    centre = (slice(9, 15), slice(9, 15))  # where the light (or the sun disc) is seen
+    assert images[True][centre].mean() > 10 * max(images[False][centre].mean(), 1e-3)
+    changed = np.abs(images[True] - images[False]).max(axis=-1) > 1e-6
+    if kind != "sun":  # away from the light, the lit floor is the same image
+        assert not changed[-3:].any() and images[False][-3:].mean() > 0.01

@@ -58,6 +58,7 @@ FLAT_KEYS = {
     "light_spot_size": (np.float32, "(L,)"),
     "light_spot_blend": (np.float32, "(L,)"),
     "light_sun_angle": (np.float32, "(L,)"),
+    "light_camera_visible": (np.uint32, "(L,)"),
     "world_color": (np.float32, "(3,)"),
     "world_map": (np.float32, "(H,W,3) or (0,0,3)"),
     "camera_to_world": (np.float32, "(3,4)"),
@@ -67,7 +68,9 @@ FLAT_KEYS = {
 }
 
 # Keys added after version 1 files were written, with the value a missing key stands for.
-_OPTIONAL_KEY_DEFAULTS = {"material_mix_next": -1, "material_mix_weight": 1.0}
+# Keys newer than some saved files, with their defaults (and the array they follow in length).
+_OPTIONAL_KEY_DEFAULTS = {"material_mix_next": -1, "material_mix_weight": 1.0,
+                          "light_camera_visible": 1}
 
 # Most materials one mix chain may hold, head included (MIX_CHAIN_MAX in shared/types.h).
 MIX_CHAIN_MAX = 16
@@ -205,7 +208,8 @@ class Light:
     soft size. spot_size: full cone angle. angle: sun angular diameter. Area lights have
     ``shape`` and ``size`` (and ``size_y`` for rectangle/ellipse) along ``axis_u``/``axis_v``
     (the light's local X and Y, unit); if those are None a basis with u x v = -direction is
-    derived.
+    derived. camera_visible: whether camera rays see the light itself (Blender's Camera ray
+    visibility; it lights the scene either way).
     """
     type: str = "point"
     color: tuple = (1.0, 1.0, 1.0)
@@ -221,6 +225,7 @@ class Light:
     size_y: float = 1.0
     axis_u: tuple | None = None
     axis_v: tuple | None = None
+    camera_visible: bool = True
     name: str = ""
 
 
@@ -542,10 +547,10 @@ class SceneData:
     def _flatten_lights(self, light_keep, out):
         rows = [_light_row(l) for l, ok in zip(self.lights, light_keep) if ok]
         cols = ("type", "position", "direction", "axis_u", "axis_v", "radius", "color",
-                "spot_size", "spot_blend", "sun_angle")
+                "spot_size", "spot_blend", "sun_angle", "camera_visible")
         shapes = {"position": 3, "direction": 3, "axis_u": 3, "axis_v": 3, "color": 3}
         for c in cols:
-            dt = np.uint32 if c == "type" else np.float32
+            dt = np.uint32 if c in ("type", "camera_visible") else np.float32
             shape = (-1, shapes[c]) if c in shapes else (-1,)
             out["light_" + c] = np.array([r[c] for r in rows], dtype=dt).reshape(shape)
 
@@ -721,10 +726,11 @@ def _check_mesh(mesh, i, K):
 def _with_optional_defaults(flat):
     """``flat`` with the keys newer than its file filled in (no mixes), as a new dict."""
     flat = dict(flat)
-    K = len(flat["material_type"]) if "material_type" in flat else 0
     for k, default in _OPTIONAL_KEY_DEFAULTS.items():
         if k not in flat:
-            flat[k] = np.full(K, default, dtype=FLAT_KEYS[k][0])
+            like = "light_type" if k.startswith("light_") else "material_type"
+            n = len(flat[like]) if like in flat else 0
+            flat[k] = np.full(n, default, dtype=FLAT_KEYS[k][0])
     return flat
 
 
@@ -818,6 +824,7 @@ def _light_row(light):
         "spot_size": min(max(float(light.spot_size), 0.0), math.pi),
         "spot_blend": min(max(float(light.spot_blend), 0.0), 1.0),
         "sun_angle": min(max(float(light.angle), 0.0), math.pi),
+        "camera_visible": int(bool(light.camera_visible)),
     }
 
 
@@ -838,7 +845,8 @@ def _light_from_row(a, j, name):
                  radius=float(a["light_radius"][j]),
                  spot_size=float(a["light_spot_size"][j]),
                  spot_blend=float(a["light_spot_blend"][j]),
-                 angle=float(a["light_sun_angle"][j]), name=name, **kw)
+                 angle=float(a["light_sun_angle"][j]),
+                 camera_visible=bool(a["light_camera_visible"][j]), name=name, **kw)
 
 
 def _infer_first_vertex(a):

@@ -458,10 +458,20 @@ void prepare_lights(const SceneArrays& a, SceneHost& s) {
     auto lblend = get<float>(a, "light_spot_blend", 'f', {});
     auto lsun = get<float>(a, "light_sun_angle", 'f', {});
     const size_t L = lt.rows;
+    std::vector<uint32_t> camera_visible(L, 1u);  // optional: every light is visible by default
+    if (a.count("light_camera_visible")) {
+        auto lcam = get<uint32_t>(a, "light_camera_visible", 'u', {});
+        if (lcam.rows != L) bad("light_camera_visible and light_type differ in length");
+        camera_visible.assign(lcam.data, lcam.data + L);
+    }
     s.info.analytic_first = uint(s.lights.size());
     for (size_t n : {lpos.rows, ldir.rows, lu.rows, lv.rows, lrad.rows, lcol.rows, lspot.rows, lblend.rows, lsun.rows})
         if (n != L) bad("light_* arrays differ in length");
+    // Two passes: lights visible to the camera first, so camera rays test only a prefix.
+    s.info.analytic_camera_count = 0;
+    for (int pass = 0; pass < 2; ++pass)
     for (size_t i = 0; i < L; ++i) {
+        if ((camera_visible[i] != 0) != (pass == 0)) continue;
         std::string id = "light " + std::to_string(i);
         uint type = lt.data[i];
         if (type < LIGHT_SPHERE || type > LIGHT_DISK) bad(id + ": unknown type " + std::to_string(type));
@@ -488,6 +498,7 @@ void prepare_lights(const SceneArrays& a, SceneHost& s) {
         if (p <= 0) continue;  // a black light contributes nothing: leave it out
         s.lights.push_back(l);
         power.push_back(p);
+        if (pass == 0) ++s.info.analytic_camera_count;
     }
 
     s.info.analytic_count = uint(s.lights.size()) - s.info.analytic_first;
