@@ -6,7 +6,9 @@ The import is lazy, so the add-on registers (and its settings load) even where t
 is missing; rendering then reports why.
 """
 import glob
+import hashlib
 import os
+import shutil
 import sys
 import zipfile
 
@@ -22,9 +24,12 @@ def _unpack_bundled_wheel():
     wheels = sorted(glob.glob(os.path.join(_HERE, "wheels", f"parallax_core-*-{_python_tag()}-*.whl")))
     if not wheels:
         return False
-    marker = os.path.join(_SITE, os.path.basename(wheels[-1]) + ".unpacked")
-    if not os.path.exists(marker):
-        os.makedirs(_SITE, exist_ok=True)
+    with open(wheels[-1], "rb") as f:
+        digest = hashlib.sha256(f.read()).hexdigest()[:16]
+    marker = os.path.join(_SITE, f"unpacked-{digest}")
+    if not os.path.exists(marker):  # a new wheel replaces what an older one unpacked
+        shutil.rmtree(_SITE, ignore_errors=True)
+        os.makedirs(_SITE)
         with zipfile.ZipFile(wheels[-1]) as wheel:
             wheel.extractall(_SITE)
         open(marker, "w").close()

@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
 # Installs the system packages Parallax needs on Debian 12 (bookworm):
 # Mesa lavapipe with ray tracing (bookworm-backports), the Vulkan headers/loader,
-# glslang, a C++ toolchain and Python's venv. Idempotent: quick when already done.
+# glslang, a C++ toolchain and Python's venv, and Debian's Blender 3.4 (the legacy add-on's
+# oldest supported Blender, and the GUI for viewport tests). Idempotent: quick when done.
 set -euo pipefail
 
 need_pkgs=(build-essential cmake python3-venv python3-dev libvulkan-dev libvulkan1 glslang-tools vulkan-tools)
+blender_pkgs=(blender python3-numpy)
 sudo_cmd=""
 if [ "$(id -u)" != 0 ]; then sudo_cmd="sudo"; fi
 
@@ -15,7 +17,7 @@ lavapipe_has_rt() {
 }
 
 missing=()
-for p in "${need_pkgs[@]}"; do
+for p in "${need_pkgs[@]}" "${blender_pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
 if [ ${#missing[@]} -eq 0 ] && lavapipe_has_rt; then
@@ -46,4 +48,6 @@ export DEBIAN_FRONTEND=noninteractive
 $sudo_cmd apt-get update -qq
 $sudo_cmd apt-get install -y -qq "${need_pkgs[@]}" >/dev/null
 $sudo_cmd apt-get install -y -qq -t bookworm-backports mesa-vulkan-drivers >/dev/null
+# Blender after Mesa, preferring backports, so its GL packages follow the Mesa 25 above.
+$sudo_cmd apt-get install -y -qq -t bookworm-backports "${blender_pkgs[@]}" >/dev/null
 lavapipe_has_rt || { echo "setup: mesa-vulkan-drivers from bookworm-backports did not install" >&2; exit 1; }

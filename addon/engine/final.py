@@ -105,7 +105,7 @@ def _write_result(result, snapshot):
         flat = np.ascontiguousarray(image, dtype=np.float32).ravel()
         try:
             render_pass.rect.foreach_set(flat)
-        except AttributeError:  # older Blender: plain assignment
+        except (AttributeError, TypeError):  # Blender < 4: rect only takes per-pixel rows
             render_pass.rect = flat.reshape(-1, render_pass.channels)
 
 
