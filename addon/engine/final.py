@@ -63,7 +63,7 @@ class _Worker(threading.Thread):
         self.samples_per_frame = samples_per_frame
         self.time_limit = time_limit
         self.core_passes = core_passes
-        self.snapshot = None  # (samples, seconds, rays, {core pass: image})
+        self.snapshot = None  # (samples, seconds, rays per second, {core pass: image})
         self.error = None
         self._stop_event = threading.Event()
         self.start_time = time.perf_counter()
@@ -91,8 +91,10 @@ class _Worker(threading.Thread):
     def _take_snapshot(self):
         stats = self.session.stats()
         images = {name: self.session.read(name) for name in self.core_passes}
+        render_seconds = stats.get("milliseconds", 0.0) / 1e3  # device time, without compiling
+        rate = stats.get("rays", 0) / render_seconds if render_seconds > 0 else 0.0
         self.snapshot = (int(stats.get("samples", 0)), time.perf_counter() - self.start_time,
-                         int(stats.get("rays", 0)), images)
+                         rate, images)
 
 
 def _write_result(result, snapshot):
@@ -153,9 +155,8 @@ def render(engine, depsgraph):
             shown = snapshot
             _write_result(result, snapshot)
             engine.update_result(result)
-            samples, seconds, rays, _ = snapshot
-            rate = rays / seconds / 1e6 if seconds > 0 else 0.0
-            engine.update_stats("", f"Sample {samples}/{total} | {rate:.1f} M rays/s | "
+            samples, seconds, rate, _ = snapshot
+            engine.update_stats("", f"Sample {samples}/{total} | {rate / 1e6:.1f} M rays/s | "
                                     f"{seconds:.1f} s")
             progress = samples / total
             if settings.time_limit:
