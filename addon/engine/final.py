@@ -56,11 +56,10 @@ def border_region(render, width, height):
 class _Worker(threading.Thread):
     """Renders frames until the sample count, the time limit or ``stop()``; keeps snapshots."""
 
-    def __init__(self, session, frames, samples_per_frame, time_limit, core_passes):
+    def __init__(self, session, frames, time_limit, core_passes):
         super().__init__(name="parallax-render", daemon=True)
         self.session = session
         self.frames = frames
-        self.samples_per_frame = samples_per_frame
         self.time_limit = time_limit
         self.core_passes = core_passes
         self.snapshot = None  # (samples, seconds, rays per second, {core pass: image})
@@ -142,7 +141,7 @@ def render(engine, depsgraph):
     per_frame = settings.samples_per_frame
     frames = -(-settings.samples // per_frame)
     total = frames * per_frame
-    worker = _Worker(session, frames, per_frame, settings.time_limit, {p.core for p in wanted})
+    worker = _Worker(session, frames, settings.time_limit, {p.core for p in wanted})
     # With a border, Blender's result covers just the border: its pixel (0, 0) is (x, y).
     result = engine.begin_result(0, 0, w, h, layer=view_layer.name)
     worker.start()

@@ -2,6 +2,7 @@
 import time
 
 import numpy as np
+import OpenEXR
 import pytest
 from addon.engine import final
 from blender_helpers import open_scene, render
@@ -155,3 +156,35 @@ def test_bad_device_is_reported(fresh, bpy, monkeypatch):
     with pytest.raises(RuntimeError, match="Parallax"):
         bpy.ops.render.render()
     assert final.last_report.errors and "gpu" in final.last_report.errors[0].lower()
+
+
+def test_compositor_denoise_node_uses_our_passes(bpy, tmp_path):
+    """Render Layers exposes Denoising Normal/Albedo, and Blender's Denoise node (OIDN) turns
+    a 4-spp render smooth while keeping its brightness."""
+    scene = open_scene(bpy, "cornell_box", 64, 64)
+    scene.parallax.samples = 4
+    tree = bpy.data.node_groups.new("Compositor", "CompositorNodeTree")
+    scene.compositing_node_group = tree
+    scene.render.use_compositing = True
+    layers = tree.nodes.new("CompositorNodeRLayers")
+    denoise = tree.nodes.new("CompositorNodeDenoise")
+    output = tree.nodes.new("NodeGroupOutput")
+    tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
+    tree.links.new(layers.outputs["Image"], denoise.inputs["Image"])
+    tree.links.new(layers.outputs["Denoising Normal"], denoise.inputs["Normal"])
+    tree.links.new(layers.outputs["Denoising Albedo"], denoise.inputs["Albedo"])
+
+    def composited(source, name):
+        tree.links.new(source, output.inputs[0])
+        bpy.ops.render.render()
+        settings = scene.render.image_settings
+        settings.media_type, settings.file_format, settings.color_depth = "IMAGE", "OPEN_EXR", "32"
+        bpy.data.images["Render Result"].save_render(str(tmp_path / name), scene=scene)
+        with OpenEXR.File(str(tmp_path / name)) as f:
+            return np.array(f.parts[0].channels["RGBA"].pixels)[..., :3]
+
+    noisy = composited(layers.outputs["Image"], "noisy.exr")
+    clean = composited(denoise.outputs["Image"], "denoised.exr")
+    roughness = lambda image: np.abs(np.diff(image, axis=1)).mean()  # noqa: E731
+    assert roughness(clean) < 0.6 * roughness(noisy)
+    assert clean.mean() == pytest.approx(noisy.mean(), rel=0.05)
