@@ -2,6 +2,7 @@
 through the same engine code as F12 (see parallax_core.cli for the command line)."""
 import ast
 import os
+import sys
 
 
 class CommandError(Exception):
@@ -74,10 +75,13 @@ def set_png_output(image_settings):
 def _render(bpy, final):
     """Runs the render operator; Parallax's errors become CommandError."""
     final.last_report = final.RenderReport()
+    final.progress_stream = sys.stderr
     try:
         bpy.ops.render.render()
     except RuntimeError as e:  # Blender raises when the engine reported an error
         raise CommandError("; ".join(final.last_report.errors) or str(e)) from e
+    finally:
+        final.progress_stream = None
     if bpy.context.scene.render.engine == "PARALLAX" and final.last_report.errors:
         raise CommandError("; ".join(final.last_report.errors))
 

@@ -31,6 +31,10 @@ last_report = RenderReport()
 # so the exported file is exactly what an F12 render would upload.
 scene_hook = None
 
+# parallax render: a stream (stderr) that also gets the progress line; Blender as a Python
+# module prints no render stats of its own.
+progress_stream = None
+
 
 def stop_requested(engine):
     return engine.test_break()
@@ -155,8 +159,11 @@ def render(engine, depsgraph):
             _write_result(result, snapshot)
             engine.update_result(result)
             samples, seconds, rate, _ = snapshot
-            engine.update_stats("", f"Sample {samples}/{total} | {rate / 1e6:.1f} M rays/s | "
-                                    f"{seconds:.1f} s")
+            line = f"Sample {samples}/{total} | {rate / 1e6:.1f} M rays/s | {seconds:.1f} s"
+            engine.update_stats("", line)
+            if progress_stream is not None:
+                progress_stream.write(f"\rParallax: {line}  ")
+                progress_stream.flush()
             progress = samples / total
             if settings.time_limit:
                 progress = max(progress, min(1.0, seconds / settings.time_limit))
@@ -169,6 +176,8 @@ def render(engine, depsgraph):
             break
         time.sleep(POLL_SECONDS)
     engine.end_result(result)
+    if progress_stream is not None:
+        progress_stream.write("\n")
     report.samples, report.cancelled = (shown[0] if shown else 0), cancelled
     if worker.error is not None:
         report.errors.append(str(worker.error))
