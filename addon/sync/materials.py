@@ -17,6 +17,8 @@ socket's own value; any other shader node renders as a diffuse surface of its co
 """
 import numpy as np
 
+from .images import image_rgb, linear_to_srgb
+
 DEFAULT_COLOR = (0.8, 0.8, 0.8)  # Cycles' surface for objects without a material
 
 
@@ -90,20 +92,14 @@ class MaterialTable:
         return self._textures[key]
 
     def _load_texture(self, image, node_label):
-        width, height = image.size
-        channels = image.channels
-        if width == 0 or height == 0 or channels == 0:
+        loaded = image_rgb(image)
+        if loaded is None:
             self._warnings.add(f"{node_label}: image '{image.name}' has no pixels (missing "
                                "file?); using the input's colour")
             return None
-        pixels = np.empty(width * height * channels, dtype=np.float32)
-        image.pixels.foreach_get(pixels)
-        pixels = pixels.reshape(height, width, channels)[::-1, :, :min(channels, 3)]
-        if pixels.shape[2] == 1:
-            pixels = np.repeat(pixels, 3, axis=2)
-        stored_as_srgb = not image.is_float and image.colorspace_settings.name == "sRGB"
+        pixels, stored_as_srgb = loaded
         if not stored_as_srgb:  # linear data: encode to sRGB bytes like the core expects
-            pixels = _linear_to_srgb(pixels)
+            pixels = linear_to_srgb(pixels)
         texels = np.clip(np.rint(pixels * 255.0), 0, 255).astype(np.uint8)
         self._data.textures.append(self._scene.Texture(np.ascontiguousarray(texels), name=image.name))
         return len(self._data.textures) - 1
@@ -116,11 +112,6 @@ def node_tree(id_block):
     if bpy.app.version < (5, 0, 0) and not id_block.use_nodes:
         return None
     return id_block.node_tree
-
-
-def _linear_to_srgb(x):
-    x = np.clip(x, 0.0, 1.0)
-    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
 
 
 def _lobe(type, base_color, roughness=0.5, ior=1.45, texture=None):

@@ -2,6 +2,7 @@
 Environment Texture x strength (importance-sampled by the core)."""
 import numpy as np
 
+from .images import image_rgb, srgb_to_linear
 from .materials import node_tree
 
 
@@ -64,16 +65,9 @@ def _environment_map(node, world_name, warnings):
         warnings.add(f"{label}: {node.projection} projection is rendered as equirectangular")
     if node.inputs["Vector"].is_linked:
         warnings.add(f"{label}: a mapped Vector input of the Environment Texture is ignored")
-    width, height = image.size
-    channels = image.channels
-    if width == 0 or height == 0 or channels == 0:
+    loaded = image_rgb(image)
+    if loaded is None:
         warnings.add(f"{label}: image '{image.name}' has no pixels (missing file?); using white")
         return None
-    pixels = np.empty(width * height * channels, dtype=np.float32)
-    image.pixels.foreach_get(pixels)
-    pixels = pixels.reshape(height, width, channels)[::-1, :, :min(channels, 3)]
-    if pixels.shape[2] == 1:
-        pixels = np.repeat(pixels, 3, axis=2)
-    if not image.is_float and image.colorspace_settings.name == "sRGB":
-        pixels = np.where(pixels <= 0.04045, pixels / 12.92, ((pixels + 0.055) / 1.055) ** 2.4)
-    return np.ascontiguousarray(pixels, dtype=np.float32)
+    pixels, stored_as_srgb = loaded
+    return np.ascontiguousarray(srgb_to_linear(pixels) if stored_as_srgb else pixels, dtype=np.float32)
