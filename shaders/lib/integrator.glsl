@@ -13,6 +13,7 @@ struct PathOptions {
     uint depth_leeway;    // discrete (delta) bounces that do not count towards max_depth
     uint rr_start_depth;  // Russian roulette from this bounce on (0: never)
     uint light_samples;   // NEE samples per vertex
+    bool from_camera;     // the first segment is a camera ray (sees only camera-visible lights)
 };
 
 struct PathResult {
@@ -80,19 +81,20 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         res.rays++;
         res.segments++;
         float t_surface = hit.t < 0.0 ? t_max : hit.t;
+        bool camera_ray = opt.from_camera && res.segments == 1u;
 
         // Analytic lights are not in the TLAS: test them against this segment.
         float t_light, light_pdf;
         vec3 light_radiance;
         if (HAS(FEATURE_SPHERE_LIGHTS | FEATURE_AREA_LIGHTS) &&
-            intersect_analytic_lights(origin, dir, t_surface, res.segments == 1u, t_light, light_radiance,
+            intersect_analytic_lights(origin, dir, t_surface, camera_ray, t_light, light_radiance,
                                       light_pdf) != NO_INDEX) {
             res.radiance += throughput * light_radiance * emission_weight(prev_delta, prev_pdf, light_pdf, opt.light_samples);
             if (res.segments == 1u) res.first_t = t_light;
             break;
         }
         if (hit.t < 0.0) {
-            vec3 le = distant_radiance(dir, res.segments == 1u, light_pdf);
+            vec3 le = distant_radiance(dir, camera_ray, light_pdf);
             res.radiance += throughput * le * emission_weight(prev_delta, prev_pdf, light_pdf, opt.light_samples);
             break;
         }
