@@ -218,3 +218,21 @@ def test_camera_shift_and_orthographic(fresh, bpy):
     data, _ = export_current(bpy)
     assert data.camera.type == "orthographic"
     assert data.camera.window == pytest.approx((-2.0, 2.0, -1.0, 1.0))
+
+
+def test_particle_instances_share_the_instanced_mesh(fresh, bpy):
+    bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=1, radius=0.1, location=(0, 0, 10))
+    pebble = bpy.context.active_object
+    bpy.ops.mesh.primitive_plane_add(size=2.0)
+    emitter = bpy.context.active_object
+    emitter.modifiers.new("Scatter", "PARTICLE_SYSTEM")
+    settings = emitter.particle_systems[0].settings
+    settings.count, settings.frame_start, settings.frame_end = 7, 1, 1
+    settings.physics_type, settings.render_type, settings.instance_object = "NO", "OBJECT", pebble
+    settings.use_rotation_instance = False
+    data, _ = export_current(bpy)
+    sizes = sorted(len(m.indices) for m in data.meshes)
+    assert sizes == [2, 20]  # the emitter plane and the ico sphere, once each
+    pebble_mesh = next(i for i, m in enumerate(data.meshes) if len(m.indices) == 20)
+    placed = [i for i in data.instances if i.mesh == pebble_mesh]
+    assert len(placed) == 1 + 7  # the object itself and its seven particles
