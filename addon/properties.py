@@ -38,6 +38,15 @@ class ParallaxRenderSettings(bpy.types.PropertyGroup):
     seed: IntProperty(
         name="Seed", description="Random seed; the same seed gives the same image on the same "
         "device", default=0, min=0)
+    viewport_samples: IntProperty(
+        name="Viewport Samples", description="Samples per pixel the viewport renders before it "
+        "stops (0 = until something changes)", default=1024, min=0, max=2**24)
+    viewport_start_pixel_size: EnumProperty(
+        name="Start Pixel Size", description="After an edit the viewport first shows a frame "
+        "with pixels this large, then refines; Automatic picks 1 to 8 from the measured frame "
+        "time", items=(("AUTO", "Automatic", "From the measured frame time"),
+                       ("1", "1", "Full resolution at once"), ("2", "2", "2x2 pixels"),
+                       ("4", "4", "4x4 pixels"), ("8", "8", "8x8 pixels")), default="AUTO")
     # Light paths
     max_depth: IntProperty(
         name="Max Bounces", description="Maximum number of non-specular bounces (Cycles' Max "

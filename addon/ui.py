@@ -28,7 +28,8 @@ class _RenderPanel(_ParallaxPanel):
 
 class PARALLAX_PT_sampling(_RenderPanel, bpy.types.Panel):
     bl_label = "Sampling"
-    properties = ("samples", "time_limit", "samples_per_frame", "seed")
+    properties = ("samples", "time_limit", "viewport_samples", "viewport_start_pixel_size",
+                  "samples_per_frame", "seed")
 
 
 class PARALLAX_PT_light_paths(_RenderPanel, bpy.types.Panel):

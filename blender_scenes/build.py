@@ -1,6 +1,7 @@
 """Build the Parallax test scenes as .blend files, from scratch, with bpy.
 
-    .venv/bin/python blender_scenes/build.py [NAME ...]     # default: every scene
+    .venv/bin/python blender_scenes/build.py [NAME ...] [--out DIR]   # default: every scene
+    blender -b --python blender_scenes/build.py -- [NAME ...] --out DIR  # e.g. Blender 3.4
 
 Each scene is saved as blender_scenes/NAME.blend. Units are metres, Z is up.
 Materials use only nodes that Cycles and Parallax render identically: Diffuse BSDF
@@ -27,9 +28,16 @@ STONE = (0.72, 0.66, 0.55)
 
 # --------------------------------------------------------------------------- materials
 
+def use_nodes(id_block):
+    """Blender < 5 makes materials and worlds without node trees unless asked."""
+    if bpy.app.version < (5, 0, 0):
+        id_block.use_nodes = True
+
+
 def _material(name, shader_type, **inputs):
     """A material whose surface is one shader node with the given input values."""
     mat = bpy.data.materials.new(name)
+    use_nodes(mat)
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
     nodes.clear()
     shader = nodes.new(shader_type)
@@ -191,7 +199,10 @@ def add_uv_sphere(name, radius, location, material, segments=48, rings=24):
     bm.to_mesh(mesh)
     bm.free()
     mesh.materials.append(material)
-    mesh.shade_smooth()
+    if hasattr(mesh, "shade_smooth"):
+        mesh.shade_smooth()
+    else:  # Blender < 4.1
+        mesh.polygons.foreach_set("use_smooth", [True] * len(mesh.polygons))
     return add_object(name, mesh, location)
 
 
@@ -236,6 +247,7 @@ def add_camera(location, target, fov_degrees):
 def set_world(color=(0.0, 0.0, 0.0), strength=0.0):
     """A uniform world (black and off by default)."""
     world = bpy.data.worlds.new("World")
+    use_nodes(world)
     background = world.node_tree.nodes["Background"]
     background.inputs["Color"].default_value = (*color, 1.0)
     background.inputs["Strength"].default_value = strength
@@ -460,7 +472,7 @@ def triangle_count(scene):
                for obj in scene.objects if obj.type == "MESH")
 
 
-def build(name):
+def build(name, out_dir=HERE):
     builder, (width, height) = SCENES[name]
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
@@ -473,7 +485,7 @@ def build(name):
             scene.render.engine = "PARALLAX"
         except TypeError as exc:
             print(f"note: {exc}; {name} keeps CYCLES")
-    path = os.path.join(HERE, f"{name}.blend")
+    path = os.path.join(out_dir, f"{name}.blend")
     bpy.context.preferences.filepaths.save_version = 0  # no .blend1 backups
     bpy.ops.wm.save_as_mainfile(filepath=path, compress=True)
     print(f"{path}: {len(scene.objects)} objects, {triangle_count(scene)} triangles, "
@@ -481,13 +493,19 @@ def build(name):
 
 
 def main(argv):
-    names = argv or list(SCENES)
-    unknown = [n for n in names if n not in SCENES]
-    if unknown:
-        sys.exit(f"unknown scene(s) {', '.join(unknown)}; choose from {', '.join(SCENES)}")
-    for name in names:
-        build(name)
+    import argparse
+
+    parser = argparse.ArgumentParser(description="Build the Parallax test scenes.")
+    parser.add_argument("names", nargs="*", choices=list(SCENES) + [[]], default=[],
+                        metavar="NAME", help=f"scenes to build (default: all of {', '.join(SCENES)})")
+    parser.add_argument("--out", default=HERE, help="folder for the .blend files "
+                        "(default: blender_scenes/)")
+    args = parser.parse_args(argv)
+    os.makedirs(args.out, exist_ok=True)
+    for name in args.names or list(SCENES):
+        build(name, args.out)
 
 
 if __name__ == "__main__":
-    main(sys.argv[1:])
+    # Inside Blender (blender -b --python build.py -- NAME ...) the arguments follow "--".
+    main(sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:])

@@ -7,6 +7,8 @@ named once in the returned warnings (see ``Warnings``).
 from .. import core
 from . import camera, lights, materials, meshes, world
 
+PARTS = ("geometry", "instances", "materials", "lights", "camera")
+
 
 class Warnings:
     """Collects approximation/skip messages, each listed once, in order."""
@@ -24,22 +26,57 @@ class Warnings:
         return len(self._seen)
 
 
-def export_scene(depsgraph, width, height, region=None):
-    """Returns (SceneData, warnings) for rendering ``depsgraph`` at ``width`` x ``height``.
+class SceneExporter:
+    """Keeps what a full export learnt (mesh sharing, material indices) so that a viewport
+    edit re-exports only the parts it touched (the core's ``Session.update(parts=...)``)."""
 
-    ``region`` = (x, y, w, h) in pixels with y from the bottom (Blender's border) renders
-    only that part of the frame; SceneData's resolution is then (w, h).
-    """
-    scene_module = core.load().scene
-    warnings = Warnings()
-    data = scene_module.SceneData()
-    material_table = materials.MaterialTable(data, warnings)
-    meshes.export_geometry(depsgraph, data, material_table, warnings)
-    lights.export_lights(depsgraph, data, warnings)
-    world.export_world(depsgraph.scene.world, data, warnings)
-    data.camera = camera.export_camera(depsgraph, width, height, region)
-    data.width, data.height = (region[2], region[3]) if region else (width, height)
-    if not data.lights and not material_table.has_emission and world.is_black(data.world):
-        warnings.add("the scene has no lights, no emissive materials and a black world: "
-                     "the image will be black")
-    return data, list(warnings)
+    def __init__(self):
+        self.data = None
+        self._mesh_index = {}
+        self._materials = None
+
+    def full(self, depsgraph, width, height, region=None, view_camera=None):
+        """Returns (SceneData, warnings) for rendering ``depsgraph`` at ``width`` x ``height``.
+
+        ``region`` = (x, y, w, h) in pixels with y from the bottom (Blender's border) renders
+        only that part of the frame; SceneData's resolution is then (w, h). ``view_camera``
+        (a Camera) replaces the scene camera (the viewport's view).
+        """
+        data = core.load().scene.SceneData()
+        warnings = Warnings()
+        self._materials = materials.MaterialTable(warnings)
+        self._mesh_index = meshes.export_geometry(depsgraph, data, self._materials, warnings)
+        self._materials.build(data)
+        lights.export_lights(depsgraph, data, warnings)
+        world.export_world(depsgraph.scene.world, data, warnings)
+        data.camera = view_camera or camera.export_camera(depsgraph, width, height, region)
+        data.width, data.height = (region[2], region[3]) if region else (width, height)
+        if not data.lights and not self._materials.has_emission and world.is_black(data.world):
+            warnings.add("the scene has no lights, no emissive materials and a black world: "
+                         "the image will be black")
+        self.data = data
+        return data, list(warnings)
+
+    def update(self, depsgraph, parts):
+        """Re-exports ``parts`` (subset of PARTS) of the last full export into ``self.data``.
+        Returns (parts to send, warnings); "geometry" in the result means a full update."""
+        warnings = Warnings()
+        parts = set(parts)
+        if "instances" in parts and not meshes.export_instances(
+                depsgraph, self.data, self._mesh_index, self._materials):
+            parts.add("geometry")  # an instance of geometry we have not exported
+        if "geometry" in parts:
+            return {"geometry"}, self.full(depsgraph, self.data.width, self.data.height,
+                                           view_camera=self.data.camera)[1]
+        if "materials" in parts:
+            self._materials.build(self.data, warnings)
+        if "lights" in parts:
+            self.data.lights = []
+            lights.export_lights(depsgraph, self.data, warnings)
+            world.export_world(depsgraph.scene.world, self.data, warnings)
+        return parts, list(warnings)
+
+
+def export_scene(depsgraph, width, height, region=None):
+    """(SceneData, warnings) of the whole scene: see ``SceneExporter.full``."""
+    return SceneExporter().full(depsgraph, width, height, region)

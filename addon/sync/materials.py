@@ -23,66 +23,86 @@ DEFAULT_COLOR = (0.8, 0.8, 0.8)  # Cycles' surface for objects without a materia
 
 
 class MaterialTable:
-    """Global material indices for Blender materials; fills ``data.materials``/``textures``."""
+    """Global material indices for Blender materials.
 
-    def __init__(self, data, warnings):
+    ``index`` hands out head indices while the geometry is exported; ``build`` then fills
+    ``data.materials`` and ``data.textures``: the heads first, at those indices, and the
+    extra lobes of mixed materials after them. So a later ``build`` (a material edit in the
+    viewport) keeps every index the geometry refers to.
+    """
+
+    def __init__(self, warnings):
         from ..core import load
 
         self._scene = load().scene
-        self._data = data
         self._warnings = warnings
+        self._materials = []  # Blender materials (None: no material), by head index
         self._index = {}
-        self._textures = {}
         self.has_emission = False
 
     def index(self, material):
         key = material.name_full if material is not None else None
         if key not in self._index:
-            self._index[key] = self._add(material)
+            self._index[key] = len(self._materials)
+            self._materials.append(material)
         return self._index[key]
+
+    def build(self, data, warnings=None):
+        """(Re)reads every material's node tree into ``data.materials``/``data.textures``."""
+        if warnings is not None:
+            self._warnings = warnings
+        self._data, self._textures = data, {}
+        data.materials, data.textures = [None] * len(self._materials), []
+        self.has_emission = False
+        for head, material in enumerate(self._materials):
+            name, lobes, emission = self._read(material)
+            self._add_chain(head, name, lobes, emission)
 
     # -- building core materials --
 
-    def _add(self, material):
+    def _read(self, material):
+        """(name, [(weight, lobe)], emission) of a Blender material."""
         if material is None:
-            return self._append_chain("", [(1.0, _lobe("diffuse", DEFAULT_COLOR))], np.zeros(3))
+            return "", [(1.0, _lobe("diffuse", DEFAULT_COLOR))], np.zeros(3)
         tree = node_tree(material)
         output = tree.get_output_node("CYCLES") if tree is not None else None
         if output is None:
-            color = tuple(material.diffuse_color[:3])
-            return self._append_chain(material.name, [(1.0, _lobe("diffuse", color))], np.zeros(3))
+            return material.name, [(1.0, _lobe("diffuse", tuple(material.diffuse_color[:3])))], np.zeros(3)
         reader = _NodeReader(material.name, self._warnings, self._texture)
-        surface = output.inputs.get("Surface")
-        lobes, emission = reader.shader(surface)
-        return self._append_chain(material.name, lobes, emission)
+        lobes, emission = reader.shader(output.inputs.get("Surface"))
+        return material.name, lobes, emission
 
-    def _append_chain(self, name, lobes, emission):
-        """Appends the head material (which carries the emission) and its chain; returns the
-        head's index."""
+    def _add_chain(self, head, name, lobes, emission):
+        """Puts the head material (which carries the emission) at ``head`` and appends the
+        rest of its lobe chain."""
         lobes = [(w, lobe) for w, lobe in lobes if w > 0.0]
         total = sum(w for w, _ in lobes)
         if np.any(emission > 0):
             self.has_emission = True
         Material = self._scene.Material
+        materials = self._data.materials
         if not lobes:
-            head = Material(type="emission", base_color=(0.0, 0.0, 0.0), emission=tuple(emission),
-                            name=name)
-            self._data.materials.append(head)
-            return len(self._data.materials) - 1
-        first = len(self._data.materials)
+            materials[head] = Material(type="emission", base_color=(0.0, 0.0, 0.0),
+                                       emission=tuple(emission), name=name)
+            return
         remaining = 1.0
         for i, (w, lobe) in enumerate(lobes):
             p = w / total
             last = i == len(lobes) - 1
-            self._data.materials.append(Material(
+            # The next lobe is appended after this one (after the head: at the end).
+            next_index = len(materials) + (0 if i == 0 else 1)
+            material = Material(
                 type=lobe["type"], base_color=tuple(np.asarray(lobe["base_color"]) * total),
                 roughness=lobe["roughness"], ior=lobe["ior"],
                 emission=tuple(emission) if i == 0 else (0.0, 0.0, 0.0),
                 base_color_texture=lobe["texture"], name=name if i == 0 else f"{name} (lobe {i})",
-                mix_next=None if last else first + i + 1,
-                mix_weight=1.0 if last else min(1.0, p / remaining)))
+                mix_next=None if last else next_index,
+                mix_weight=1.0 if last else min(1.0, p / remaining))
+            if i == 0:
+                materials[head] = material
+            else:
+                materials.append(material)
             remaining -= p
-        return first
 
     def _texture(self, image, node_label):
         """Index of ``image`` in data.textures (uint8 sRGB, row 0 at the top), or None."""

@@ -10,33 +10,58 @@ GEOMETRY_TYPES = {"MESH", "CURVE", "CURVES", "SURFACE", "META", "FONT"}
 
 
 def export_geometry(depsgraph, data, material_table, warnings):
+    """Fills data.meshes and data.instances; returns the sharing key -> mesh index map that
+    ``export_instances`` needs (None for objects without faces)."""
     from ..core import load
 
-    scene_module = load().scene
-    mesh_index = {}  # sharing key -> index into data.meshes, or None for empty geometry
+    Mesh = load().scene.Mesh
+    mesh_index = {}
+    data.meshes = []
+    for obj, matrix, key in _geometry_instances(depsgraph, material_table):
+        if key not in mesh_index:
+            mesh = _extract(obj, key[1], material_table, warnings)
+            mesh_index[key] = None if mesh is None else len(data.meshes)
+            if mesh is not None:
+                data.meshes.append(Mesh(**mesh))
+    export_instances(depsgraph, data, mesh_index, material_table)
+    return mesh_index
+
+
+def export_instances(depsgraph, data, mesh_index, material_table):
+    """Refills data.instances (transforms) for the meshes already in ``data``; returns False,
+    leaving data alone, if some instance's geometry is not among them."""
+    from ..core import load
+
+    Instance = load().scene.Instance
+    instances = []
+    for _, matrix, key in _geometry_instances(depsgraph, material_table):
+        if key not in mesh_index:
+            return False
+        if mesh_index[key] is not None:
+            instances.append(Instance(mesh_index[key], matrix))
+    data.instances = instances
+    return True
+
+
+def _geometry_instances(depsgraph, material_table):
+    """(evaluated object, object-to-world matrix, sharing key) of every renderable geometry
+    instance."""
     for inst in depsgraph.object_instances:
         obj = inst.object
         if obj.type not in GEOMETRY_TYPES or not (inst.is_instance or inst.show_self):
             continue
         slots = tuple(material_table.index(slot.material) for slot in obj.material_slots)
-        key = (_geometry_key(obj), slots)
-        if key not in mesh_index:
-            mesh = _extract(obj, slots, material_table, warnings)
-            if mesh is None:
-                mesh_index[key] = None
-            else:
-                mesh_index[key] = len(data.meshes)
-                data.meshes.append(scene_module.Mesh(**mesh))
-        if mesh_index[key] is not None:
-            data.instances.append(scene_module.Instance(
-                mesh_index[key], np.array(inst.matrix_world, dtype=np.float64)))
+        yield obj, np.array(inst.matrix_world, dtype=np.float64), (_geometry_key(obj), slots)
 
 
 def _geometry_key(obj):
-    """Evaluated objects that share mesh data share geometry; anything else is per object."""
-    if obj.type == "MESH" and obj.data is not None:
-        return ("mesh", obj.data.as_pointer())
-    return ("object", obj.original.name if obj.original else obj.name)
+    """What identifies shared geometry across depsgraph evaluations: the mesh data of
+    objects without modifiers (linked duplicates, collection instances share it), else the
+    object itself (its modifiers make its geometry its own)."""
+    original = obj.original if obj.original is not None else obj
+    if obj.type == "MESH" and original.type == "MESH" and not original.modifiers:
+        return ("mesh", original.data.name_full)
+    return ("object", original.name_full, obj.data.name_full if obj.data is not None else "")
 
 
 def _extract(obj, slots, material_table, warnings):

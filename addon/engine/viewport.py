@@ -1,0 +1,298 @@
+"""Interactive viewport (Rendered shading): view_update / view_draw.
+
+A worker thread owns the core sessions and renders progressively (``Session.render``
+releases the GIL); Blender's thread only exports edits, hands them over and draws the
+latest frame. An edit re-sends just the parts it touched (``Session.update(parts=...)``):
+orbiting sends the camera, moving an object the instance transforms, a material slider the
+materials. After each edit one frame of a smaller session (pixel size 2-8, chosen from the
+measured frame time so it takes about ``PREVIEW_SECONDS``) is shown first, then the full
+resolution refines.
+"""
+import threading
+import time
+import weakref
+
+import numpy as np
+
+from .. import core, sync
+
+PREVIEW_SECONDS = 0.03
+PUBLISH_SECONDS = 0.05  # at most this often a new image for the viewport
+
+_workers = weakref.WeakSet()  # live workers, stopped on unregister
+
+
+def _region_size(context):
+    return max(1, context.region.width), max(1, context.region.height)
+
+
+def _context_camera(context):
+    rv3d = context.region_data
+    return sync.camera.view_camera(rv3d.view_matrix, rv3d.window_matrix, rv3d.is_perspective)
+
+
+def _camera_key(camera):
+    return (np.asarray(camera.camera_to_world).round(7).tobytes(), camera.type,
+            tuple(round(v, 7) for v in camera.window), camera.clip_start, camera.clip_end)
+
+
+def changed_parts(depsgraph):
+    """The SceneData parts an evaluated depsgraph's updates touch."""
+    import bpy
+
+    parts = set()
+    for update in depsgraph.updates:
+        data = update.id
+        if isinstance(data, bpy.types.Object):
+            if data.type == "LIGHT":
+                parts.add("lights")
+            elif data.type == "CAMERA":
+                continue  # the viewport's own view is checked on every draw
+            else:
+                if update.is_updated_geometry:
+                    parts.add("geometry")
+                if update.is_updated_transform:
+                    parts.add("instances")
+                if update.is_updated_shading:
+                    parts.add("materials")
+        elif isinstance(data, (bpy.types.Material, bpy.types.ShaderNodeTree, bpy.types.Image)):
+            parts.update(("materials", "lights"))  # images may be the world's too
+        elif isinstance(data, (bpy.types.Light, bpy.types.World)):
+            parts.add("lights")
+        elif isinstance(data, (bpy.types.Mesh, bpy.types.Curve, bpy.types.MetaBall, bpy.types.Collection)):
+            parts.add("geometry")
+    return parts
+
+
+class _Worker(threading.Thread):
+    """Renders the viewport image; takes scene, camera, size and settings changes at any time."""
+
+    def __init__(self, device, params, target_samples, pixel_size):
+        super().__init__(name="parallax-viewport", daemon=True)
+        self.device = device
+        self.frame = None      # latest (image (H, W, 4), samples, pixel size), for view_draw
+        self.error = None
+        self.done = False      # the sample target is reached and nothing is pending
+        self._lock = threading.Condition()
+        self._scene, self._parts, self._size, self._params = None, set(), None, params
+        self._target, self._pixel_size = target_samples, pixel_size
+        self._stopped = False
+        self._full = self._preview = None  # sessions: full size, and pixel size 2-8 (or none)
+        self._preview_factor = 1
+        self._frame_seconds = None  # measured frame time at full size
+        self._published = 0.0
+        self.edit_time = None  # when the latest edit was handed over (for latency numbers)
+        self.first_frame_latency = None  # seconds from that edit to its first published image
+        _workers.add(self)
+
+    # -- Blender's thread --
+
+    def submit(self, scene=None, parts=(), size=None, params=None, target=None, pixel_size=None):
+        with self._lock:
+            if scene is not None:
+                self._scene = scene
+                self._parts |= set(parts)
+            if size is not None:
+                self._size = size
+            if params is not None:
+                self._params = params
+            if target is not None:
+                self._target = target
+            if pixel_size is not None:
+                self._pixel_size = pixel_size
+            self.edit_time = time.perf_counter()
+            self.done = False
+            self._lock.notify()
+
+    def stop(self, wait=2.0):
+        with self._lock:
+            self._stopped = True
+            self._lock.notify()
+        if self.is_alive() and threading.current_thread() is not self:
+            self.join(wait)
+
+    # -- worker thread --
+
+    def run(self):
+        try:
+            while self._step():
+                pass
+        except Exception as e:  # shown by view_draw
+            self.error = e
+            self.done = True
+
+    def _take_changes(self):
+        """Waits until there is something to do; returns the pending changes (None: stop)."""
+        with self._lock:
+            while not self._stopped and (self._full is None and self._size is None or
+                                         self.done and not self._parts and self._size is None):
+                self._lock.wait()
+            if self._stopped:
+                return None
+            changes = (self._scene, self._parts, self._size, self._params, self._target, self._pixel_size)
+            self._parts, self._size = set(), None
+            return changes
+
+    def _step(self):
+        changes = self._take_changes()
+        if changes is None:
+            return False
+        scene, parts, size, params, target, pixel_size = changes
+        edited = bool(parts) or size is not None
+        Session = core.load().Session
+        if size is not None:  # a new viewport size: new sessions, which need the whole scene
+            self._full, self._preview, self._preview_factor = Session(*size, self.device), None, 1
+            self._frame_seconds, parts = None, None
+        factor = pixel_size or self._auto_pixel_size()
+        preview_parts = parts
+        if edited and factor != self._preview_factor:
+            width, height = self._full.width, self._full.height
+            self._preview = Session(max(1, width // factor), max(1, height // factor),
+                                    self.device) if factor > 1 else None
+            self._preview_factor, preview_parts = factor, None
+        for session, session_parts in ((self._full, parts), (self._preview, preview_parts)):
+            if session is not None:
+                session.set_params(**params)
+                if edited:
+                    session.update(scene, parts=None if session_parts is None else sorted(session_parts))
+        if edited and self._preview is not None:
+            self._preview.render(1)
+            self._publish(self._preview, self._preview_factor)
+        samples = self._full.stats().get("samples", 0)
+        if target and samples >= target:
+            self.done = True
+            return True
+        start = time.perf_counter()
+        self._full.render(1)
+        seconds = time.perf_counter() - start
+        if samples > 0 or parts is not None:  # not the first frame of a new scene (compiles)
+            previous = self._frame_seconds
+            self._frame_seconds = seconds if previous is None else 0.5 * (previous + seconds)
+        if edited or time.perf_counter() - self._published >= PUBLISH_SECONDS:
+            self._publish(self._full, 1)
+        return True
+
+    def _auto_pixel_size(self):
+        """Smallest of 1, 2, 4, 8 whose preview frame takes about PREVIEW_SECONDS, from the
+        measured full-size frame time (4 before there is one)."""
+        if self._frame_seconds is None:
+            return 4
+        for factor in (1, 2, 4, 8):
+            if self._frame_seconds / (factor * factor) <= PREVIEW_SECONDS:
+                return factor
+        return 8
+
+    def _publish(self, session, pixel_size):
+        image = session.read("combined")
+        samples = session.stats().get("samples", 0)
+        self.frame = (image, samples, pixel_size)
+        self._published = time.perf_counter()
+        if self.edit_time is not None and self.first_frame_latency is None:
+            self.first_frame_latency = self._published - self.edit_time
+
+
+class ViewportRender:
+    """One 3D viewport's Parallax state (kept on its RenderEngine instance)."""
+
+    def __init__(self):
+        self.exporter = sync.SceneExporter()
+        self.worker = None
+        self._camera_key = None
+        self._size = None
+        self._settings = None
+        self._texture = None  # (frame it shows, GPUTexture)
+        self._reported = set()
+
+    def _settings_of(self, scene):
+        s = scene.parallax
+        params = s.render_params()
+        pixel_size = 0 if s.viewport_start_pixel_size == "AUTO" else int(s.viewport_start_pixel_size)
+        return params, s.viewport_samples, pixel_size, s.device
+
+    def update(self, engine, context, depsgraph):
+        """view_update: the scene changed (or this is the first call)."""
+        scene = depsgraph.scene
+        params, target, pixel_size, device = self._settings_of(scene)
+        try:
+            if self.worker is None or device != self.worker.device:
+                self.free()
+                width, height = _region_size(context)
+                camera = _context_camera(context)
+                data, warnings = self.exporter.full(depsgraph, width, height, view_camera=camera)
+                self.worker = _Worker(device, params, target, pixel_size)
+                self.worker.submit(data, parts={"geometry"}, size=(width, height))
+                self.worker.start()
+                self._camera_key, self._size = _camera_key(camera), (width, height)
+            else:
+                parts = changed_parts(depsgraph)
+                warnings = []
+                if parts:
+                    parts, warnings = self.exporter.update(depsgraph, parts)
+                if parts or (params, target, pixel_size) != self._settings:
+                    self.worker.submit(self.exporter.data, parts=parts, params=params,
+                                       target=target, pixel_size=pixel_size)
+        except (ImportError, ValueError, RuntimeError) as e:
+            engine.update_stats("", f"Parallax: {e}")
+            engine.report({"ERROR"}, f"Parallax: {e}")
+            return
+        self._settings = (params, target, pixel_size)
+        for message in warnings:
+            if message not in self._reported:  # once per viewport, not on every edit
+                self._reported.add(message)
+                engine.report({"WARNING"}, f"Parallax: {message}")
+
+    def draw(self, engine, context, depsgraph):
+        """view_draw: hand over view changes, draw the newest frame, ask for more."""
+        worker = self.worker
+        if worker is None:
+            return
+        size = _region_size(context)
+        camera = _context_camera(context)
+        key = _camera_key(camera)
+        if size != self._size or key != self._camera_key:
+            data = self.exporter.data
+            data.camera, data.width, data.height = camera, size[0], size[1]
+            if size != self._size:
+                worker.submit(data, parts={"camera"}, size=size)
+            else:
+                worker.submit(data, parts={"camera"})
+            self._size, self._camera_key = size, key
+        if worker.error is not None:
+            engine.update_stats("", f"Parallax error: {worker.error}")
+            return
+        frame = worker.frame
+        if frame is not None:
+            self._draw_frame(engine, depsgraph.scene, frame, size)
+            image, samples, pixel_size = frame
+            target = self._settings[1] if self._settings else 0
+            status = f"Sample {samples}" + (f"/{target}" if target else "")
+            engine.update_stats("", status if pixel_size == 1 else f"{status} (preview)")
+        if not worker.done:
+            engine.tag_redraw()
+
+    def _draw_frame(self, engine, scene, frame, size):
+        import gpu
+        from gpu_extras.presets import draw_texture_2d
+
+        if self._texture is None or self._texture[0] is not frame:
+            image = np.ascontiguousarray(frame[0][::-1], dtype=np.float32)  # GPU rows go bottom-up
+            height, width = image.shape[:2]
+            buffer = gpu.types.Buffer("FLOAT", width * height * 4, image.ravel())
+            self._texture = (frame, gpu.types.GPUTexture((width, height), format="RGBA16F", data=buffer))
+        gpu.state.blend_set("ALPHA_PREMULT")
+        engine.bind_display_space_shader(scene)
+        draw_texture_2d(self._texture[1], (0, 0), size[0], size[1])
+        engine.unbind_display_space_shader()
+        gpu.state.blend_set("NONE")
+
+    def free(self):
+        if self.worker is not None:
+            self.worker.stop()
+            self.worker = None
+        self._texture = None
+
+
+def stop_all():
+    """Stops every viewport worker (add-on unregistration, Blender quitting)."""
+    for worker in list(_workers):
+        worker.stop()
