@@ -1,7 +1,10 @@
-"""Shared helpers for render tests: batched renders with per-pixel error estimates."""
+"""Shared helpers for render tests (batched renders with per-pixel error estimates) and for
+installing the add-on like a user."""
 from __future__ import annotations
 
 import dataclasses
+import os
+import shutil
 
 import numpy as np
 
@@ -72,3 +75,14 @@ def rel_mse(img, ref, drop=0.001):
     e = ((img - ref) ** 2 / (ref**2 + 1e-3)).mean(axis=-1).ravel()
     keep = int(np.ceil(e.size * (1 - drop)))
     return float(np.sort(e)[:keep].mean())
+
+
+def install_addon_copy(folder, wheel):
+    """addon/ copied to folder/parallax with the core wheel bundled, as a user installs it."""
+    addon = os.path.join(folder, "parallax")
+    repo = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    shutil.copytree(os.path.join(repo, "addon"), addon,
+                    ignore=shutil.ignore_patterns("__pycache__", "wheels", "_site"))
+    os.makedirs(os.path.join(addon, "wheels"))
+    shutil.copy(wheel, os.path.join(addon, "wheels"))
+    return addon

@@ -6,8 +6,11 @@ import shutil
 import subprocess
 import sys
 
+from pathlib import Path
+
 import pytest
-from blender_helpers import REPO, SCENES
+from blender_helpers import SCENES
+from helpers import install_addon_copy
 
 RENDER_AND_REPORT = """
 import bpy
@@ -22,31 +25,12 @@ print("REPORT", final.last_report.samples, final.last_report.errors, parallax_co
 """
 
 
-@pytest.fixture(scope="module")
-def wheel(tmp_path_factory):
-    """The parallax_core wheel, built like `make extension` builds it."""
-    out = tmp_path_factory.mktemp("wheels")
-    subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-build-isolation", "--no-deps",
-                    "-w", str(out), REPO], check=True, timeout=600)
-    (path,) = glob.glob(str(out / "parallax_core-*-cp311-*.whl"))
-    return path
-
-
-def _addon_copy(tmp_path, wheel):
-    addon = tmp_path / "parallax"
-    shutil.copytree(os.path.join(REPO, "addon"), addon,
-                    ignore=shutil.ignore_patterns("__pycache__", "wheels", "_site"))
-    (addon / "wheels").mkdir()
-    shutil.copy(wheel, addon / "wheels")
-    return addon
-
-
-def test_extension_zip_installs_and_renders(tmp_path, wheel):
+def test_extension_zip_installs_and_renders(tmp_path, core_wheel):
     import bpy  # noqa: F401  (bpy's extension builder ships with it)
 
-    addon = _addon_copy(tmp_path, wheel)
+    addon = Path(install_addon_copy(tmp_path, core_wheel))
     manifest = (addon / "blender_manifest.toml").read_text()
-    assert f'"./wheels/{os.path.basename(wheel)}"' in manifest  # the manifest names this wheel
+    assert f'"./wheels/{os.path.basename(core_wheel)}"' in manifest  # the manifest names this wheel
     scripts = bpy.utils.system_resource("SCRIPTS")
     builder = os.path.join(scripts, "addons_core", "bl_pkg", "cli", "blender_ext.py")
     subprocess.run([sys.executable, builder, "build", "--source-dir", str(addon), "--output-dir",
@@ -70,10 +54,10 @@ def test_extension_zip_installs_and_renders(tmp_path, wheel):
 
 @pytest.mark.skipif(shutil.which("blender") is None, reason="Debian's blender is not installed "
                     "(make setup installs it)")
-def test_legacy_addon_in_blender_34(tmp_path, wheel):
+def test_legacy_addon_in_blender_34(tmp_path, core_wheel):
     addons = tmp_path / "scripts" / "addons"
     addons.mkdir(parents=True)
-    _addon_copy(addons, wheel)
+    install_addon_copy(addons, core_wheel)
     script = tmp_path / "legacy.py"
     script.write_text(
         "import addon_utils, bpy\n"

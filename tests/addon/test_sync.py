@@ -236,3 +236,29 @@ def test_particle_instances_share_the_instanced_mesh(fresh, bpy):
     pebble_mesh = next(i for i, m in enumerate(data.meshes) if len(m.indices) == 20)
     placed = [i for i in data.instances if i.mesh == pebble_mesh]
     assert len(placed) == 1 + 7  # the object itself and its seven particles
+
+
+@pytest.mark.parametrize("kind", ["PERSP", "ORTHO"])
+def test_viewport_camera_from_view_and_projection_matrices(fresh, bpy, kind):
+    """view_camera (what the viewport draws) agrees with the scene camera's own export when
+    fed that camera's view and projection matrices (as in camera view)."""
+    from addon.sync.camera import view_camera
+
+    fresh.render.resolution_x, fresh.render.resolution_y = 64, 40
+    cam = fresh.camera
+    cam.data.type, cam.data.shift_x, cam.data.shift_y = kind, 0.1, -0.05
+    cam.location, cam.rotation_euler = (1.0, -6.0, 2.0), (1.3, 0.0, 0.2)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    data, _ = export_current(bpy)
+    projection = cam.calc_matrix_camera(depsgraph, x=64, y=40)
+    viewport = view_camera(cam.matrix_world.inverted(), projection, kind == "PERSP")
+    assert viewport.type == data.camera.type
+    np.testing.assert_allclose(viewport.window, data.camera.window, rtol=1e-4, atol=1e-5)
+    ray_origin = np.asarray(viewport.camera_to_world)[:, 3]
+    if kind == "PERSP":
+        np.testing.assert_allclose(viewport.camera_to_world, data.camera.camera_to_world, atol=1e-5)
+        assert viewport.clip_start == pytest.approx(cam.data.clip_start, rel=1e-3)
+    else:  # orthographic rays start on the near plane, behind the camera if it is negative
+        forward = -np.asarray(data.camera.camera_to_world)[:, 2]
+        offset = ray_origin - np.asarray(data.camera.camera_to_world)[:, 3]
+        np.testing.assert_allclose(np.cross(offset, forward), 0.0, atol=1e-4)

@@ -1,0 +1,158 @@
+"""Runs inside Blender's GUI (blender FILE.blend --python gui_driver.py -- OUT_DIR MODE).
+
+MODE "viewport": switches the biggest 3D viewport to Rendered shading with Parallax, looking
+through the scene camera with overlays off, and takes `xwd -root` screenshots: after the
+first full-resolution frames, after more samples, after moving the tall box, and after
+orbiting the view. MODE "cancel": starts an F12 render and waits for the test to press Esc.
+Steps run from timers so Blender's event loop (and its drawing) goes on; results go to
+OUT_DIR/result.json, and Blender quits at the end.
+"""
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+import traceback
+
+import addon_utils
+import bpy
+
+OUT, MODE = sys.argv[sys.argv.index("--") + 1:][:2]
+result = {"mode": MODE, "errors": [], "shots": {}}
+TIMEOUT = 240.0
+start = time.perf_counter()
+
+
+def save_result():
+    with open(os.path.join(OUT, "result.json"), "w") as f:
+        json.dump(result, f, indent=1)
+
+
+def screenshot(name):
+    path = os.path.join(OUT, name + ".xwd")
+    subprocess.run(["xwd", "-root", "-silent", "-out", path], check=True, timeout=30)
+    result["shots"][name] = path
+
+
+def view3d():
+    screen = bpy.context.window.screen
+    areas = [a for a in screen.areas if a.type == "VIEW_3D"]
+    return max(areas, key=lambda a: a.width * a.height)
+
+
+def worker():
+    from parallax.engine import viewport
+
+    workers = [w for w in viewport._workers if w.is_alive()]
+    return workers[0] if workers else None
+
+
+def run_steps(steps):
+    """Runs generator `steps`: each yield is a condition (callable) to wait for."""
+    state = {"wait": None}
+
+    def tick():
+        try:
+            if time.perf_counter() - start > TIMEOUT:
+                raise TimeoutError(f"gui driver timed out in mode {MODE}")
+            if state["wait"] is not None and not state["wait"]():
+                return 0.05
+            state["wait"] = next(steps)
+            return 0.05
+        except StopIteration:
+            save_result()
+            bpy.ops.wm.quit_blender()
+        except Exception:
+            result["errors"].append(traceback.format_exc())
+            save_result()
+            bpy.ops.wm.quit_blender()
+        return None
+
+    bpy.app.timers.register(tick, first_interval=0.5)
+
+
+def samples_at_least(n, full_resolution=True):
+    def ready():
+        w = worker()
+        return w is not None and w.frame is not None and w.frame[1] >= n and \
+            (w.frame[2] == 1 or not full_resolution)
+    return ready
+
+
+def after(seconds):
+    until = time.perf_counter() + seconds
+    return lambda: time.perf_counter() >= until
+
+
+def viewport_steps():
+    area = view3d()
+    space = area.spaces.active
+    with bpy.context.temp_override(area=area):
+        bpy.ops.screen.screen_full_area(use_hide_panels=True)
+    yield after(1.0)
+    area = view3d()
+    space = area.spaces.active
+    space.overlay.show_overlays = False
+    space.show_gizmo = False
+    space.region_3d.view_perspective = "CAMERA"
+    region = next(r for r in area.regions if r.type == "WINDOW")
+    with bpy.context.temp_override(area=area, region=region):
+        bpy.ops.view3d.view_center_camera()
+    space.shading.type = "RENDERED"
+    result["region"] = [region.x, region.y, region.width, region.height]
+    result["window"] = [bpy.context.window.width, bpy.context.window.height]
+    yield samples_at_least(2)
+    screenshot("early")
+    yield samples_at_least(64)
+    screenshot("converged")
+    w = worker()
+    box = bpy.data.objects["TallBox"]
+    box.location.x += 0.6
+    edited = time.perf_counter()
+    yield lambda: worker().edit_time is not None and worker().edit_time >= edited and \
+        worker().first_frame_latency is not None and worker().frame[1] >= 1
+    result["move_latency"] = worker().first_frame_latency
+    yield samples_at_least(16)
+    screenshot("moved")
+    space.region_3d.view_perspective = "PERSP"
+    space.region_3d.view_rotation.rotate(__import__("mathutils").Euler((0.0, 0.0, math.radians(25))))
+    yield after(0.2)
+    yield samples_at_least(16)
+    screenshot("orbited")
+    result["samples_per_second"] = None
+    w = worker()
+    t0, s0 = time.perf_counter(), w.frame[1]
+    yield after(3.0)
+    result["samples_per_second"] = (worker().frame[1] - s0) / (time.perf_counter() - t0)
+    space.shading.type = "SOLID"  # frees the viewport engine and its worker
+    yield after(1.0)
+    from parallax.engine import viewport
+    result["workers_alive_after_solid"] = sum(w.is_alive() for w in viewport._workers)
+
+
+def cancel_steps():
+    scene = bpy.context.scene
+    scene.parallax.samples, scene.parallax.samples_per_frame = 100000, int(os.environ.get("PX_SPF", 64))
+    bpy.ops.render.render("INVOKE_DEFAULT")
+    yield lambda: bpy.app.is_job_running("RENDER")
+    yield after(3.0)  # the render is going, a 64-spp frame in flight
+    open(os.path.join(OUT, "rendering"), "w").close()
+    escape = os.path.join(OUT, "escape_sent")
+    yield lambda: os.path.exists(escape)
+    sent = float(open(escape).read() or time.time())
+    yield lambda: not bpy.app.is_job_running("RENDER") or time.time() - sent > 10.0
+    result["cancel_seconds"] = time.time() - sent
+    result["still_rendering"] = bpy.app.is_job_running("RENDER")
+    yield after(0.5)
+    result["responsive"] = True  # timers still run after the cancel
+
+
+try:
+    assert addon_utils.enable("parallax", default_set=True) is not None, "the add-on did not enable"
+    bpy.context.scene.render.engine = "PARALLAX"
+    run_steps(viewport_steps() if MODE == "viewport" else cancel_steps())
+except Exception:
+    result["errors"].append(traceback.format_exc())
+    save_result()
+    bpy.ops.wm.quit_blender()

@@ -1,0 +1,135 @@
+"""The viewport in a real Blender window: Debian's Blender 3.4 GUI under Xvfb (llvmpipe),
+driven by gui_driver.py, checked through `xwd -root` screenshots.
+
+One Blender session renders blender_scenes/cornell_box (built by Blender 3.4 itself, which
+cannot read files saved by Blender 5) in a Rendered viewport, moves the tall box and orbits;
+another starts an F12 render and cancels it with Esc sent by xdotool.
+"""
+import glob
+import json
+import os
+import shutil
+import subprocess
+import time
+
+import numpy as np
+import pytest
+from helpers import install_addon_copy
+from xwd import read_xwd
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+REPO = os.path.dirname(os.path.dirname(HERE))
+TOOLS = ("blender", "Xvfb", "xwd", "xdotool")
+pytestmark = pytest.mark.skipif(not all(shutil.which(t) for t in TOOLS),
+                                reason=f"needs {', '.join(TOOLS)} (make setup installs them)")
+WIDTH, HEIGHT = 1280, 800
+
+
+def _free_display():
+    for n in range(90, 200):
+        if not os.path.exists(f"/tmp/.X11-unix/X{n}") and not os.path.exists(f"/tmp/.X{n}-lock"):
+            return n
+    raise RuntimeError("no free X display number")
+
+
+@pytest.fixture(scope="module")
+def gui(tmp_path_factory, core_wheel):
+    root = tmp_path_factory.mktemp("gui")
+    scripts = root / "scripts" / "addons"
+    scripts.mkdir(parents=True)
+    install_addon_copy(str(scripts), core_wheel)
+    env = dict(os.environ, HOME=str(root / "home"), BLENDER_USER_SCRIPTS=str(root / "scripts"))
+    env.pop("PYTHONPATH", None)
+    (root / "home").mkdir()
+    subprocess.run(["blender", "-b", "--factory-startup", "--python",
+                    os.path.join(REPO, "blender_scenes", "build.py"), "--", "cornell_box", "--out",
+                    str(root)], env=env, check=True, capture_output=True, timeout=300)
+    n = _free_display()
+    xvfb = subprocess.Popen(["Xvfb", f":{n}", "-screen", "0", f"{WIDTH}x{HEIGHT}x24", "-nolisten", "tcp"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 20
+    while not os.path.exists(f"/tmp/.X11-unix/X{n}"):
+        assert time.time() < deadline and xvfb.poll() is None, "Xvfb did not start"
+        time.sleep(0.1)
+    env["DISPLAY"] = f":{n}"
+    yield dict(env=env, scene=str(root / "cornell_box.blend"), root=root)
+    xvfb.terminate()
+    xvfb.wait(10)
+
+
+def _start_blender(gui, mode):
+    out = gui["root"] / mode
+    out.mkdir()
+    proc = subprocess.Popen(
+        ["blender", "--factory-startup", "-p", "0", "0", str(WIDTH), str(HEIGHT), "--no-window-focus",
+         gui["scene"], "--python", os.path.join(HERE, "gui_driver.py"), "--", str(out), mode],
+        env=gui["env"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    return proc, out
+
+
+def _finish(proc, out, timeout=300):
+    try:
+        log, _ = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        log, _ = proc.communicate()
+        pytest.fail(f"Blender did not quit (hung?):\n{log[-3000:]}")
+    result_file = out / "result.json"
+    assert result_file.exists(), f"no result (exit {proc.returncode}):\n{log[-3000:]}"
+    result = json.loads(result_file.read_text())
+    assert not result["errors"], "\n".join(result["errors"]) + log[-3000:]
+    assert proc.returncode == 0, log[-3000:]
+    assert "Traceback" not in log, log[-3000:]
+    return result, log
+
+
+def _viewport_image(result, name):
+    """The 3D viewport's pixels of a screenshot (the Rendered image), row 0 at the top."""
+    image = read_xwd(result["shots"][name]).astype(np.float32) / 255.0
+    x, y, w, h = result["region"]
+    win_h = image.shape[0]
+    return image[win_h - (y + h):win_h - y, x:x + w]
+
+
+def _box_mean(image, fx0, fx1, fy0, fy1):
+    h, w = image.shape[:2]
+    return image[int(fy0 * h):int(fy1 * h), int(fx0 * w):int(fx1 * w)].reshape(-1, 3).mean(axis=0)
+
+
+def _noise(image):
+    """Mean absolute difference of horizontally adjacent pixels (of the middle half)."""
+    h, w = image.shape[:2]
+    middle = image[h // 4:3 * h // 4, w // 4:3 * w // 4]
+    return float(np.abs(np.diff(middle, axis=1)).mean())
+
+
+def test_rendered_viewport_refines_and_follows_edits(gui):
+    proc, out = _start_blender(gui, "viewport")
+    result, log = _finish(proc, out)
+    early, converged = _viewport_image(result, "early"), _viewport_image(result, "converged")
+    # Red wall on the left, green wall on the right of the camera view.
+    left, right = _box_mean(converged, 0.05, 0.25, 0.3, 0.7), _box_mean(converged, 0.75, 0.95, 0.3, 0.7)
+    assert left[0] > 1.5 * left[1] and right[1] > 1.5 * right[0], (left, right)
+    assert _noise(converged) < 0.8 * _noise(early)
+    moved, orbited = _viewport_image(result, "moved"), _viewport_image(result, "orbited")
+    assert np.abs(moved - converged).mean() > 0.01  # the tall box moved
+    assert np.abs(orbited - moved).mean() > 0.02   # the view turned
+    assert result["move_latency"] is not None and result["samples_per_second"] > 0
+    assert result["workers_alive_after_solid"] == 0
+    print(f"edit -> first frame {result['move_latency'] * 1000:.0f} ms, "
+          f"{result['samples_per_second']:.1f} samples/s")
+
+
+def test_escape_cancels_an_f12_render_within_a_second(gui):
+    proc, out = _start_blender(gui, "cancel")
+    deadline = time.time() + 120
+    while not (out / "rendering").exists():
+        assert proc.poll() is None and time.time() < deadline, proc.communicate()[0][-3000:]
+        time.sleep(0.1)
+    env = gui["env"]
+    subprocess.run(["xdotool", "mousemove", str(WIDTH // 2), str(HEIGHT // 2)], env=env, check=True)
+    (out / "escape_sent").write_text(repr(time.time()))
+    subprocess.run(["xdotool", "key", "Escape"], env=env, check=True)
+    result, _ = _finish(proc, out)
+    assert not result["still_rendering"] and result["cancel_seconds"] < 1.0, result
+    assert result["responsive"]
