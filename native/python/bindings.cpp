@@ -65,7 +65,8 @@ NB_MODULE(_native, m) {
         .def(nb::init<uint32_t, uint32_t, const std::string&>(), "width"_a, "height"_a, "device"_a = "auto",
              nb::call_guard<nb::gil_scoped_release>())
         .def("_update",
-             [](px::Session& s, nb::dict arrays, bool spatial_order) {
+             [](px::Session& s, nb::dict arrays, bool spatial_order, const std::vector<std::string>& parts) {
+                 const uint32_t mask = px::parse_scene_parts(parts);
                  px::SceneArrays views;
                  std::vector<nb::ndarray<nb::c_contig, nb::device::cpu>> keep;
                  for (auto [key, value] : arrays) {
@@ -86,10 +87,12 @@ NB_MODULE(_native, m) {
                      keep.push_back(a);
                  }
                  nb::gil_scoped_release release;
-                 return s.update(views, spatial_order);
+                 return s.update(views, spatial_order, mask);
              },
-             "arrays"_a, "spatial_order"_a = true,
-             "Replace the scene with SceneData.flatten() arrays; returns warnings.")
+             "arrays"_a, "spatial_order"_a = true, "parts"_a = std::vector<std::string>(),
+             "Replace the scene with SceneData.flatten() arrays; returns warnings. With `parts` (names "
+             "from geometry, instances, materials, lights, camera; empty = all), `arrays` holds only "
+             "those parts' arrays and the rest of the last update's scene is kept.")
         .def("_set_params",
              [](px::Session& s, uint32_t method, uint32_t heuristic, uint32_t spp, uint32_t max_depth,
                 uint32_t leeway, uint32_t rr, uint32_t light_samples, uint32_t seed) {
@@ -123,6 +126,7 @@ NB_MODULE(_native, m) {
                  d["rays"] = st.rays;
                  d["milliseconds"] = st.milliseconds;
                  d["frames"] = st.frames;
+                 d["blas_builds"] = st.blas_builds;
                  d["device"] = s.device().name;
                  return d;
              })

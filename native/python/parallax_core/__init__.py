@@ -4,6 +4,7 @@
     s = Session(256, 256)              # device: PARALLAX_DEVICE or "auto"
     s.set_params(method="mis", samples_per_frame=4)
     s.update(scene)                    # SceneData or its flatten() dict
+    s.update(scene, parts={"camera"})  # after an edit: only what changed (see PARTS)
     s.render(16)                       # 16 frames, GIL released
     image = s.read("combined")         # float32 (H, W, 4)
 """
@@ -14,8 +15,9 @@ import os
 
 from ._native import METHODS, devices
 from ._native import Session as _NativeSession
+from .scene import PART_KEYS, PARTS, parts_set
 
-__all__ = ["Session", "RenderParams", "devices", "METHODS", "PASSES"]
+__all__ = ["Session", "RenderParams", "devices", "METHODS", "PASSES", "PARTS"]
 
 PASSES = tuple(_NativeSession.pass_names())
 HEURISTICS = ("balance", "power")
@@ -53,6 +55,7 @@ class Session(_NativeSession):
         super().__init__(int(width), int(height), str(device))
         self._params = RenderParams()
         self.warnings: list[str] = []
+        self._part_warnings: dict[str, list[str]] = {}  # the scene's warnings by part
 
     @property
     def params(self) -> RenderParams:
@@ -70,15 +73,37 @@ class Session(_NativeSession):
             params.max_depth, params.depth_leeway, params.rr_start_depth, params.light_samples, params.seed)
         self._params = params
 
-    def update(self, scene, spatial_order: bool = True) -> list[str]:
-        """Upload a SceneData (or its flatten() dict). Returns and keeps the warnings."""
-        warnings: list[str] = []
-        if hasattr(scene, "flatten"):
-            warnings += list(scene.validate() or [])
+    def update(self, scene, spatial_order: bool = True, parts=None) -> list[str]:
+        """Upload a SceneData (or its flatten() dict). Returns and keeps the warnings.
+
+        ``parts=None`` replaces the whole scene. Otherwise ``parts`` names the parts that
+        changed since the last update (an iterable of PARTS: "geometry", "instances",
+        "materials", "lights" (analytic lights and the world), "camera"): only those are
+        validated, flattened and sent, and the session re-prepares and re-uploads only them
+        and what depends on them, keeping the rest (a camera move uploads the camera alone;
+        only "geometry" rebuilds BLASes). The other parts must still fit: indices into
+        meshes, materials and textures refer to the kept ones. Needs an earlier whole update.
+        Either way accumulation restarts, and the warnings returned are the whole scene's.
+        """
+        selected = parts_set(parts)
+        whole = selected == frozenset(PARTS)
+        if hasattr(scene, "_flatten_parts"):
+            scene, by_part = scene._flatten_parts(selected)
+        elif hasattr(scene, "flatten"):
+            by_part = {"geometry": list(scene.validate() or [])}
             scene = scene.flatten()
+        else:
+            by_part = {}
         if not isinstance(scene, dict):
             raise TypeError("update() takes a SceneData or a dict of arrays")
-        warnings += self._update(scene, spatial_order)
+        if not whole:
+            keys = {k for p in selected for k in PART_KEYS[p]}
+            scene = {k: v for k, v in scene.items() if k in keys}
+        native = self._update(scene, spatial_order, [] if whole else [p for p in PARTS if p in selected])
+        if whole:
+            self._part_warnings = {}
+        self._part_warnings.update({p: by_part.get(p, []) for p in selected})
+        warnings = [w for p in PARTS for w in self._part_warnings.get(p, [])] + list(native)
         self.warnings = warnings
         return warnings
 

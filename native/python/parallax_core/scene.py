@@ -15,7 +15,7 @@ import numpy as np
 
 __all__ = [
     "Mesh", "Instance", "Material", "Texture", "Light", "World", "Camera", "SceneData",
-    "FLAT_KEYS", "MATERIAL_TYPES", "LIGHT_TYPES", "MIX_CHAIN_MAX",
+    "FLAT_KEYS", "PARTS", "PART_KEYS", "MATERIAL_TYPES", "LIGHT_TYPES", "MIX_CHAIN_MAX",
     "direction_to_equirectangular", "equirectangular_to_direction",
 ]
 
@@ -66,6 +66,37 @@ FLAT_KEYS = {
     "camera_window": (np.float32, "(4,)"),
     "camera_clip": (np.float32, "(2,)"),
 }
+
+# The parts of a scene that an update can replace on its own (Session.update(parts=...)),
+# and the flat keys of each: every FLAT_KEYS key is in exactly one part. "lights" covers the
+# analytic lights and the world: both live in the native light table.
+PARTS = ("geometry", "instances", "materials", "lights", "camera")
+
+
+def _part_of_key(key):
+    for prefixes, part in ((("instance_",), "instances"), (("material_", "texture_"), "materials"),
+                           (("light_", "world_"), "lights"), (("camera_",), "camera")):
+        if key.startswith(prefixes):
+            return part
+    return "geometry"  # positions, indices, triangle_material, corner_*, mesh_*
+
+
+PART_KEYS = {part: tuple(k for k in FLAT_KEYS if _part_of_key(k) == part) for part in PARTS}
+
+
+def parts_set(parts):
+    """``parts`` (None, one part name or an iterable of them) as a frozenset of PARTS names
+    (None: all). Raises ValueError for an unknown or empty selection."""
+    if parts is None:
+        return frozenset(PARTS)
+    names = [parts] if isinstance(parts, str) else list(parts)
+    unknown = [p for p in names if p not in PARTS]
+    if unknown:
+        raise ValueError(f"unknown scene part(s) {unknown} (parts: {', '.join(PARTS)})")
+    if not names:
+        raise ValueError("no scene parts given (parts=None means the whole scene)")
+    return frozenset(names)
+
 
 # Keys added after version 1 files were written, with the value a missing key stands for.
 # Keys newer than some saved files, with their defaults (and the array they follow in length).
@@ -345,22 +376,45 @@ class SceneData:
 
     # -- validation --
 
-    def validate(self):
-        """Raise ValueError naming the first bad item; return a list of warning strings."""
-        return self._check()[0]
+    def validate(self, parts=None):
+        """Raise ValueError naming the first bad item; return a list of warning strings.
+        ``parts`` (see PARTS; None: all) limits the checks to those parts of the scene."""
+        return [w for ws in self._check(parts)[0].values() for w in ws]
 
-    def _check(self):
-        """Returns (warnings, per-mesh boolean masks of the triangles to keep,
-        per-light keep flags)."""
-        warnings, keeps = [], []
+    def _check(self, parts=None):
+        """Checks the given parts (None: all). Returns (warnings by part, in PARTS order;
+        per-mesh boolean masks of the triangles to keep (geometry); per-light keep flags
+        (lights))."""
+        parts = parts_set(parts)
+        warnings = {p: [] for p in PARTS if p in parts}
+        keeps, light_keep = [], []
         materials = self.effective_materials()
         K = len(materials)
-        for i, mesh in enumerate(self.meshes):
-            keep, n_bad = _check_mesh(mesh, i, K)
-            keeps.append(keep)
-            if n_bad:
-                warnings.append(f"{_label('mesh', i, mesh.name)}: "
-                                f"{n_bad} degenerate triangles skipped")
+        if "geometry" in parts:
+            for i, mesh in enumerate(self.meshes):
+                keep, n_bad = _check_mesh(mesh, i, K)
+                keeps.append(keep)
+                if n_bad:
+                    warnings["geometry"].append(f"{_label('mesh', i, mesh.name)}: "
+                                                f"{n_bad} degenerate triangles skipped")
+        if "instances" in parts:
+            warnings["instances"] += self._check_instances()
+        if "materials" in parts:
+            self._check_materials(materials)
+        if "lights" in parts:
+            for j, light in enumerate(self.lights):
+                ok = _check_light(light, _label("light", j, light.name))
+                if not ok:
+                    warnings["lights"].append(f"{_label('light', j, light.name)}: "
+                                              "zero-size area light skipped")
+                light_keep.append(ok)
+            self._check_world()
+        if "camera" in parts:
+            self._check_camera()
+        return warnings, keeps, light_keep
+
+    def _check_instances(self):
+        warnings = []
         M = len(self.meshes)
         for i, inst in enumerate(self.effective_instances()):
             if not (0 <= int(inst.mesh) < M):
@@ -376,7 +430,10 @@ class SceneData:
                                  f"(last row {t[3].tolist()})")
             if abs(np.linalg.det(t[:3, :3])) < 1e-30:
                 warnings.append(f"instance {i}: transform is singular")
-        X = len(self.textures)
+        return warnings
+
+    def _check_materials(self, materials):
+        K, X = len(materials), len(self.textures)
         for k, mat in enumerate(materials):
             lbl = _label("material", k, mat.name)
             if mat.type not in MATERIAL_TYPES:
@@ -402,16 +459,6 @@ class SceneData:
         _check_mix_chains(materials)
         for x, tex in enumerate(self.textures):
             _texture_rgba(tex.pixels, _label("texture", x, tex.name))
-        light_keep = []
-        for j, light in enumerate(self.lights):
-            ok = _check_light(light, _label("light", j, light.name))
-            if not ok:
-                warnings.append(f"{_label('light', j, light.name)}: "
-                                "zero-size area light skipped")
-            light_keep.append(ok)
-        self._check_world()
-        self._check_camera()
-        return warnings, keeps, light_keep
 
     def _check_world(self):
         w = self.world
@@ -446,33 +493,49 @@ class SceneData:
 
     # -- flat arrays --
 
-    def flatten(self, warnings=None):
+    def flatten(self, warnings=None, parts=None):
         """Validate and return the flat arrays (see FLAT_KEYS). Degenerate triangles and
-        zero-size area lights are dropped; their warnings are appended to ``warnings``."""
-        warns, keeps, light_keep = self._check()
+        zero-size area lights are dropped; their warnings are appended to ``warnings``.
+        ``parts`` (see PARTS; None: all) validates and returns only those parts' keys
+        (PART_KEYS), for Session.update(scene, parts=...)."""
+        flat, warns = self._flatten_parts(parts)
         if warnings is not None:
-            warnings.extend(warns)
+            warnings.extend(w for ws in warns.values() for w in ws)
+        return flat
+
+    def _flatten_parts(self, parts=None):
+        """``(flat arrays of the parts, warnings by part)``: flatten() with the warnings
+        kept apart per part (in PARTS order)."""
+        parts = parts_set(parts)
+        warns, keeps, light_keep = self._check(parts)
         out = {}
-        self._flatten_meshes(keeps, out)
-        insts = self.effective_instances()
-        out["instance_transform"] = np.array(
-            [_transform_3x4(i.transform) for i in insts], dtype=np.float32).reshape(-1, 3, 4)
-        out["instance_mesh"] = np.array([int(i.mesh) for i in insts], dtype=np.uint32)
-        self._flatten_materials(out)
-        self._flatten_lights(light_keep, out)
-        w = self.world
-        out["world_color"] = (_vec(w.color) * float(w.strength)).astype(np.float32)
-        if w.map is None:
-            out["world_map"] = np.zeros((0, 0, 3), np.float32)
-        else:
-            m = np.asarray(w.map, dtype=np.float64)[..., :3] * float(w.strength)
-            out["world_map"] = m.astype(np.float32)
-        cam = self.camera
-        out["camera_to_world"] = _transform_3x4(cam.camera_to_world).astype(np.float32)
-        out["camera_type"] = np.array([CAMERA_TYPES[cam.type]], dtype=np.uint32)
-        out["camera_window"] = np.array(cam.window, dtype=np.float32)
-        out["camera_clip"] = np.array([cam.clip_start, cam.clip_end], dtype=np.float32)
-        return {k: np.ascontiguousarray(out[k], dtype=FLAT_KEYS[k][0]) for k in FLAT_KEYS}
+        if "geometry" in parts:
+            self._flatten_meshes(keeps, out)
+        if "instances" in parts:
+            insts = self.effective_instances()
+            out["instance_transform"] = np.array(
+                [_transform_3x4(i.transform) for i in insts], dtype=np.float32).reshape(-1, 3, 4)
+            out["instance_mesh"] = np.array([int(i.mesh) for i in insts], dtype=np.uint32)
+        if "materials" in parts:
+            self._flatten_materials(out)
+        if "lights" in parts:
+            self._flatten_lights(light_keep, out)
+            w = self.world
+            out["world_color"] = (_vec(w.color) * float(w.strength)).astype(np.float32)
+            if w.map is None:
+                out["world_map"] = np.zeros((0, 0, 3), np.float32)
+            else:
+                m = np.asarray(w.map, dtype=np.float64)[..., :3] * float(w.strength)
+                out["world_map"] = m.astype(np.float32)
+        if "camera" in parts:
+            cam = self.camera
+            out["camera_to_world"] = _transform_3x4(cam.camera_to_world).astype(np.float32)
+            out["camera_type"] = np.array([CAMERA_TYPES[cam.type]], dtype=np.uint32)
+            out["camera_window"] = np.array(cam.window, dtype=np.float32)
+            out["camera_clip"] = np.array([cam.clip_start, cam.clip_end], dtype=np.float32)
+        flat = {k: np.ascontiguousarray(out[k], dtype=FLAT_KEYS[k][0])
+                for k in FLAT_KEYS if _part_of_key(k) in parts}
+        return flat, warns
 
     def _flatten_meshes(self, keeps, out):
         pos, idx, mat, nrm, uvs = [], [], [], [], []

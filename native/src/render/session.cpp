@@ -39,14 +39,40 @@ Session::Session(uint32_t width, uint32_t height, const std::string& device) : w
 
 Session::~Session() = default;
 
-std::vector<std::string> Session::update(const SceneArrays& arrays, bool spatial_order) {
-    SceneHost host = prepare_scene(arrays, spatial_order);  // validates before touching the GPU
-    auto warnings = host.warnings;
-    // Upload next to the old scene: if this fails (out of memory, device lost), the session
-    // keeps rendering what it had.
-    auto next = std::make_unique<Scene>(*ctx_, std::move(host));
+std::vector<std::string> Session::update(const SceneArrays& arrays, bool spatial_order, uint32_t parts) {
+    std::lock_guard<std::mutex> updating(update_mutex_);
+    if (parts == 0 || (parts & ~uint32_t(PART_ALL))) throw std::invalid_argument("update: bad scene part mask");
+    // The arrays after this update: the given ones, and for a partial update the kept ones
+    // of the other parts (shared, not copied). Committed only if the update succeeds.
+    std::map<std::string, std::shared_ptr<const OwnedArray>> next_arrays;
+    if (parts != PART_ALL) {
+        if (!scene_) throw std::runtime_error("no scene to update partially: call update(scene) with the whole scene first");
+        for (const auto& [name, array] : arrays_)
+            if (!(scene_part_of_array(name) & parts)) next_arrays.emplace(name, array);
+        for (const auto& [name, view] : arrays) {
+            uint32_t part = scene_part_of_array(name);
+            if (part && !(part & parts))
+                throw std::invalid_argument("update: array '" + name + "' belongs to scene part '" +
+                                            scene_part_name(part) + "', which this update does not include");
+        }
+    }
+    for (const auto& [name, view] : arrays) next_arrays[name] = std::make_shared<const OwnedArray>(view);
+    SceneArrays views;
+    for (const auto& [name, array] : next_arrays) views.emplace(name, array->view());
+
+    // Validates before touching the GPU; the parts not updated are shared with the current
+    // scene. scene_ changes only in this function, which update_mutex_ serialises.
+    SceneHost host = scene_ ? update_scene(scene_->host(), views, spatial_order, parts)
+                            : prepare_scene(views, spatial_order);
+    auto warnings = host.warnings();
+    // Upload next to the old scene (sharing its buffers and BLASes where the host data is
+    // the same): if this fails (out of memory, device lost), the session keeps rendering
+    // what it had.
+    auto next = std::make_unique<Scene>(*ctx_, std::move(host), scene_.get());
     std::lock_guard<std::mutex> lock(mutex_);
+    blas_builds_ += next->blases_built();
     scene_ = std::move(next);
+    arrays_ = std::move(next_arrays);
     scene_->bind(*set_);
     stats_ = {};
     film_.fill_zero();
@@ -160,7 +186,9 @@ SessionStats Session::stats() {
     uint64_t total = 0;
     for (uint32_t c : counts) total += c;
     stats_.rays = total;
-    return stats_;
+    SessionStats out = stats_;
+    out.blas_builds = blas_builds_;
+    return out;
 }
 
 std::vector<float> Session::test_sampling(uint32_t routine, const std::vector<float>& params, uint32_t count,

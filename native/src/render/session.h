@@ -28,6 +28,7 @@ struct SessionStats {
     uint64_t rays = 0;     // all rays traced since the last reset
     double milliseconds = 0;  // GPU-side render time since the last reset (wall clock)
     uint32_t frames = 0;
+    uint64_t blas_builds = 0;  // BLASes built by this session's updates (never reset; debugging)
 };
 
 struct PassInfo {
@@ -42,8 +43,13 @@ public:
     Session(uint32_t width, uint32_t height, const std::string& device);
     ~Session();
 
-    // Replaces the scene; returns warnings (skipped items). Resets accumulation.
-    std::vector<std::string> update(const SceneArrays& arrays, bool spatial_order = true);
+    // Replaces the scene's `parts` (ScenePart bits; PART_ALL: the whole scene, as given) with
+    // `arrays`, which then holds only arrays of those parts: the session keeps a copy of the
+    // last arrays of every part and re-prepares and re-uploads only the changed parts and
+    // what depends on them (geometry: everything). A partial update needs an earlier whole
+    // one. Returns the warnings (skipped items) of the whole resulting scene. Resets
+    // accumulation. On any error the session keeps its previous scene, unchanged.
+    std::vector<std::string> update(const SceneArrays& arrays, bool spatial_order = true, uint32_t parts = PART_ALL);
     void set_params(const RenderParams& params);
     const RenderParams& params() const { return params_; }
     void render(uint32_t frames);
@@ -66,14 +72,17 @@ private:
     std::shared_ptr<Context> ctx_;  // first member: destroyed after everything using it
     uint32_t width_, height_;
     std::unique_ptr<DescriptorSet> set_;
-    std::unique_ptr<Scene> scene_;
+    std::unique_ptr<Scene> scene_;  // written only by update(), under update_mutex_ and mutex_
+    std::map<std::string, std::shared_ptr<const OwnedArray>> arrays_;  // the last arrays of every part
+    uint64_t blas_builds_ = 0;
     Buffer film_, ray_count_, test_io_;
     // One pipeline per (method, heuristic, scene features) combination, built on first use.
     std::map<std::array<uint32_t, 3>, std::unique_ptr<RayTracingPipeline>> pipelines_;
     std::unique_ptr<ComputePipeline> test_pipeline_;
     RenderParams params_;
     SessionStats stats_;
-    std::mutex mutex_;
+    std::mutex mutex_;         // the scene, film and stats against concurrent render()/read()
+    std::mutex update_mutex_;  // one update() at a time: each builds on the previous one
 };
 
 }  // namespace px

@@ -154,30 +154,35 @@ Light analytic_light(uint type, vec3 pos, vec3 dir, vec3 axis_u, vec3 axis_v, fl
 
 // What the uploaded scene uses, for pipeline specialization.
 uint scene_features(const SceneHost& s) {
+    const SceneGeometry& g = *s.geometry;
+    const std::vector<Material>& materials = s.materials->materials;
     uint f = 0;
-    std::vector<bool> used(s.materials.size(), false);
-    for (const auto& inst : s.instances) {
-        const MeshInfo& mesh = s.meshes[inst.mesh];
+    std::vector<bool> mesh_used(g.meshes.size(), false);
+    for (const auto& inst : s.placement->instances) mesh_used[inst.mesh] = true;
+    std::vector<bool> used(materials.size(), false);
+    for (size_t m = 0; m < g.meshes.size(); ++m) {
+        if (!mesh_used[m]) continue;
+        const MeshInfo& mesh = g.meshes[m];
         if (mesh.has_normals) f |= FEATURE_SHADING_NORMALS;
         if (mesh.has_uvs) f |= FEATURE_UVS;
         for (uint t = mesh.first_triangle; t < mesh.first_triangle + mesh.triangle_count; ++t)
-            used[s.triangle_material[t]] = true;
+            used[g.triangle_material[t]] = true;
     }
     // Materials reached through a used material's mix chain are used too (acyclic, checked).
-    for (size_t k = 0; k < s.materials.size(); ++k) {
-        if (!used[k] || s.materials[k].mix_next < 0) continue;
+    for (size_t k = 0; k < materials.size(); ++k) {
+        if (!used[k] || materials[k].mix_next < 0) continue;
         f |= FEATURE_MIX;
-        for (int j = s.materials[k].mix_next; j >= 0 && !used[size_t(j)]; j = s.materials[size_t(j)].mix_next)
+        for (int j = materials[k].mix_next; j >= 0 && !used[size_t(j)]; j = materials[size_t(j)].mix_next)
             used[size_t(j)] = true;
     }
-    for (size_t k = 0; k < s.materials.size(); ++k) {
+    for (size_t k = 0; k < materials.size(); ++k) {
         if (!used[k]) continue;
-        const Material& m = s.materials[k];
+        const Material& m = materials[k];
         if (m.type == MATERIAL_CONDUCTOR) f |= FEATURE_CONDUCTOR;
         if (m.type == MATERIAL_DIELECTRIC) f |= FEATURE_DIELECTRIC;
         if (m.base_color_texture >= 0) f |= FEATURE_TEXTURES;
     }
-    for (const auto& l : s.lights) {
+    for (const auto& l : s.lights->lights) {
         switch (l.type) {
             case LIGHT_TRIANGLE: f |= FEATURE_TRIANGLE_LIGHTS; break;
             case LIGHT_SPHERE:
@@ -192,7 +197,9 @@ uint scene_features(const SceneHost& s) {
 }
 
 // Positions, triangles, per-corner normals/uvs and meshes; triangles Morton-ordered per mesh.
-void prepare_geometry(const SceneArrays& a, bool spatial_order, SceneHost& s) {
+std::shared_ptr<const SceneGeometry> prepare_geometry(const SceneArrays& a, bool spatial_order) {
+    auto out = std::make_shared<SceneGeometry>();
+    SceneGeometry& g = *out;
     auto positions = get<float>(a, "positions", 'f', {3});
     auto indices = get<uint32_t>(a, "indices", 'u', {3});
     auto tri_mat = get<uint32_t>(a, "triangle_material", 'u', {});
@@ -221,39 +228,39 @@ void prepare_geometry(const SceneArrays& a, bool spatial_order, SceneHost& s) {
             bad("triangle_material[" + std::to_string(t) + "] = " + std::to_string(tri_mat.data[t]) + " but there are " +
                 std::to_string(K) + " materials");
     }
-    s.positions.resize(V);
-    for (size_t i = 0; i < V; ++i) s.positions[i] = v3(positions.data + 3 * i);
-    s.indices.resize(T);
-    s.triangle_material.assign(tri_mat.data, tri_mat.data + T);
-    for (size_t t = 0; t < T; ++t) s.indices[t] = {indices.data[3 * t], indices.data[3 * t + 1], indices.data[3 * t + 2]};
+    g.positions.resize(V);
+    for (size_t i = 0; i < V; ++i) g.positions[i] = v3(positions.data + 3 * i);
+    g.indices.resize(T);
+    g.triangle_material.assign(tri_mat.data, tri_mat.data + T);
+    for (size_t t = 0; t < T; ++t) g.indices[t] = {indices.data[3 * t], indices.data[3 * t + 1], indices.data[3 * t + 2]};
     if (normals.rows) {
-        s.corner_normals.resize(3 * T);
+        g.corner_normals.resize(3 * T);
         for (size_t i = 0; i < 3 * T; ++i) {
             vec3 n = v3(normals.data + 3 * i);
-            s.corner_normals[i] = finite3(normals.data + 3 * i) && length(n) > 0 ? normalize(n) : vec3{0, 0, 0};
+            g.corner_normals[i] = finite3(normals.data + 3 * i) && length(n) > 0 ? normalize(n) : vec3{0, 0, 0};
         }
     }
     if (uvs.rows) {
-        s.corner_uvs.resize(3 * T);
+        g.corner_uvs.resize(3 * T);
         for (size_t i = 0; i < 3 * T; ++i) {
             float u = uvs.data[2 * i], v = uvs.data[2 * i + 1];
-            s.corner_uvs[i] = {std::isfinite(u) ? u : 0.0f, std::isfinite(v) ? v : 0.0f};
+            g.corner_uvs[i] = {std::isfinite(u) ? u : 0.0f, std::isfinite(v) ? v : 0.0f};
         }
     }
-    s.meshes.resize(M);
+    g.meshes.resize(M);
     for (size_t m = 0; m < M; ++m) {
         uint64_t first = mesh_first.data[m], count = mesh_count.data[m];
         if (first + count > T)
             bad("mesh " + std::to_string(m) + " covers triangles " + std::to_string(first) + ".." +
                 std::to_string(first + count) + " but there are " + std::to_string(T));
-        s.meshes[m] = {uint(first), uint(count), mesh_has_n.data[m] && normals.rows ? 1u : 0u,
+        g.meshes[m] = {uint(first), uint(count), mesh_has_n.data[m] && normals.rows ? 1u : 0u,
                        mesh_has_uv.data[m] && uvs.rows ? 1u : 0u};
         if (!spatial_order || count < 2) continue;
         // Reorder this mesh's triangles along a Morton curve of their centroids.
         std::vector<vec3> centroids(count);
         for (size_t i = 0; i < count; ++i) {
-            uvec3 tri = s.indices[first + i];
-            centroids[i] = (s.positions[tri.x] + s.positions[tri.y] + s.positions[tri.z]) * (1.0f / 3.0f);
+            uvec3 tri = g.indices[first + i];
+            centroids[i] = (g.positions[tri.x] + g.positions[tri.y] + g.positions[tri.z]) * (1.0f / 3.0f);
         }
         auto order = morton_order(centroids);
         auto permute = [&](auto& vec, size_t per) {
@@ -263,16 +270,31 @@ void prepare_geometry(const SceneArrays& a, bool spatial_order, SceneHost& s) {
                 for (size_t k = 0; k < per; ++k) tmp[i * per + k] = vec[(first + order[i]) * per + k];
             std::copy(tmp.begin(), tmp.end(), vec.begin() + first * per);
         };
-        permute(s.indices, 1);
-        permute(s.triangle_material, 1);
-        permute(s.corner_normals, 3);
-        permute(s.corner_uvs, 3);
+        permute(g.indices, 1);
+        permute(g.triangle_material, 1);
+        permute(g.corner_normals, 3);
+        permute(g.corner_uvs, 3);
     }
+    // Object-space bounds (instance placement) and the materials the triangles need.
+    g.mesh_lo.assign(M, {INFINITY, INFINITY, INFINITY});
+    g.mesh_hi.assign(M, {-INFINITY, -INFINITY, -INFINITY});
+    for (size_t m = 0; m < M; ++m)
+        for (uint t = g.meshes[m].first_triangle; t < g.meshes[m].first_triangle + g.meshes[m].triangle_count; ++t)
+            for (uint vi : {g.indices[t].x, g.indices[t].y, g.indices[t].z})
+                g.mesh_lo[m] = vmin(g.mesh_lo[m], g.positions[vi]), g.mesh_hi[m] = vmax(g.mesh_hi[m], g.positions[vi]);
+    for (uint k : g.triangle_material) g.materials_needed = std::max(g.materials_needed, k + 1);
+    return out;
 }
 
-void prepare_materials(const SceneArrays& a, SceneHost& s) {
+// Materials and textures; the triangles' material indices must stay in range.
+std::shared_ptr<const SceneMaterials> prepare_materials(const SceneArrays& a, const SceneGeometry& g) {
+    auto out = std::make_shared<SceneMaterials>();
+    SceneMaterials& s = *out;
     auto materials_type = get<uint32_t>(a, "material_type", 'u', {});
     const size_t K = materials_type.rows;
+    if (K < g.materials_needed)
+        bad("triangle_material refers to material " + std::to_string(g.materials_needed - 1) + " but there are " +
+            std::to_string(K) + " materials");
     auto base_color = get<float>(a, "material_base_color", 'f', {3});
     auto roughness = get<float>(a, "material_roughness", 'f', {});
     auto ior = get<float>(a, "material_ior", 'f', {});
@@ -356,19 +378,17 @@ void prepare_materials(const SceneArrays& a, SceneHost& s) {
                     " materials is longer than the limit of " + std::to_string(MIX_CHAIN_MAX));
         }
     }
+    return out;
 }
 
 // Instances in TLAS order (Morton order of their bounds) and the scene's bounding sphere.
-void prepare_instances(const SceneArrays& a, bool spatial_order, SceneHost& s) {
-    const size_t M = s.meshes.size();
+std::shared_ptr<const ScenePlacement> prepare_instances(const SceneArrays& a, bool spatial_order,
+                                                        const SceneGeometry& g) {
+    auto out = std::make_shared<ScenePlacement>();
+    const size_t M = g.meshes.size();
     auto inst_xf = get<float>(a, "instance_transform", 'f', {3, 4});
     auto inst_mesh = get<uint32_t>(a, "instance_mesh", 'u', {});
     if (inst_mesh.rows != inst_xf.rows) bad("instance_transform and instance_mesh differ in length");
-    std::vector<vec3> mesh_lo(M, {INFINITY, INFINITY, INFINITY}), mesh_hi(M, {-INFINITY, -INFINITY, -INFINITY});
-    for (size_t m = 0; m < M; ++m)
-        for (uint t = s.meshes[m].first_triangle; t < s.meshes[m].first_triangle + s.meshes[m].triangle_count; ++t)
-            for (uint vi : {s.indices[t].x, s.indices[t].y, s.indices[t].z})
-                mesh_lo[m] = vmin(mesh_lo[m], s.positions[vi]), mesh_hi[m] = vmax(mesh_hi[m], s.positions[vi]);
     std::vector<InstanceInfo> instances;
     std::vector<vec3> centers;
     vec3 scene_lo{INFINITY, INFINITY, INFINITY}, scene_hi{-INFINITY, -INFINITY, -INFINITY};
@@ -379,7 +399,7 @@ void prepare_instances(const SceneArrays& a, bool spatial_order, SceneHost& s) {
             if (!std::isfinite(x[k])) bad("instance_transform[" + std::to_string(i) + "] is NaN or infinite");
         uint mesh = inst_mesh.data[i];
         if (mesh >= M) bad("instance_mesh[" + std::to_string(i) + "] = " + std::to_string(mesh) + " but there are " + std::to_string(M) + " meshes");
-        if (s.meshes[mesh].triangle_count == 0) { ++skipped; continue; }
+        if (g.meshes[mesh].triangle_count == 0) { ++skipped; continue; }
         InstanceInfo inst{};
         for (int r = 0; r < 3; ++r) inst.object_to_world[r] = {x[4 * r], x[4 * r + 1], x[4 * r + 2], x[4 * r + 3]};
         // Normal matrix: inverse transpose of the 3x3 part A. With rows r0, r1, r2 of A, the
@@ -396,8 +416,8 @@ void prepare_instances(const SceneArrays& a, bool spatial_order, SceneHost& s) {
         inst.light_offset = NO_INDEX;
         vec3 lo{INFINITY, INFINITY, INFINITY}, hi{-INFINITY, -INFINITY, -INFINITY};
         for (int c = 0; c < 8; ++c) {
-            vec3 corner{(c & 1) ? mesh_hi[mesh].x : mesh_lo[mesh].x, (c & 2) ? mesh_hi[mesh].y : mesh_lo[mesh].y,
-                        (c & 4) ? mesh_hi[mesh].z : mesh_lo[mesh].z};
+            vec3 corner{(c & 1) ? g.mesh_hi[mesh].x : g.mesh_lo[mesh].x, (c & 2) ? g.mesh_hi[mesh].y : g.mesh_lo[mesh].y,
+                        (c & 4) ? g.mesh_hi[mesh].z : g.mesh_lo[mesh].z};
             vec3 w = transform_point(inst.object_to_world, corner);
             lo = vmin(lo, w), hi = vmax(hi, w);
         }
@@ -405,45 +425,98 @@ void prepare_instances(const SceneArrays& a, bool spatial_order, SceneHost& s) {
         centers.push_back((lo + hi) * 0.5f);
         instances.push_back(inst);
     }
-    if (skipped) s.warnings.push_back(std::to_string(skipped) + " instance(s) of empty meshes or with singular transforms skipped");
+    if (skipped) out->warnings.push_back(std::to_string(skipped) + " instance(s) of empty meshes or with singular transforms skipped");
     if (spatial_order && instances.size() > 1) {
         auto order = morton_order(centers);
-        for (uint32_t i : order) s.instances.push_back(instances[i]);
+        out->instances.reserve(instances.size());
+        for (uint32_t i : order) out->instances.push_back(instances[i]);
     } else {
-        s.instances = instances;
+        out->instances = std::move(instances);
     }
-    bool has_geometry = !s.instances.empty();
-    vec3 center = has_geometry ? (scene_lo + scene_hi) * 0.5f : vec3{0, 0, 0};
-    float radius = has_geometry ? std::max(length(scene_hi - scene_lo) * 0.5f, 1e-3f) : 1.0f;
-    s.info.scene_center = center;
-    s.info.scene_radius = radius;
+    bool has_geometry = !out->instances.empty();
+    out->center = has_geometry ? (scene_lo + scene_hi) * 0.5f : vec3{0, 0, 0};
+    out->radius = has_geometry ? std::max(length(scene_hi - scene_lo) * 0.5f, 1e-3f) : 1.0f;
+    return out;
+}
+
+// The world map's texels (negative and non-finite ones zeroed) and its sampling tables.
+std::shared_ptr<const SceneEnvironment> prepare_environment(const SceneArrays& a) {
+    auto out = std::make_shared<SceneEnvironment>();
+    SceneEnvironment& e = *out;
+    if (!a.count("world_map")) bad("missing array 'world_map'");
+    const ArrayView& wm = a.at("world_map");
+    if (wm.kind != 'f' || wm.itemsize != 4 || wm.shape.size() != 3 || wm.shape[2] != 3)
+        bad("array 'world_map' must be float32 (H, W, 3)");
+    size_t H = wm.shape[0], W = wm.shape[1];
+    if ((H == 0) != (W == 0)) bad("world_map has zero size " + shape_str(wm.shape));
+    if (H == 0) return out;
+    const float* px_ = static_cast<const float*>(wm.data);
+    e.texels.resize(H * W);
+    e.conditional.assign(H * (W + 1), 0.0f);
+    e.marginal.assign(H + 1, 0.0f);
+    double total = 0, lum_sum = 0, sin_sum = 0;
+    std::vector<double> row_sum(H, 0.0);
+    for (size_t r = 0; r < H; ++r) {
+        float sin_theta = std::sin(kPi * (r + 0.5f) / H);
+        float* cdf = &e.conditional[r * (W + 1)];
+        double acc = 0;
+        for (size_t c = 0; c < W; ++c) {
+            const float* p = px_ + 3 * (r * W + c);
+            vec3 t = finite3(p) ? vmax(v3(p), {0, 0, 0}) : vec3{0, 0, 0};
+            e.texels[r * W + c] = t;
+            double w = luminance(t) * sin_theta;
+            acc += w;
+            cdf[c + 1] = float(acc);
+            lum_sum += luminance(t) * sin_theta;
+            sin_sum += sin_theta;
+        }
+        for (size_t c = 1; c <= W; ++c) cdf[c] = acc > 0 ? float(cdf[c] / acc) : float(c) / W;
+        cdf[W] = 1.0f;
+        row_sum[r] = acc;
+        total += acc;
+    }
+    for (size_t r = 0; r < H; ++r)
+        e.marginal[r + 1] = total > 0 ? float(e.marginal[r] + row_sum[r] / total) : float(r + 1) / H;
+    e.marginal[H] = 1.0f;
+    e.width = uint(W);
+    e.height = uint(H);
+    e.total = float(total);
+    e.mean_luminance = total > 0 ? float(lum_sum / sin_sum) : 0.0f;
+    return out;
 }
 
 // The light table: emissive triangles, analytic lights (Cycles units -> radiance), the
-// environment and its sampling tables, and the selection CDF by emitted power.
-void prepare_lights(const SceneArrays& a, SceneHost& s) {
-    const float radius = s.info.scene_radius;
+// environment and the selection CDF by emitted power. Needs s.geometry, s.materials and
+// s.placement; sets s.lights, the light fields of s.info and (when `new_environment` or
+// there is none yet) s.environment.
+void prepare_lights(const SceneArrays& a, bool new_environment, SceneHost& s) {
+    const SceneGeometry& g = *s.geometry;
+    const std::vector<Material>& materials = s.materials->materials;
+    auto out = std::make_shared<SceneLights>();
+    out->instances = s.placement->instances;
+    std::vector<Light>& lights = out->lights;
+    const float radius = s.placement->radius;
     std::vector<float> power;  // selection weight of each light
-    for (auto& inst : s.instances) {
-        const MeshInfo& mesh = s.meshes[inst.mesh];
+    for (auto& inst : out->instances) {
+        const MeshInfo& mesh = g.meshes[inst.mesh];
         bool emissive = false;
         for (uint t = mesh.first_triangle; t < mesh.first_triangle + mesh.triangle_count && !emissive; ++t)
-            emissive = luminance(s.materials[s.triangle_material[t]].emission) > 0;
+            emissive = luminance(materials[g.triangle_material[t]].emission) > 0;
         if (!emissive) continue;
-        inst.light_offset = uint(s.lights.size());
+        inst.light_offset = uint(lights.size());
         for (uint t = mesh.first_triangle; t < mesh.first_triangle + mesh.triangle_count; ++t) {
             Light l{};
             l.type = LIGHT_TRIANGLE;
-            vec3 p0 = transform_point(inst.object_to_world, s.positions[s.indices[t].x]);
-            vec3 p1 = transform_point(inst.object_to_world, s.positions[s.indices[t].y]);
-            vec3 p2 = transform_point(inst.object_to_world, s.positions[s.indices[t].z]);
+            vec3 p0 = transform_point(inst.object_to_world, g.positions[g.indices[t].x]);
+            vec3 p1 = transform_point(inst.object_to_world, g.positions[g.indices[t].y]);
+            vec3 p2 = transform_point(inst.object_to_world, g.positions[g.indices[t].z]);
             l.position = p0;
             l.axis_u = p1 - p0;
             l.axis_v = p2 - p0;
             l.area = 0.5f * length(cross(l.axis_u, l.axis_v));
-            l.radiance = s.materials[s.triangle_material[t]].emission;
+            l.radiance = materials[g.triangle_material[t]].emission;
             l.direction = normalize(cross(l.axis_u, l.axis_v));
-            s.lights.push_back(l);
+            lights.push_back(l);
             power.push_back(luminance(l.radiance) * l.area * 2.0f * kPi);  // emits from both sides
         }
     }
@@ -464,7 +537,7 @@ void prepare_lights(const SceneArrays& a, SceneHost& s) {
         if (lcam.rows != L) bad("light_camera_visible and light_type differ in length");
         camera_visible.assign(lcam.data, lcam.data + L);
     }
-    s.info.analytic_first = uint(s.lights.size());
+    s.info.analytic_first = uint(lights.size());
     for (size_t n : {lpos.rows, ldir.rows, lu.rows, lv.rows, lrad.rows, lcol.rows, lspot.rows, lblend.rows, lsun.rows})
         if (n != L) bad("light_* arrays differ in length");
     // Two passes: lights visible to the camera first, so camera rays test only a prefix.
@@ -496,78 +569,42 @@ void prepare_lights(const SceneArrays& a, SceneHost& s) {
             default: p = lum * kPi * l.area;
         }
         if (p <= 0) continue;  // a black light contributes nothing: leave it out
-        s.lights.push_back(l);
+        lights.push_back(l);
         power.push_back(p);
         if (pass == 0) ++s.info.analytic_camera_count;
     }
 
-    s.info.analytic_count = uint(s.lights.size()) - s.info.analytic_first;
+    s.info.analytic_count = uint(lights.size()) - s.info.analytic_first;
     auto world_color = get<float>(a, "world_color", 'f', {}, false);
     if (world_color.rows != 3 || !finite3(world_color.data)) bad("world_color must be 3 finite floats");
     s.info.env_color = vmax(v3(world_color.data), {0, 0, 0});
+    if (new_environment || !s.environment) s.environment = prepare_environment(a);
+    const SceneEnvironment& env = *s.environment;
+    s.info.env_width = env.width;
+    s.info.env_height = env.height;
+    s.info.env_total = env.total;
     s.info.env_light = NO_INDEX;
-    {
-        if (!a.count("world_map")) bad("missing array 'world_map'");
-        const ArrayView& wm = a.at("world_map");
-        if (wm.kind != 'f' || wm.itemsize != 4 || wm.shape.size() != 3 || wm.shape[2] != 3)
-            bad("array 'world_map' must be float32 (H, W, 3)");
-        size_t H = wm.shape[0], W = wm.shape[1];
-        if ((H == 0) != (W == 0)) bad("world_map has zero size " + shape_str(wm.shape));
-        float env_lum = luminance(s.info.env_color);
-        if (H > 0) {
-            const float* px_ = static_cast<const float*>(wm.data);
-            s.env_texels.resize(H * W);
-            s.env_conditional.assign(H * (W + 1), 0.0f);
-            s.env_marginal.assign(H + 1, 0.0f);
-            double total = 0, lum_sum = 0, sin_sum = 0;
-            std::vector<double> row_sum(H, 0.0);
-            for (size_t r = 0; r < H; ++r) {
-                float sin_theta = std::sin(kPi * (r + 0.5f) / H);
-                float* cdf = &s.env_conditional[r * (W + 1)];
-                double acc = 0;
-                for (size_t c = 0; c < W; ++c) {
-                    const float* p = px_ + 3 * (r * W + c);
-                    vec3 t = finite3(p) ? vmax(v3(p), {0, 0, 0}) : vec3{0, 0, 0};
-                    s.env_texels[r * W + c] = t;
-                    double w = luminance(t) * sin_theta;
-                    acc += w;
-                    cdf[c + 1] = float(acc);
-                    lum_sum += luminance(t) * sin_theta;
-                    sin_sum += sin_theta;
-                }
-                for (size_t c = 1; c <= W; ++c) cdf[c] = acc > 0 ? float(cdf[c] / acc) : float(c) / W;
-                cdf[W] = 1.0f;
-                row_sum[r] = acc;
-                total += acc;
-            }
-            for (size_t r = 0; r < H; ++r)
-                s.env_marginal[r + 1] = total > 0 ? float(s.env_marginal[r] + row_sum[r] / total) : float(r + 1) / H;
-            s.env_marginal[H] = 1.0f;
-            s.info.env_width = uint(W);
-            s.info.env_height = uint(H);
-            s.info.env_total = float(total);
-            env_lum = total > 0 ? float(lum_sum / sin_sum) : 0.0f;
-        }
-        if (env_lum > 0) {
-            Light l{};
-            l.type = LIGHT_ENV;
-            s.info.env_light = uint(s.lights.size());
-            s.lights.push_back(l);
-            power.push_back(env_lum * kPi * 4 * kPi * radius * radius);
-        }
+    const float env_lum = env.width ? env.mean_luminance : luminance(s.info.env_color);
+    if (env_lum > 0) {
+        Light l{};
+        l.type = LIGHT_ENV;
+        s.info.env_light = uint(lights.size());
+        lights.push_back(l);
+        power.push_back(env_lum * kPi * 4 * kPi * radius * radius);
     }
     double power_total = std::accumulate(power.begin(), power.end(), 0.0);
-    s.light_cdf.assign(power.size() + 1, 0.0f);
+    out->light_cdf.assign(power.size() + 1, 0.0f);
     double acc = 0;
     for (size_t i = 0; i < power.size(); ++i) {
         acc += power[i];
-        s.light_cdf[i + 1] = float(acc / power_total);
+        out->light_cdf[i + 1] = float(acc / power_total);
     }
-    if (!power.empty()) s.light_cdf.back() = 1.0f;
-    s.info.light_count = uint(s.lights.size());
+    if (!power.empty()) out->light_cdf.back() = 1.0f;
+    s.info.light_count = uint(lights.size());
+    s.lights = std::move(out);
 }
 
-void prepare_camera(const SceneArrays& a, SceneHost& s) {
+void prepare_camera(const SceneArrays& a, SceneInfo& info) {
     auto cam = get<float>(a, "camera_to_world", 'f', {4});
     auto cam_type = get<uint32_t>(a, "camera_type", 'u', {});
     auto window = get<float>(a, "camera_window", 'f', {});
@@ -575,62 +612,169 @@ void prepare_camera(const SceneArrays& a, SceneHost& s) {
     if (cam.rows != 3 || cam_type.rows != 1 || window.rows != 4 || clip.rows != 2) bad("camera arrays have wrong sizes");
     for (int k = 0; k < 12; ++k)
         if (!std::isfinite(cam.data[k])) bad("camera_to_world is NaN or infinite");
-    for (int r = 0; r < 3; ++r) s.info.camera_to_world[r] = {cam.data[4 * r], cam.data[4 * r + 1], cam.data[4 * r + 2], cam.data[4 * r + 3]};
     if (cam_type.data[0] > CAMERA_ORTHOGRAPHIC) bad("unknown camera_type " + std::to_string(cam_type.data[0]));
-    s.info.camera_type = cam_type.data[0];
-    s.info.camera_window = {window.data[0], window.data[1], window.data[2], window.data[3]};
     if (!(window.data[1] > window.data[0]) || !(window.data[3] > window.data[2])) bad("camera_window is empty or NaN");
-    s.info.clip = {std::max(clip.data[0], 0.0f), clip.data[1] > clip.data[0] ? clip.data[1] : 1e30f};
+    for (int r = 0; r < 3; ++r) info.camera_to_world[r] = {cam.data[4 * r], cam.data[4 * r + 1], cam.data[4 * r + 2], cam.data[4 * r + 3]};
+    info.camera_type = cam_type.data[0];
+    info.camera_window = {window.data[0], window.data[1], window.data[2], window.data[3]};
+    info.clip = {std::max(clip.data[0], 0.0f), clip.data[1] > clip.data[0] ? clip.data[1] : 1e30f};
 }
 
 }  // namespace
 
-SceneHost prepare_scene(const SceneArrays& a, bool spatial_order) {
-    SceneHost s;
-    prepare_geometry(a, spatial_order, s);
-    prepare_materials(a, s);
-    prepare_instances(a, spatial_order, s);
-    prepare_lights(a, s);
-    prepare_camera(a, s);
-    s.features = scene_features(s);
+OwnedArray::OwnedArray(const ArrayView& v) : shape(v.shape), kind(v.kind), itemsize(v.itemsize) {
+    const auto* p = static_cast<const uint8_t*>(v.data);
+    if (p) bytes.assign(p, p + v.size() * v.itemsize);
+}
+
+ArrayView OwnedArray::view() const {
+    ArrayView v;
+    v.data = bytes.data();
+    v.shape = shape;
+    v.kind = kind;
+    v.itemsize = itemsize;
+    return v;
+}
+
+namespace {
+const std::pair<const char*, uint32_t> kPartNames[] = {
+    {"geometry", PART_GEOMETRY}, {"instances", PART_INSTANCES}, {"materials", PART_MATERIALS},
+    {"lights", PART_LIGHTS},     {"camera", PART_CAMERA},
+};
+}  // namespace
+
+uint32_t parse_scene_parts(const std::vector<std::string>& names) {
+    if (names.empty()) return PART_ALL;
+    uint32_t mask = 0;
+    for (const auto& name : names) {
+        uint32_t bit = 0;
+        for (const auto& [n, b] : kPartNames)
+            if (name == n) bit = b;
+        if (!bit) throw std::invalid_argument("unknown scene part '" + name + "' (parts: geometry, instances, materials, lights, camera)");
+        mask |= bit;
+    }
+    return mask;
+}
+
+std::string scene_part_name(uint32_t part) {
+    for (const auto& [n, b] : kPartNames)
+        if (part == b) return n;
+    return "?";
+}
+
+uint32_t scene_part_of_array(const std::string& name) {
+    auto starts = [&](const char* prefix) { return name.rfind(prefix, 0) == 0; };
+    if (starts("instance_")) return PART_INSTANCES;
+    if (starts("material_") || starts("texture_")) return PART_MATERIALS;
+    if (starts("light_") || starts("world_")) return PART_LIGHTS;
+    if (starts("camera_")) return PART_CAMERA;
+    if (starts("mesh_") || name == "positions" || name == "indices" || name == "triangle_material" ||
+        name == "corner_normals" || name == "corner_uvs")
+        return PART_GEOMETRY;
+    return 0;
+}
+
+std::vector<std::string> SceneHost::warnings() const {
+    return placement ? placement->warnings : std::vector<std::string>{};
+}
+
+SceneHost update_scene(const SceneHost& previous, const SceneArrays& a, bool spatial_order, uint32_t parts) {
+    // Every other part refers to the geometry (mesh and triangle indices): it redoes all.
+    if ((parts & PART_GEOMETRY) || !previous.geometry) parts = PART_ALL;
+    SceneHost s = parts == PART_ALL ? SceneHost{} : previous;  // shares the parts kept
+    if (parts & PART_GEOMETRY) s.geometry = prepare_geometry(a, spatial_order);
+    if (parts & PART_MATERIALS) s.materials = prepare_materials(a, *s.geometry);
+    if (parts & PART_INSTANCES) {
+        s.placement = prepare_instances(a, spatial_order, *s.geometry);
+        s.info.scene_center = s.placement->center;
+        s.info.scene_radius = s.placement->radius;
+    }
+    // The light table holds the emissive instances' triangles (with their materials'
+    // emission) as well as the analytic lights and the world.
+    if (parts & (PART_INSTANCES | PART_MATERIALS | PART_LIGHTS)) {
+        prepare_lights(a, (parts & PART_LIGHTS) != 0, s);
+        s.features = scene_features(s);
+    }
+    if (parts & PART_CAMERA) prepare_camera(a, s.info);
     return s;
 }
 
-Scene::Scene(Context& ctx, SceneHost host) : host_(std::move(host)) {
-    auto put = [&](uint32_t binding, const auto& vec) {
-        buffers_.emplace(binding, Buffer::with_vector(ctx, vec, kStorageUsage));
+SceneHost prepare_scene(const SceneArrays& a, bool spatial_order) { return update_scene({}, a, spatial_order, PART_ALL); }
+
+Scene::Scene(Context& ctx, SceneHost host, const Scene* previous) : host_(std::move(host)) {
+    const SceneHost* old = previous ? &previous->host_ : nullptr;
+    auto put = [&](uint32_t binding, const auto& vec, VkBufferUsageFlags usage = kStorageUsage) {
+        buffers_[binding] = std::make_shared<const Buffer>(Buffer::with_vector(ctx, vec, usage));
     };
-    const VkBufferUsageFlags as_input = kStorageUsage | VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR;
-    buffers_.emplace(BINDING_POSITIONS, Buffer::with_vector(ctx, host_.positions, as_input));
-    buffers_.emplace(BINDING_INDICES, Buffer::with_vector(ctx, host_.indices, as_input));
-    put(BINDING_CORNER_NORMALS, host_.corner_normals);
-    put(BINDING_CORNER_UVS, host_.corner_uvs);
-    put(BINDING_TRIANGLE_MATERIAL, host_.triangle_material);
-    put(BINDING_MESHES, host_.meshes);
-    put(BINDING_INSTANCES, host_.instances);
-    put(BINDING_MATERIALS, host_.materials);
-    put(BINDING_TEXTURE_INFO, host_.textures);
-    put(BINDING_TEXELS, host_.texels);
-    put(BINDING_LIGHTS, host_.lights);
-    put(BINDING_LIGHT_CDF, host_.light_cdf);
-    put(BINDING_ENV_TEXELS, host_.env_texels);
-    put(BINDING_ENV_MARGINAL, host_.env_marginal);
-    put(BINDING_ENV_CONDITIONAL, host_.env_conditional);
+    auto reuse = [&](std::initializer_list<uint32_t> bindings) {
+        for (uint32_t b : bindings) buffers_[b] = previous->buffers_.at(b);
+    };
+    // Each part's buffers: reused when `previous` has the same host object, else uploaded.
+    const SceneGeometry& g = *host_.geometry;
+    const bool same_geometry = old && old->geometry == host_.geometry;
+    if (same_geometry) {
+        reuse({BINDING_POSITIONS, BINDING_INDICES, BINDING_CORNER_NORMALS, BINDING_CORNER_UVS,
+               BINDING_TRIANGLE_MATERIAL, BINDING_MESHES});
+    } else {
+        const VkBufferUsageFlags as_input = kStorageUsage | VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR;
+        put(BINDING_POSITIONS, g.positions, as_input);
+        put(BINDING_INDICES, g.indices, as_input);
+        put(BINDING_CORNER_NORMALS, g.corner_normals);
+        put(BINDING_CORNER_UVS, g.corner_uvs);
+        put(BINDING_TRIANGLE_MATERIAL, g.triangle_material);
+        put(BINDING_MESHES, g.meshes);
+    }
+    if (old && old->materials == host_.materials) {
+        reuse({BINDING_MATERIALS, BINDING_TEXTURE_INFO, BINDING_TEXELS});
+    } else {
+        put(BINDING_MATERIALS, host_.materials->materials);
+        put(BINDING_TEXTURE_INFO, host_.materials->textures);
+        put(BINDING_TEXELS, host_.materials->texels);
+    }
+    if (old && old->lights == host_.lights) {
+        reuse({BINDING_INSTANCES, BINDING_LIGHTS, BINDING_LIGHT_CDF});
+    } else {
+        put(BINDING_INSTANCES, host_.lights->instances);
+        put(BINDING_LIGHTS, host_.lights->lights);
+        put(BINDING_LIGHT_CDF, host_.lights->light_cdf);
+    }
+    if (old && old->environment == host_.environment) {
+        reuse({BINDING_ENV_TEXELS, BINDING_ENV_MARGINAL, BINDING_ENV_CONDITIONAL});
+    } else {
+        put(BINDING_ENV_TEXELS, host_.environment->texels);
+        put(BINDING_ENV_MARGINAL, host_.environment->marginal);
+        put(BINDING_ENV_CONDITIONAL, host_.environment->conditional);
+    }
     put(BINDING_SCENE, std::vector<SceneInfo>{host_.info});
 
-    // One BLAS per mesh that some instance uses.
+    // One BLAS per mesh that some instance uses. A BLAS is self-contained once built, so the
+    // same geometry keeps its BLASes; an instance edit builds only those of newly used meshes.
+    const auto& instances = host_.placement->instances;
+    if (same_geometry) mesh_blas_ = previous->mesh_blas_;
+    mesh_blas_.resize(g.meshes.size());
+    std::vector<uint32_t> new_meshes;
     std::vector<TriangleRange> ranges;
-    std::vector<int> blas_of_mesh(host_.meshes.size(), -1);
-    for (const auto& inst : host_.instances)
-        if (blas_of_mesh[inst.mesh] < 0) {
-            blas_of_mesh[inst.mesh] = int(ranges.size());
-            ranges.push_back({host_.meshes[inst.mesh].first_triangle, host_.meshes[inst.mesh].triangle_count});
+    std::vector<bool> queued(g.meshes.size(), false);
+    for (const auto& inst : instances)
+        if (!mesh_blas_[inst.mesh] && !queued[inst.mesh]) {
+            queued[inst.mesh] = true;
+            new_meshes.push_back(inst.mesh);
+            ranges.push_back({g.meshes[inst.mesh].first_triangle, g.meshes[inst.mesh].triangle_count});
         }
-    blases_ = build_triangle_blases(ctx, buffers_.at(BINDING_POSITIONS), uint32_t(host_.positions.size()),
-                                    buffers_.at(BINDING_INDICES), ranges);
+    if (!ranges.empty()) {
+        auto built = build_triangle_blases(ctx, *buffers_.at(BINDING_POSITIONS), uint32_t(g.positions.size()),
+                                           *buffers_.at(BINDING_INDICES), ranges);
+        for (size_t i = 0; i < built.size(); ++i) mesh_blas_[new_meshes[i]] = std::move(built[i]);
+        blases_built_ = uint32_t(built.size());
+    }
+    if (same_geometry && old->placement == host_.placement) {
+        tlas_ = previous->tlas_;
+        return;
+    }
     std::vector<TlasInstance> tlas_instances;
-    for (size_t i = 0; i < host_.instances.size(); ++i) {
-        const auto& inst = host_.instances[i];
+    tlas_instances.reserve(instances.size());
+    for (size_t i = 0; i < instances.size(); ++i) {
+        const auto& inst = instances[i];
         TlasInstance t{};
         for (int r = 0; r < 3; ++r) {
             t.transform[4 * r] = inst.object_to_world[r].x;
@@ -641,14 +785,14 @@ Scene::Scene(Context& ctx, SceneHost host) : host_(std::move(host)) {
         t.custom_index = uint32_t(i);
         t.mask = 0xff;
         t.sbt_offset = 0;
-        t.blas = blases_[blas_of_mesh[inst.mesh]]->address();
+        t.blas = mesh_blas_[inst.mesh]->address();
         tlas_instances.push_back(t);
     }
     tlas_ = build_tlas(ctx, tlas_instances);
 }
 
 void Scene::bind(DescriptorSet& set) const {
-    for (const auto& [binding, buffer] : buffers_) set.bind_buffer(binding, buffer);
+    for (const auto& [binding, buffer] : buffers_) set.bind_buffer(binding, *buffer);
     set.bind_tlas(BINDING_TLAS, tlas_->handle());
 }
 

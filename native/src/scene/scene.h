@@ -1,8 +1,12 @@
 // Scene: validated SceneData arrays uploaded as GPU buffers, one BLAS per mesh, one TLAS.
+//
+// The host side is split into parts that can be prepared on their own (SceneHost), so an
+// interactive edit re-prepares and re-uploads only what it changed: see update_scene.
 #pragma once
 #include "../../../shaders/shared/types.h"
 #include "vk/accel.h"
 
+#include <cstdint>
 #include <map>
 #include <memory>
 #include <string>
@@ -24,25 +28,82 @@ struct ArrayView {
 };
 using SceneArrays = std::map<std::string, ArrayView>;
 
-// Host-side scene after validation, ordering and light-table construction; no Vulkan.
-struct SceneHost {
+// An owned copy of an ArrayView (what a Session keeps of the last arrays it was given).
+struct OwnedArray {
+    std::vector<uint8_t> bytes;
+    std::vector<size_t> shape;
+    char kind = 'f';
+    size_t itemsize = 4;
+    explicit OwnedArray(const ArrayView& v);
+    ArrayView view() const;
+};
+
+// The parts of a scene an update can replace (bit mask). Each flat array belongs to one
+// part (parallax_core.scene.PART_KEYS): "geometry" positions, indices, triangle_material,
+// corner_*, mesh_*; "instances" instance_*; "materials" material_*, texture_*; "lights"
+// light_*, world_*; "camera" camera_*.
+enum ScenePart : uint32_t {
+    PART_GEOMETRY = 1u << 0,
+    PART_INSTANCES = 1u << 1,
+    PART_MATERIALS = 1u << 2,
+    PART_LIGHTS = 1u << 3,  // analytic lights and the world (both live in the light table)
+    PART_CAMERA = 1u << 4,
+    PART_ALL = (1u << 5) - 1,
+};
+// Part names -> mask; an empty list means PART_ALL. Throws std::invalid_argument on an
+// unknown name.
+uint32_t parse_scene_parts(const std::vector<std::string>& names);
+// The part an array name belongs to, or 0 for a name the core does not read.
+uint32_t scene_part_of_array(const std::string& name);
+// The name of one part bit ("geometry", ...).
+std::string scene_part_name(uint32_t part);
+
+// Host-side parts of a scene after validation and ordering; no Vulkan. Each part is shared
+// and immutable once prepared, so a partial update copies only the pointers of the parts it
+// keeps (and the Scene reuses their GPU buffers).
+struct SceneGeometry {  // "geometry"
     std::vector<vec3> positions;
-    std::vector<uvec3> indices;
+    std::vector<uvec3> indices;        // triangles Morton-ordered within each mesh
     std::vector<vec3> corner_normals;  // 3 per triangle, or empty
     std::vector<vec2> corner_uvs;      // 3 per triangle, or empty
     std::vector<uint> triangle_material;
     std::vector<MeshInfo> meshes;
-    std::vector<InstanceInfo> instances;  // in TLAS order; custom index = position here
+    std::vector<vec3> mesh_lo, mesh_hi;  // object-space bounds per mesh
+    uint32_t materials_needed = 0;       // 1 + the largest triangle_material (0 if none)
+};
+struct SceneMaterials {  // "materials"
     std::vector<Material> materials;
     std::vector<TextureInfo> textures;
     std::vector<uint> texels;
+};
+struct ScenePlacement {  // "instances": the TLAS contents
+    std::vector<InstanceInfo> instances;  // in TLAS order; light_offset = NO_INDEX
+    vec3 center{0, 0, 0};                 // bounding sphere of the placed geometry
+    float radius = 1.0f;
+    std::vector<std::string> warnings;
+};
+struct SceneEnvironment {  // the world map's texels and sampling tables ("lights")
+    std::vector<vec3> texels;
+    std::vector<float> marginal, conditional;
+    uint width = 0, height = 0;
+    float total = 0;           // sum of luminance * sin(theta) weights
+    float mean_luminance = 0;  // sin(theta)-weighted mean texel luminance (0 if total is 0)
+};
+struct SceneLights {  // depends on geometry, instances, materials and lights
+    std::vector<InstanceInfo> instances;  // the placement with light offsets: the INSTANCES buffer
     std::vector<Light> lights;
     std::vector<float> light_cdf;
-    std::vector<vec3> env_texels;
-    std::vector<float> env_marginal, env_conditional;
+};
+
+struct SceneHost {
+    std::shared_ptr<const SceneGeometry> geometry;
+    std::shared_ptr<const SceneMaterials> materials;
+    std::shared_ptr<const ScenePlacement> placement;
+    std::shared_ptr<const SceneEnvironment> environment;
+    std::shared_ptr<const SceneLights> lights;
     SceneInfo info{};
     uint features = 0;  // FEATURE_* bits of what this scene uses
-    std::vector<std::string> warnings;
+    std::vector<std::string> warnings() const;  // skipped items
 };
 
 // Validates and converts the arrays (see parallax_core.scene.SceneData.flatten for the
@@ -51,19 +112,30 @@ struct SceneHost {
 // builder splits in input order, so this decides its trace speed).
 SceneHost prepare_scene(const SceneArrays& arrays, bool spatial_order);
 
+// `previous` with the `parts` re-prepared from `arrays` (which must hold every array, the
+// unchanged ones included) and whatever depends on them; the other parts are shared with
+// `previous`. PART_GEOMETRY re-prepares everything. Throws like prepare_scene; `previous`
+// is never modified.
+SceneHost update_scene(const SceneHost& previous, const SceneArrays& arrays, bool spatial_order, uint32_t parts);
+
 class Scene {
 public:
-    Scene(Context& ctx, SceneHost host);
+    // Uploads `host`. GPU data of the parts `previous` shares with `host` (the same host
+    // objects) is reused from `previous` rather than uploaded again; BLASes are reused while
+    // the geometry is, so only a geometry change rebuilds them.
+    Scene(Context& ctx, SceneHost host, const Scene* previous = nullptr);
     // Binds every scene buffer and the TLAS into `set`.
     void bind(class DescriptorSet& set) const;
     const SceneHost& host() const { return host_; }
-    size_t triangle_count() const { return host_.indices.size(); }
+    size_t triangle_count() const { return host_.geometry->indices.size(); }
+    uint32_t blases_built() const { return blases_built_; }  // by this Scene, not reused
 
 private:
     SceneHost host_;
-    std::map<uint32_t, Buffer> buffers_;  // binding -> buffer
-    std::vector<std::unique_ptr<AccelerationStructure>> blases_;
-    std::unique_ptr<AccelerationStructure> tlas_;
+    std::map<uint32_t, std::shared_ptr<const Buffer>> buffers_;  // binding -> buffer
+    std::vector<std::shared_ptr<const AccelerationStructure>> mesh_blas_;  // per mesh; null if unused
+    std::shared_ptr<const AccelerationStructure> tlas_;
+    uint32_t blases_built_ = 0;
 };
 
 }  // namespace px
