@@ -6,7 +6,7 @@
 set -euo pipefail
 
 need_pkgs=(build-essential cmake python3-venv python3-dev libvulkan-dev libvulkan1 glslang-tools vulkan-tools)
-blender_pkgs=(blender python3-numpy)
+blender_pkgs=(blender python3-numpy xvfb x11-apps xdotool)  # GUI tests: Xvfb, xwd, xdotool
 sudo_cmd=""
 if [ "$(id -u)" != 0 ]; then sudo_cmd="sudo"; fi
 

@@ -1,9 +1,10 @@
 """F12 and background (``blender -b -f``) renders: progressive, cancellable.
 
-A worker thread drives the core (``Session.render`` releases the GIL) and keeps the latest
-snapshot of the passes; Blender's thread copies snapshots into the render result about twice
-a second and polls ``test_break``, so a cancel returns within ``POLL_SECONDS`` with the last
-snapshot as the partial image while the frame in flight finishes in the background.
+A worker thread drives the core (its calls release the GIL) and keeps the latest snapshot
+of the passes; Blender's thread copies snapshots into the render result about twice a second
+and polls ``test_break``, so a cancel returns within ``POLL_SECONDS`` with the last snapshot
+as the partial image. The worker traces each frame in row bands of about ``BAND_SECONDS``
+and stops between them, so no long dispatch keeps the CPU busy after a cancel.
 """
 import threading
 import time
@@ -14,6 +15,7 @@ from .. import core, passes, sync
 
 UPDATE_SECONDS = 0.5
 POLL_SECONDS = 0.05
+BAND_SECONDS = 0.1
 
 
 class RenderReport:
@@ -23,6 +25,7 @@ class RenderReport:
     def __init__(self):
         self.errors, self.warnings = [], []
         self.samples, self.cancelled = 0, False
+        self.finished_at = None  # time.time() when render() returned to Blender
 
 
 last_report = RenderReport()
@@ -57,6 +60,13 @@ def border_region(render, width, height):
     return x0, y0, x1 - x0, y1 - y0
 
 
+def band_rows(rows, seconds, height):
+    """Rows for the next band so it takes about BAND_SECONDS, given that ``rows`` took
+    ``seconds`` (growing at most 4x a step: a band that compiled the pipeline was slow)."""
+    scale = min(4.0, BAND_SECONDS / max(seconds, 1e-4))
+    return max(1, min(height, int(rows * scale)))
+
+
 class _Worker(threading.Thread):
     """Renders frames until the sample count, the time limit or ``stop()``; keeps snapshots."""
 
@@ -66,6 +76,7 @@ class _Worker(threading.Thread):
         self.frames = frames
         self.time_limit = time_limit
         self.core_passes = core_passes
+        self.rows_per_band = max(1, session.height // 16)  # adapted to the measured band time
         self.snapshot = None  # (samples, seconds, rays per second, {core pass: image})
         self.error = None
         self._stop_event = threading.Event()
@@ -81,7 +92,8 @@ class _Worker(threading.Thread):
                 elapsed = time.perf_counter() - self.start_time
                 if self._stop_event.is_set() or (self.time_limit and frame and elapsed >= self.time_limit):
                     break
-                self.session.render(1)
+                if not self._render_frame():
+                    break
                 now = time.perf_counter()
                 if now - last_snapshot >= UPDATE_SECONDS or frame == self.frames - 1:
                     self._take_snapshot()
@@ -90,6 +102,19 @@ class _Worker(threading.Thread):
                 self._take_snapshot()
         except Exception as e:  # reported by the Blender thread
             self.error = e
+
+    def _render_frame(self):
+        """One frame in row bands of about BAND_SECONDS; False if stopped in between."""
+        rows = self.rows_per_band
+        while True:
+            start = time.perf_counter()
+            done = self.session.render_rows(rows)
+            rows = band_rows(rows, time.perf_counter() - start, self.session.height)
+            self.rows_per_band = rows
+            if done:
+                return True
+            if self._stop_event.is_set():
+                return False
 
     def _take_snapshot(self):
         stats = self.session.stats()
@@ -184,3 +209,4 @@ def render(engine, depsgraph):
         engine.report({"ERROR"}, f"Parallax: {worker.error}")
     elif cancelled:
         engine.update_stats("", f"Cancelled at sample {shown[0] if shown else 0}/{total}")
+    report.finished_at = time.time()

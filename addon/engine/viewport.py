@@ -6,7 +6,8 @@ latest frame. An edit re-sends just the parts it touched (``Session.update(parts
 orbiting sends the camera, moving an object the instance transforms, a material slider the
 materials. After each edit one frame of a smaller session (pixel size 2-8, chosen from the
 measured frame time so it takes about ``PREVIEW_SECONDS``) is shown first, then the full
-resolution refines.
+resolution refines. Full-size frames go in row bands (``final.band_rows``), so an edit
+waits for one band, not a whole frame.
 """
 import threading
 import time
@@ -15,6 +16,7 @@ import weakref
 import numpy as np
 
 from .. import core, sync
+from . import final
 
 PREVIEW_SECONDS = 0.03
 PUBLISH_SECONDS = 0.05  # at most this often a new image for the viewport
@@ -70,7 +72,7 @@ class _Worker(threading.Thread):
     def __init__(self, device, params, target_samples, pixel_size):
         super().__init__(name="parallax-viewport", daemon=True)
         self.device = device
-        self.frame = None      # latest (image (H, W, 4), samples, pixel size), for view_draw
+        self.frame = None      # latest (image (H, W, 4), samples, pixel size, generation)
         self.error = None
         self.done = False      # the sample target is reached and nothing is pending
         self._lock = threading.Condition()
@@ -80,9 +82,12 @@ class _Worker(threading.Thread):
         self._full = self._preview = None  # sessions: full size, and pixel size 2-8 (or none)
         self._preview_factor = 1
         self._frame_seconds = None  # measured frame time at full size
+        self._band_rows = 16
         self._published = 0.0
-        self.edit_time = None  # when the latest edit was handed over (for latency numbers)
-        self.first_frame_latency = None  # seconds from that edit to its first published image
+        self.generation = 0    # counts the hand-overs; a frame shows the scene of its generation
+        self._submitted = {}   # generation -> when it was handed over
+        self._rendering = 0    # generation the sessions hold now
+        self.latencies = []    # (parts, seconds from the hand-over to its first image)
         _workers.add(self)
 
     # -- Blender's thread --
@@ -100,9 +105,11 @@ class _Worker(threading.Thread):
                 self._target = target
             if pixel_size is not None:
                 self._pixel_size = pixel_size
-            self.edit_time = time.perf_counter()
+            self.generation += 1
+            self._submitted[self.generation] = (tuple(sorted(parts)), time.perf_counter())
             self.done = False
             self._lock.notify()
+            return self.generation
 
     def stop(self, wait=2.0):
         with self._lock:
@@ -131,6 +138,7 @@ class _Worker(threading.Thread):
                 return None
             changes = (self._scene, self._parts, self._size, self._params, self._target, self._pixel_size)
             self._parts, self._size = set(), None
+            self._rendering = self.generation
             return changes
 
     def _step(self):
@@ -162,15 +170,31 @@ class _Worker(threading.Thread):
         if target and samples >= target:
             self.done = True
             return True
-        start = time.perf_counter()
-        self._full.render(1)
-        seconds = time.perf_counter() - start
+        seconds = self._render_frame()
+        if seconds is None:
+            return True  # an edit came in: the frame is dropped, the edit handled first
         if samples > 0 or parts is not None:  # not the first frame of a new scene (compiles)
             previous = self._frame_seconds
             self._frame_seconds = seconds if previous is None else 0.5 * (previous + seconds)
         if edited or time.perf_counter() - self._published >= PUBLISH_SECONDS:
             self._publish(self._full, 1)
         return True
+
+    def _render_frame(self):
+        """One full-size frame in row bands of about BAND_SECONDS; its duration, or None if
+        an edit arrived in between."""
+        full, total = self._full, 0.0
+        while True:
+            start = time.perf_counter()
+            done = full.render_rows(self._band_rows)
+            seconds = time.perf_counter() - start
+            total += seconds
+            self._band_rows = final.band_rows(self._band_rows, seconds, full.height)
+            if done:
+                return total
+            with self._lock:
+                if self._stopped or self._parts or self._size is not None:
+                    return None
 
     def _auto_pixel_size(self):
         """Smallest of 1, 2, 4, 8 whose preview frame takes about PREVIEW_SECONDS, from the
@@ -185,10 +209,13 @@ class _Worker(threading.Thread):
     def _publish(self, session, pixel_size):
         image = session.read("combined")
         samples = session.stats().get("samples", 0)
-        self.frame = (image, samples, pixel_size)
+        self.frame = (image, samples, pixel_size, self._rendering)
         self._published = time.perf_counter()
-        if self.edit_time is not None and self.first_frame_latency is None:
-            self.first_frame_latency = self._published - self.edit_time
+        with self._lock:
+            for generation in [g for g in self._submitted if g <= self._rendering]:
+                parts, handed_over = self._submitted.pop(generation)
+                if generation == self._rendering:
+                    self.latencies.append((parts, self._published - handed_over))
 
 
 class ViewportRender:
@@ -263,7 +290,7 @@ class ViewportRender:
         frame = worker.frame
         if frame is not None:
             self._draw_frame(engine, depsgraph.scene, frame, size)
-            image, samples, pixel_size = frame
+            image, samples, pixel_size, _ = frame
             target = self._settings[1] if self._settings else 0
             status = f"Sample {samples}" + (f"/{target}" if target else "")
             engine.update_stats("", status if pixel_size == 1 else f"{status} (preview)")

@@ -113,6 +113,10 @@ NB_MODULE(_native, m) {
                  return to_numpy(std::move(data), {s.height(), s.width(), channels});
              },
              "name"_a, "Accumulated pass as float32 (height, width, channels), row 0 = top.")
+        .def("render_rows", &px::Session::render_rows, "rows"_a, nb::call_guard<nb::gil_scoped_release>(),
+             "Trace the next `rows` rows of the current frame (GIL released); True when that "
+             "completed the frame. For short, interruptible dispatches.")
+        .def_prop_ro("next_row", &px::Session::next_row)
         .def("reset", &px::Session::reset, nb::call_guard<nb::gil_scoped_release>())
         .def("stats",
              [](px::Session& s) {

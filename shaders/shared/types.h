@@ -179,6 +179,7 @@ struct FrameParams {
     uint test_routine;      // sampling test shader only
     uint test_count;
     float test_param0;
+    uint row_offset;        // first image row of this dispatch (frames may go in row bands)
     vec4 test_params;
 };
 

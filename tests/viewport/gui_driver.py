@@ -17,6 +17,7 @@ import traceback
 
 import addon_utils
 import bpy
+import mathutils
 
 OUT, MODE = sys.argv[sys.argv.index("--") + 1:][:2]
 result = {"mode": MODE, "errors": [], "shots": {}}
@@ -72,11 +73,12 @@ def run_steps(steps):
     bpy.app.timers.register(tick, first_interval=0.5)
 
 
-def samples_at_least(n, full_resolution=True):
+def samples_at_least(n, generation=0):
+    """A full-resolution frame with n samples of a scene handed over after `generation`."""
     def ready():
         w = worker()
-        return w is not None and w.frame is not None and w.frame[1] >= n and \
-            (w.frame[2] == 1 or not full_resolution)
+        return w is not None and w.frame is not None and w.frame[1] >= n and w.frame[2] == 1 \
+            and w.frame[3] > generation
     return ready
 
 
@@ -106,24 +108,20 @@ def viewport_steps():
     screenshot("early")
     yield samples_at_least(64)
     screenshot("converged")
-    w = worker()
-    box = bpy.data.objects["TallBox"]
-    box.location.x += 0.6
-    edited = time.perf_counter()
-    yield lambda: worker().edit_time is not None and worker().edit_time >= edited and \
-        worker().first_frame_latency is not None and worker().frame[1] >= 1
-    result["move_latency"] = worker().first_frame_latency
-    yield samples_at_least(16)
+    before = worker().generation
+    bpy.data.objects["TallBox"].location.x += 0.6  # an object transform: instances only
+    yield samples_at_least(16, before)
     screenshot("moved")
-    space.region_3d.view_perspective = "PERSP"
-    space.region_3d.view_rotation.rotate(__import__("mathutils").Euler((0.0, 0.0, math.radians(25))))
-    yield after(0.2)
-    yield samples_at_least(16)
+    before = worker().generation
+    space.region_3d.view_perspective = "PERSP"  # orbit: the camera only
+    space.region_3d.view_rotation.rotate(mathutils.Euler((0.0, 0.0, math.radians(25))))
+    yield samples_at_least(16, before)
     screenshot("orbited")
-    result["samples_per_second"] = None
     w = worker()
-    t0, s0 = time.perf_counter(), w.frame[1]
+    result["latencies"] = w.latencies
+    t0, s0, generation = time.perf_counter(), w.frame[1], w.generation
     yield after(3.0)
+    assert worker().generation == generation, "the view changed while counting samples"
     result["samples_per_second"] = (worker().frame[1] - s0) / (time.perf_counter() - t0)
     space.shading.type = "SOLID"  # frees the viewport engine and its worker
     yield after(1.0)
@@ -142,7 +140,11 @@ def cancel_steps():
     yield lambda: os.path.exists(escape)
     sent = float(open(escape).read() or time.time())
     yield lambda: not bpy.app.is_job_running("RENDER") or time.time() - sent > 10.0
-    result["cancel_seconds"] = time.time() - sent
+    result["job_seconds"] = time.time() - sent  # until Blender's render job ended
+    from parallax.engine import final
+    report = final.last_report
+    result["cancel_seconds"] = (report.finished_at or float("inf")) - sent  # our engine stopped
+    result["cancelled"] = report.cancelled
     result["still_rendering"] = bpy.app.is_job_running("RENDER")
     yield after(0.5)
     result["responsive"] = True  # timers still run after the cancel

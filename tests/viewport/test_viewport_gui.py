@@ -67,7 +67,7 @@ def _start_blender(gui, mode):
     return proc, out
 
 
-def _finish(proc, out, timeout=300):
+def _finish(proc, out, timeout=300, exit_codes=(0,)):
     try:
         log, _ = proc.communicate(timeout=timeout)
     except subprocess.TimeoutExpired:
@@ -78,7 +78,7 @@ def _finish(proc, out, timeout=300):
     assert result_file.exists(), f"no result (exit {proc.returncode}):\n{log[-3000:]}"
     result = json.loads(result_file.read_text())
     assert not result["errors"], "\n".join(result["errors"]) + log[-3000:]
-    assert proc.returncode == 0, log[-3000:]
+    assert proc.returncode in exit_codes, log[-3000:]
     assert "Traceback" not in log, log[-3000:]
     return result, log
 
@@ -89,6 +89,13 @@ def _viewport_image(result, name):
     x, y, w, h = result["region"]
     win_h = image.shape[0]
     return image[win_h - (y + h):win_h - y, x:x + w]
+
+
+def _camera_frame(image):
+    """The part of a camera-view screenshot inside the camera frame (outside the box the
+    world is black)."""
+    lit = np.flatnonzero(image.mean(axis=(0, 2)) > 0.02)
+    return image[:, lit[0]:lit[-1] + 1]
 
 
 def _box_mean(image, fx0, fx1, fy0, fy1):
@@ -108,16 +115,20 @@ def test_rendered_viewport_refines_and_follows_edits(gui):
     result, log = _finish(proc, out)
     early, converged = _viewport_image(result, "early"), _viewport_image(result, "converged")
     # Red wall on the left, green wall on the right of the camera view.
-    left, right = _box_mean(converged, 0.05, 0.25, 0.3, 0.7), _box_mean(converged, 0.75, 0.95, 0.3, 0.7)
-    assert left[0] > 1.5 * left[1] and right[1] > 1.5 * right[0], (left, right)
+    frame = _camera_frame(converged)
+    left, right = _box_mean(frame, 0.02, 0.1, 0.3, 0.7), _box_mean(frame, 0.9, 0.98, 0.3, 0.7)
+    # (sRGB values under the yellowish light: the green wall is only somewhat greener than red)
+    assert left[0] > 2 * left[1] and right[1] > 1.2 * right[0], (left, right)
+    assert left[0] > right[0] and right[1] > left[1], (left, right)
     assert _noise(converged) < 0.8 * _noise(early)
     moved, orbited = _viewport_image(result, "moved"), _viewport_image(result, "orbited")
     assert np.abs(moved - converged).mean() > 0.01  # the tall box moved
     assert np.abs(orbited - moved).mean() > 0.02   # the view turned
-    assert result["move_latency"] is not None and result["samples_per_second"] > 0
+    assert result["samples_per_second"] > 0
     assert result["workers_alive_after_solid"] == 0
-    print(f"edit -> first frame {result['move_latency'] * 1000:.0f} ms, "
-          f"{result['samples_per_second']:.1f} samples/s")
+    latencies = {tuple(parts): seconds for parts, seconds in result["latencies"]}
+    assert ("instances",) in latencies and ("camera",) in latencies, latencies
+    print(f"edit -> first frame: {latencies}; {result['samples_per_second']:.1f} samples/s")
 
 
 def test_escape_cancels_an_f12_render_within_a_second(gui):
@@ -130,6 +141,10 @@ def test_escape_cancels_an_f12_render_within_a_second(gui):
     subprocess.run(["xdotool", "mousemove", str(WIDTH // 2), str(HEIGHT // 2)], env=env, check=True)
     (out / "escape_sent").write_text(repr(time.time()))
     subprocess.run(["xdotool", "key", "Escape"], env=env, check=True)
-    result, _ = _finish(proc, out)
-    assert not result["still_rendering"] and result["cancel_seconds"] < 1.0, result
+    # Blender exits with status 1 after a user break (Esc sets G.is_break).
+    result, _ = _finish(proc, out, exit_codes=(0, 1))
+    assert result["cancelled"] and result["cancel_seconds"] < 1.0, result
+    # Blender's job then ends (its display work is slow on llvmpipe) and the UI goes on.
+    assert not result["still_rendering"] and result["job_seconds"] < 5.0, result
     assert result["responsive"]
+    print(f"Esc -> render stopped {result['cancel_seconds']:.2f} s, job ended {result['job_seconds']:.2f} s")

@@ -75,6 +75,7 @@ std::vector<std::string> Session::update(const SceneArrays& arrays, bool spatial
     arrays_ = std::move(next_arrays);
     scene_->bind(*set_);
     stats_ = {};
+    next_row_ = 0;
     film_.fill_zero();
     ray_count_.fill_zero();
     return warnings;
@@ -91,6 +92,7 @@ void Session::set_params(const RenderParams& p) {
     if (p == params_) return;
     params_ = p;
     stats_ = {};
+    next_row_ = 0;
     film_.fill_zero();
     ray_count_.fill_zero();
 }
@@ -98,14 +100,23 @@ void Session::set_params(const RenderParams& p) {
 void Session::reset() {
     std::lock_guard<std::mutex> lock(mutex_);
     stats_ = {};
+    next_row_ = 0;
     film_.fill_zero();
     ray_count_.fill_zero();
 }
 
+// Pipelines are compiled once per device and specialisation and shared by every session
+// (their descriptor set layouts are the same object): a new F12 render or viewport session
+// does not wait for a compile again. Like the device they are kept until the process ends
+// (never destroyed at exit, when the driver may already be going away).
 RayTracingPipeline& Session::pipeline() {
+    static std::mutex mutex;
+    static auto& pipelines =
+        *new std::map<std::pair<Context*, std::array<uint32_t, 3>>, std::unique_ptr<RayTracingPipeline>>();
     const std::array<uint32_t, 3> key = {params_.method, params_.mis_heuristic, scene_->host().features};
-    auto it = pipelines_.find(key);
-    if (it != pipelines_.end()) return *it->second;
+    std::lock_guard<std::mutex> lock(mutex);
+    auto it = pipelines.find({ctx_.get(), key});
+    if (it != pipelines.end()) return *it->second;
     std::vector<ShaderStage> stages = {
         {VK_SHADER_STAGE_RAYGEN_BIT_KHR, &shader_raygen()},
         {VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR, &shader_closesthit()},
@@ -120,38 +131,62 @@ RayTracingPipeline& Session::pipeline() {
     };
     auto p = std::make_unique<RayTracingPipeline>(*ctx_, set_->layout(), uint32_t(sizeof(FrameParams)), stages, groups,
                                                   std::vector<uint32_t>(key.begin(), key.end()));
-    return *pipelines_.emplace(key, std::move(p)).first->second;
+    return *pipelines.emplace(std::make_pair(ctx_.get(), key), std::move(p)).first->second;
 }
 
-void Session::render(uint32_t frames) {
-    std::lock_guard<std::mutex> lock(mutex_);
+void Session::trace(uint32_t frames, uint32_t rows) {
     if (!scene_) throw std::runtime_error("no scene: call update(scene) before render()");
     RayTracingPipeline& pipe = pipeline();
     auto start = std::chrono::steady_clock::now();
+    uint32_t completed = 0;
     ctx_->submit_and_wait([&](VkCommandBuffer cmd) {
-        for (uint32_t f = 0; f < frames; ++f) {
+        // Row bands of the current frame, then whole frames; each band sees the same frame
+        // index (RNG streams) as the rest of its frame.
+        uint32_t budget = frames ? UINT32_MAX : rows;
+        while (budget > 0 && (frames == 0 ? true : completed < frames)) {
+            uint32_t band = std::min(height_ - next_row_, budget);
             FrameParams fp{};
             fp.width = width_;
             fp.height = height_;
-            fp.frame = stats_.frames + f;
+            fp.row_offset = next_row_;
+            fp.frame = stats_.frames + completed;
             fp.seed = params_.seed;
             fp.samples_per_frame = params_.samples_per_frame;
             fp.max_depth = params_.max_depth;
             fp.depth_leeway = params_.depth_leeway;
             fp.rr_start_depth = params_.rr_start_depth;
             fp.light_samples = params_.light_samples;
-            pipe.trace(cmd, set_->set(), &fp, sizeof(fp), width_, height_);
+            pipe.trace(cmd, set_->set(), &fp, sizeof(fp), width_, band);
             VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
             b.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
             b.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_READ_BIT;
             vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_RAY_TRACING_SHADER_BIT_KHR,
                                  VK_PIPELINE_STAGE_RAY_TRACING_SHADER_BIT_KHR | VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1,
                                  &b, 0, nullptr, 0, nullptr);
+            next_row_ += band;
+            if (budget != UINT32_MAX) budget -= band;
+            if (next_row_ == height_) {
+                next_row_ = 0;
+                ++completed;
+                if (frames == 0) break;  // render_rows: at most the rest of one frame
+            }
         }
     });
     stats_.milliseconds += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-    stats_.frames += frames;
-    stats_.samples += uint64_t(frames) * params_.samples_per_frame;
+    stats_.frames += completed;
+    stats_.samples += uint64_t(completed) * params_.samples_per_frame;
+}
+
+void Session::render(uint32_t frames) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    trace(frames, 0);
+}
+
+bool Session::render_rows(uint32_t rows) {
+    if (rows == 0) throw std::invalid_argument("render_rows needs at least one row");
+    std::lock_guard<std::mutex> lock(mutex_);
+    trace(0, rows);
+    return next_row_ == 0;
 }
 
 std::vector<float> Session::read(const std::string& pass, uint32_t& channels) {

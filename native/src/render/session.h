@@ -52,7 +52,14 @@ public:
     std::vector<std::string> update(const SceneArrays& arrays, bool spatial_order = true, uint32_t parts = PART_ALL);
     void set_params(const RenderParams& params);
     const RenderParams& params() const { return params_; }
+    // Adds `frames` whole frames (finishing a frame that render_rows began first).
     void render(uint32_t frames);
+    // Traces the next `rows` rows of the current frame (short dispatches, so a caller can
+    // react between them); returns true when that completed the frame. Sample counts include
+    // completed frames only, so read() is exact after a completed frame (in between, traced
+    // rows hold one frame more). update, set_params and reset drop a partial frame.
+    bool render_rows(uint32_t rows);
+    uint32_t next_row() const { return next_row_; }
     // (height, width, channels) float32, row 0 = top.
     std::vector<float> read(const std::string& pass, uint32_t& channels);
     void reset();
@@ -68,6 +75,7 @@ public:
     size_t triangle_count() const { return scene_ ? scene_->triangle_count() : 0; }
 
 private:
+    void trace(uint32_t frames, uint32_t rows);  // whole frames, or (frames == 0) rows of one
     RayTracingPipeline& pipeline();
     std::shared_ptr<Context> ctx_;  // first member: destroyed after everything using it
     uint32_t width_, height_;
@@ -77,10 +85,10 @@ private:
     uint64_t blas_builds_ = 0;
     Buffer film_, ray_count_, test_io_;
     // One pipeline per (method, heuristic, scene features) combination, built on first use.
-    std::map<std::array<uint32_t, 3>, std::unique_ptr<RayTracingPipeline>> pipelines_;
     std::unique_ptr<ComputePipeline> test_pipeline_;
     RenderParams params_;
     SessionStats stats_;
+    uint32_t next_row_ = 0;    // first row of the current frame that render_rows has not traced
     std::mutex mutex_;         // the scene, film and stats against concurrent render()/read()
     std::mutex update_mutex_;  // one update() at a time: each builds on the previous one
 };

@@ -1,6 +1,9 @@
 #include "vk/pipeline.h"
 
 #include <cstring>
+#include <map>
+#include <mutex>
+#include <tuple>
 
 namespace px {
 
@@ -8,7 +11,13 @@ static constexpr VkShaderStageFlags kAllStages =
     VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR | VK_SHADER_STAGE_MISS_BIT_KHR |
     VK_SHADER_STAGE_ANY_HIT_BIT_KHR | VK_SHADER_STAGE_INTERSECTION_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT;
 
-DescriptorSet::DescriptorSet(Context& ctx, uint32_t binding_count, uint32_t tlas_binding) : ctx_(ctx) {
+namespace {
+VkDescriptorSetLayout shared_layout(Context& ctx, uint32_t binding_count, uint32_t tlas_binding) {
+    static std::mutex mutex;
+    static std::map<std::tuple<VkDevice, uint32_t, uint32_t>, VkDescriptorSetLayout> layouts;
+    std::lock_guard<std::mutex> lock(mutex);
+    VkDescriptorSetLayout& layout = layouts[{ctx.device(), binding_count, tlas_binding}];
+    if (layout != VK_NULL_HANDLE) return layout;
     std::vector<VkDescriptorSetLayoutBinding> bindings(binding_count);
     for (uint32_t i = 0; i < binding_count; ++i) {
         bindings[i].binding = i;
@@ -20,7 +29,13 @@ DescriptorSet::DescriptorSet(Context& ctx, uint32_t binding_count, uint32_t tlas
     VkDescriptorSetLayoutCreateInfo linfo{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
     linfo.bindingCount = binding_count;
     linfo.pBindings = bindings.data();
-    VK_CHECK(vkCreateDescriptorSetLayout(ctx.device(), &linfo, nullptr, &layout_));
+    VK_CHECK(vkCreateDescriptorSetLayout(ctx.device(), &linfo, nullptr, &layout));
+    return layout;
+}
+}  // namespace
+
+DescriptorSet::DescriptorSet(Context& ctx, uint32_t binding_count, uint32_t tlas_binding)
+    : ctx_(ctx), layout_(shared_layout(ctx, binding_count, tlas_binding)) {
     VkDescriptorPoolSize sizes[2] = {{VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR, 1},
                                      {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, binding_count}};
     VkDescriptorPoolCreateInfo pinfo{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
@@ -37,7 +52,6 @@ DescriptorSet::DescriptorSet(Context& ctx, uint32_t binding_count, uint32_t tlas
 
 DescriptorSet::~DescriptorSet() {
     vkDestroyDescriptorPool(ctx_.device(), pool_, nullptr);
-    vkDestroyDescriptorSetLayout(ctx_.device(), layout_, nullptr);
 }
 
 void DescriptorSet::bind_buffer(uint32_t binding, const Buffer& buffer) {

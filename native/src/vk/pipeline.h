@@ -26,6 +26,8 @@ struct ShaderGroup {
 
 class DescriptorSet {
 public:
+    // Every set of one device with the same bindings shares one layout, kept for the process
+    // (like the device), so a pipeline compiled for one set works with all of them.
     DescriptorSet(Context& ctx, uint32_t binding_count, uint32_t tlas_binding);
     ~DescriptorSet();
     void bind_buffer(uint32_t binding, const Buffer& buffer);
