@@ -87,9 +87,10 @@ def after(seconds):
     return lambda: time.perf_counter() >= until
 
 
-def viewport_steps():
+def rendered_camera_view():
+    """Steps: the biggest 3D viewport fills the window, looks through the scene camera with
+    overlays off, and switches to Rendered shading. Returns its space at the end."""
     area = view3d()
-    space = area.spaces.active
     with bpy.context.temp_override(area=area):
         bpy.ops.screen.screen_full_area(use_hide_panels=True)
     yield after(1.0)
@@ -104,6 +105,11 @@ def viewport_steps():
     space.shading.type = "RENDERED"
     result["region"] = [region.x, region.y, region.width, region.height]
     result["window"] = [bpy.context.window.width, bpy.context.window.height]
+    return space
+
+
+def viewport_steps():
+    space = yield from rendered_camera_view()
     yield samples_at_least(2)
     screenshot("early")
     yield samples_at_least(64)
@@ -127,6 +133,45 @@ def viewport_steps():
     yield after(1.0)
     from parallax.engine import viewport
     result["workers_alive_after_solid"] = sum(w.is_alive() for w in viewport._workers)
+    space.shading.type = "RENDERED"  # and quit while it renders: Blender must exit cleanly
+    yield lambda: worker() is not None and worker().frame is not None
+
+
+def bench_steps():
+    """Edit -> first new frame latency for each kind of edit (3 times each), then samples/s."""
+    space = yield from rendered_camera_view()
+    yield samples_at_least(4)
+    objects = bpy.data.objects
+    mover = next((objects[n] for n in ("TallBox", "Fountain") if n in objects),
+                 next(o for o in objects if o.type == "MESH"))
+    light = next((o for o in objects if o.type == "LIGHT"), objects.get("Light"))
+    material = next(m for m in bpy.data.materials if m.node_tree and any(
+        n.type == "BSDF_DIFFUSE" for n in m.node_tree.nodes))
+    diffuse = next(n for n in material.node_tree.nodes if n.type == "BSDF_DIFFUSE")
+    space.region_3d.view_perspective = "PERSP"
+    yield samples_at_least(4, worker().generation)
+    edits = {
+        "camera": lambda i: space.region_3d.view_rotation.rotate(
+            mathutils.Euler((0.0, 0.0, math.radians(4 if i % 2 else -4)))),
+        "object": lambda i: setattr(mover.location, "x", mover.location.x + (0.1 if i % 2 else -0.1)),
+        "material": lambda i: diffuse.inputs["Color"].default_value.__setitem__(0, 0.5 + 0.1 * (i % 2)),
+        "light": lambda i: setattr(light.location, "z", light.location.z + (0.05 if i % 2 else -0.05)),
+    }
+    result["edits"] = {}
+    for name, edit in edits.items():
+        for i in range(3):
+            w = worker()
+            before, count = w.generation, len(w.latencies)
+            edit(i)
+            yield lambda: len(worker().latencies) > count and worker().latencies[-1] is not None
+            result["edits"].setdefault(name, []).append(worker().latencies[-1])
+            yield samples_at_least(2, before)
+    w = worker()
+    t0, s0, generation = time.perf_counter(), w.frame[1], w.generation
+    yield after(5.0)
+    assert worker().generation == generation, "the view changed while counting samples"
+    result["samples_per_second"] = (worker().frame[1] - s0) / (time.perf_counter() - t0)
+    result["size"] = list(worker().frame[0].shape[:2])
 
 
 def cancel_steps():
@@ -153,7 +198,7 @@ def cancel_steps():
 try:
     assert addon_utils.enable("parallax", default_set=True) is not None, "the add-on did not enable"
     bpy.context.scene.render.engine = "PARALLAX"
-    run_steps(viewport_steps() if MODE == "viewport" else cancel_steps())
+    run_steps({"viewport": viewport_steps, "bench": bench_steps, "cancel": cancel_steps}[MODE]())
 except Exception:
     result["errors"].append(traceback.format_exc())
     save_result()

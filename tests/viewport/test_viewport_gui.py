@@ -5,66 +5,28 @@ One Blender session renders blender_scenes/cornell_box (built by Blender 3.4 its
 cannot read files saved by Blender 5) in a Rendered viewport, moves the tall box and orbits;
 another starts an F12 render and cancels it with Esc sent by xdotool.
 """
-import glob
 import json
-import os
 import shutil
 import subprocess
 import time
+from pathlib import Path
 
+import gui as gui_tools
 import numpy as np
 import pytest
-from helpers import install_addon_copy
 from xwd import read_xwd
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-REPO = os.path.dirname(os.path.dirname(HERE))
-TOOLS = ("blender", "Xvfb", "xwd", "xdotool")
+TOOLS = gui_tools.TOOLS
 pytestmark = pytest.mark.skipif(not all(shutil.which(t) for t in TOOLS),
                                 reason=f"needs {', '.join(TOOLS)} (make setup installs them)")
 WIDTH, HEIGHT = 1280, 800
 
 
-def _free_display():
-    for n in range(90, 200):
-        if not os.path.exists(f"/tmp/.X11-unix/X{n}") and not os.path.exists(f"/tmp/.X{n}-lock"):
-            return n
-    raise RuntimeError("no free X display number")
-
-
 @pytest.fixture(scope="module")
 def gui(tmp_path_factory, core_wheel):
-    root = tmp_path_factory.mktemp("gui")
-    scripts = root / "scripts" / "addons"
-    scripts.mkdir(parents=True)
-    install_addon_copy(str(scripts), core_wheel)
-    env = dict(os.environ, HOME=str(root / "home"), BLENDER_USER_SCRIPTS=str(root / "scripts"))
-    env.pop("PYTHONPATH", None)
-    (root / "home").mkdir()
-    subprocess.run(["blender", "-b", "--factory-startup", "--python",
-                    os.path.join(REPO, "blender_scenes", "build.py"), "--", "cornell_box", "--out",
-                    str(root)], env=env, check=True, capture_output=True, timeout=300)
-    n = _free_display()
-    xvfb = subprocess.Popen(["Xvfb", f":{n}", "-screen", "0", f"{WIDTH}x{HEIGHT}x24", "-nolisten", "tcp"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    deadline = time.time() + 20
-    while not os.path.exists(f"/tmp/.X11-unix/X{n}"):
-        assert time.time() < deadline and xvfb.poll() is None, "Xvfb did not start"
-        time.sleep(0.1)
-    env["DISPLAY"] = f":{n}"
-    yield dict(env=env, scene=str(root / "cornell_box.blend"), root=root)
-    xvfb.terminate()
-    xvfb.wait(10)
-
-
-def _start_blender(gui, mode):
-    out = gui["root"] / mode
-    out.mkdir()
-    proc = subprocess.Popen(
-        ["blender", "--factory-startup", "-p", "0", "0", str(WIDTH), str(HEIGHT), "--no-window-focus",
-         gui["scene"], "--python", os.path.join(HERE, "gui_driver.py"), "--", str(out), mode],
-        env=gui["env"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    return proc, out
+    session = gui_tools.BlenderGui(str(tmp_path_factory.mktemp("gui")), core_wheel, (WIDTH, HEIGHT))
+    yield session
+    session.close()
 
 
 def _finish(proc, out, timeout=300, exit_codes=(0,)):
@@ -111,8 +73,8 @@ def _noise(image):
 
 
 def test_rendered_viewport_refines_and_follows_edits(gui):
-    proc, out = _start_blender(gui, "viewport")
-    result, log = _finish(proc, out)
+    proc, out = gui.start("cornell_box", "viewport")
+    result, log = _finish(proc, Path(out))
     early, converged = _viewport_image(result, "early"), _viewport_image(result, "converged")
     # Red wall on the left, green wall on the right of the camera view.
     frame = _camera_frame(converged)
@@ -132,12 +94,13 @@ def test_rendered_viewport_refines_and_follows_edits(gui):
 
 
 def test_escape_cancels_an_f12_render_within_a_second(gui):
-    proc, out = _start_blender(gui, "cancel")
+    proc, out = gui.start("cornell_box", "cancel")
+    out = Path(out)
     deadline = time.time() + 120
     while not (out / "rendering").exists():
         assert proc.poll() is None and time.time() < deadline, proc.communicate()[0][-3000:]
         time.sleep(0.1)
-    env = gui["env"]
+    env = gui.env
     subprocess.run(["xdotool", "mousemove", str(WIDTH // 2), str(HEIGHT // 2)], env=env, check=True)
     (out / "escape_sent").write_text(repr(time.time()))
     subprocess.run(["xdotool", "key", "Escape"], env=env, check=True)
