@@ -1,0 +1,364 @@
+"""Equal-time convergence: every Parallax method and the peers on the blender_scenes.
+
+    .venv/bin/python -m bench.converge [--scenes cornell_box,veach_mis,...] [--seconds 120]
+        [--device auto] [--methods pt,nee,mis] [--peers cycles,cycles_guiding,mitsuba]
+        [--width 320] [--reference-seconds 1200] [--npz DIR] [--out bench/results/<device>]
+
+The thesis' evaluation (Scholl 2020, ch. 5): each renderer gets the same wall-clock time,
+start-up included, on the same scene, and its image is compared with a reference by the
+relMSE of Ruppert et al. 2020: per pixel (x - r)^2 / (r^2 + 0.001) averaged over colour, the
+largest 0.1% of pixels dropped, the rest averaged.
+
+- Scenes come from blender_scenes/NAME.blend through the add-on's export (what an F12
+  render uploads), at --width (height keeps the aspect); --npz DIR instead reads DIR/NAME.npz
+  (the GPU machine has no Blender): `python -m bench.converge --export-only --npz DIR` writes
+  them.
+- Parallax methods render progressively; the error is recorded along the way (convergence
+  plot). Cycles (CPU, through bpy; also with its Open PGL path guiding) renders the same
+  .blend at the same size with a time limit, once per checkpoint. Mitsuba 3 renders the same
+  SceneData (bench/mitsuba_peer.py), progressively.
+- The reference is a long Parallax MIS render, cached in bench/references/ (not committed)
+  with a JSON note of how it was made, and reused.
+- Output in --out: NAME.md (table), NAME_convergence.png, NAME_images.png (final images and
+  the reference), results.json (raw numbers).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import time
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+REPO = os.path.dirname(HERE)
+SCENES = ("cornell_box", "veach_mis", "cornell_dielectric", "light_behind_glass", "atrium")
+MAX_DEPTH = 8  # Cycles' Max Bounces in every scene; Parallax with no discrete leeway
+
+
+# ---- metric ------------------------------------------------------------------------------
+
+def rel_mse(image, reference, drop=0.001):
+    """Ruppert et al. 2020: mean over pixels of mean over colour of (x - r)^2 / (r^2 + 0.001),
+    without the largest `drop` fraction of pixels."""
+    x, r = np.asarray(image, np.float64)[..., :3], np.asarray(reference, np.float64)[..., :3]
+    per_pixel = ((x - r) ** 2 / (r * r + 1e-3)).mean(axis=-1).ravel()
+    per_pixel = np.where(np.isfinite(per_pixel), per_pixel, np.inf)
+    keep = per_pixel.size - int(per_pixel.size * drop)
+    return float(np.partition(per_pixel, keep - 1)[:keep].mean())
+
+
+def checkpoints(seconds):
+    """Times at which the error is recorded: doubling up to `seconds`."""
+    t, out = seconds, []
+    while t >= 0.5 and len(out) < 8:
+        out.append(t)
+        t /= 2
+    return sorted(out)
+
+
+class Progress:
+    """A one-line progress bar on stderr for a step of known length."""
+
+    def __init__(self, label, total):
+        self.label, self.total, self.start = label, total, time.perf_counter()
+
+    def update(self, done, note=""):
+        frac = min(1.0, done / self.total) if self.total else 1.0
+        bar = "#" * int(30 * frac) + " " * (30 - int(30 * frac))
+        sys.stderr.write(f"\r{self.label:34s} [{bar}] {time.perf_counter() - self.start:6.1f} s {note:24s}")
+        sys.stderr.flush()
+
+    def close(self, note=""):
+        self.update(self.total, note)
+        sys.stderr.write("\n")
+
+
+# ---- scenes ------------------------------------------------------------------------------
+
+def export_scene(name, width):
+    """SceneData of blender_scenes/NAME.blend at `width`, exactly as F12 would upload it."""
+    from parallax_blender import cli
+
+    scene = cli.open_blend(os.path.join(REPO, "blender_scenes", name + ".blend"))
+    aspect = scene.render.resolution_y / scene.render.resolution_x
+    scene.render.resolution_x, scene.render.resolution_y = width, max(1, round(width * aspect))
+    scene.render.resolution_percentage = 100
+    from parallax_blender.engine import final
+
+    captured = []
+    final.scene_hook = lambda data, warnings: captured.append(data)
+    try:
+        cli._render(__import__("bpy"), final)
+    finally:
+        final.scene_hook = None
+    return captured[0]
+
+
+def load_scene(name, width, npz_dir):
+    if npz_dir:
+        from parallax_core.scene import SceneData
+
+        return SceneData.load(os.path.join(npz_dir, name + ".npz"))
+    return export_scene(name, width)
+
+
+# ---- renderers ---------------------------------------------------------------------------
+
+def render_parallax(scene, method, seconds, device, reference, label, seed=0):
+    """Progressive Parallax render for `seconds` (start-up included); (image, spp, seconds,
+    [(t, relMSE)]). Two 1-spp frames (the first compiles) size the frames to ~0.2 s."""
+    import parallax_core as pc
+
+    bar = Progress(label, seconds)
+    start = time.perf_counter()
+    session = pc.Session(scene.width, scene.height, device)
+    params = dict(method=method, samples_per_frame=1, max_depth=MAX_DEPTH, depth_leeway=0, seed=seed)
+    session.set_params(**params)
+    session.update(scene)
+    session.render(1)
+    frame_start = time.perf_counter()
+    session.render(1)
+    per_frame = int(min(64, max(1, 0.2 / max(time.perf_counter() - frame_start, 1e-4))))
+    session.set_params(**{**params, "samples_per_frame": per_frame})  # restarts accumulation
+    marks, curve = checkpoints(seconds), []
+    while True:
+        frame_start = time.perf_counter()
+        session.render(1)
+        now = time.perf_counter()
+        elapsed = now - start
+        if marks and elapsed >= marks[0] and reference is not None:
+            curve.append((elapsed, rel_mse(session.read("combined"), reference)))
+            while marks and elapsed >= marks[0]:
+                marks.pop(0)
+        bar.update(elapsed, f"{session.stats()['samples']} spp")
+        if elapsed + (now - frame_start) > seconds:
+            break
+    image = session.read("combined")[..., :3]
+    spp = session.stats()["samples"]
+    used = time.perf_counter() - start
+    bar.close(f"{spp} spp")
+    if reference is not None and (not curve or curve[-1][0] < used - 1e-3):
+        curve.append((used, rel_mse(image, reference)))
+    return image, spp, used, curve
+
+
+def render_cycles(name, width, seconds, guiding, reference, label):
+    """Cycles (CPU) on the same .blend at the same size, time-limited, once per checkpoint."""
+    import bpy
+
+    from parallax_blender import cli
+
+    stats = []
+
+    def on_stats(text, *args):  # render_stats handler: Cycles' status line
+        if isinstance(text, str) and "Sample" in text:
+            stats.append(text)
+
+    curve, image, spp, used = [], None, 0, 0.0
+    marks = [t for t in checkpoints(seconds) if t >= seconds / 4]
+    bar = Progress(label, sum(marks))
+    done = 0.0
+    for limit in marks:
+        scene = cli.open_blend(os.path.join(REPO, "blender_scenes", name + ".blend"), "CYCLES")
+        aspect = scene.render.resolution_y / scene.render.resolution_x
+        scene.render.resolution_x, scene.render.resolution_y = width, max(1, round(width * aspect))
+        scene.render.resolution_percentage = 100
+        cycles = scene.cycles
+        cycles.samples, cycles.time_limit, cycles.use_adaptive_sampling = 1 << 20, limit, False
+        cycles.device = "CPU"
+        cycles.use_guiding = guiding
+        if guiding:
+            cycles.use_surface_guiding = cycles.use_volume_guiding = True
+        stats.clear()
+        bpy.app.handlers.render_stats.append(on_stats)
+        start = time.perf_counter()
+        try:
+            bpy.ops.render.render()
+        finally:
+            bpy.app.handlers.render_stats.remove(on_stats)
+        used = time.perf_counter() - start
+        path = os.path.join(os.environ.get("TMPDIR", "/tmp"), f"parallax_bench_{name}.exr")
+        cli.set_exr_output(scene.render.image_settings)
+        bpy.data.images["Render Result"].save_render(path, scene=scene)
+        import OpenEXR
+
+        with OpenEXR.File(path) as f:
+            image = np.array(f.parts[0].channels["ViewLayer.Combined"].pixels)[..., :3]
+        os.remove(path)
+        spp = _last_sample_count(stats)
+        if reference is not None:
+            curve.append((used, rel_mse(image, reference)))
+        done += limit
+        bar.update(done, f"{spp} spp")
+    bar.close(f"{spp} spp")
+    return image, spp, used, curve
+
+
+def _last_sample_count(stats):
+    """The most samples Cycles' status lines reported ("Sample 257/1048576")."""
+    counts = [int(part.split()[1].split("/")[0]) for text in stats for part in
+              (p.strip() for p in text.split("|")) if part.startswith("Sample ")]
+    return max(counts, default=0)
+
+
+def render_mitsuba(scene, seconds, variant, reference, label):
+    from bench import mitsuba_peer
+
+    bar = Progress(label, seconds)
+    curve = []
+
+    def progress(image, spp, elapsed):
+        if reference is not None:
+            curve.append((elapsed, rel_mse(image, reference)))
+        bar.update(elapsed, f"{spp} spp")
+
+    image, spp, used = mitsuba_peer.render_for(scene, seconds, variant, max_depth=MAX_DEPTH, progress=progress)
+    bar.close(f"{spp} spp")
+    return image, spp, used, curve
+
+
+# ---- reference ---------------------------------------------------------------------------
+
+def reference_image(name, scene, seconds, device, folder=os.path.join(HERE, "references")):
+    """The cached reference of `name` at the scene's size, rendering it if missing."""
+    os.makedirs(folder, exist_ok=True)
+    stem = os.path.join(folder, f"{name}_{scene.width}x{scene.height}")
+    if os.path.exists(stem + ".npy"):
+        return np.load(stem + ".npy")
+    image, spp, used, _ = render_parallax(scene, "mis", seconds, device, None, f"{name}: reference")
+    np.save(stem + ".npy", image.astype(np.float32))
+    with open(stem + ".json", "w") as f:
+        json.dump({"renderer": "parallax", "method": "mis", "spp": spp, "seconds": round(used, 1),
+                   "device": device, "max_depth": MAX_DEPTH, "made_by": " ".join(sys.argv)}, f, indent=1)
+    return image
+
+
+# ---- output ------------------------------------------------------------------------------
+
+def write_outputs(out, name, rows, reference):
+    lines = [f"### {name}", "", "| renderer | relMSE | spp | time (s) |", "|---|---:|---:|---:|"]
+    for row in sorted(rows, key=lambda r: r["rel_mse"]):
+        lines.append(f"| {row['renderer']} | {row['rel_mse']:.4g} | {row['spp']} | {row['seconds']:.1f} |")
+    with open(os.path.join(out, f"{name}.md"), "w") as f:
+        f.write("\n".join(lines) + "\n")
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for row in rows:
+        if row["curve"]:
+            t, e = zip(*row["curve"])
+            ax.loglog(t, e, marker="o", ms=3, label=row["renderer"])
+    ax.set_xlabel("time (s, start-up included)")
+    ax.set_ylabel("relMSE")
+    ax.set_title(name)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(os.path.join(out, f"{name}_convergence.png"), dpi=110)
+    plt.close(fig)
+
+    images = [("reference", reference)] + [(r["renderer"], r["image"]) for r in rows]
+    cols = min(4, len(images))
+    rows_n = math.ceil(len(images) / cols)
+    h, w = reference.shape[:2]
+    fig, axes = plt.subplots(rows_n, cols, figsize=(3 * cols, 3 * rows_n * h / w + 0.3))
+    for ax in np.atleast_1d(axes).ravel():
+        ax.axis("off")
+    for ax, (label, image) in zip(np.atleast_1d(axes).ravel(), images):
+        srgb = np.where(image <= 0.0031308, 12.92 * image, 1.055 * np.power(np.clip(image, 0, None), 1 / 2.4) - 0.055)
+        ax.imshow(np.clip(srgb, 0, 1))
+        ax.set_title(label, fontsize=9)
+    fig.tight_layout()
+    fig.savefig(os.path.join(out, f"{name}_images.png"), dpi=110)
+    plt.close(fig)
+
+
+def run(scenes=SCENES, seconds=120.0, device="auto", methods=("pt", "nee", "mis"),
+        peers=("cycles", "cycles_guiding", "mitsuba"), width=320, reference_seconds=None,
+        npz_dir=None, out=None, reference_dir=os.path.join(HERE, "references")):
+    """Runs the comparison; returns {scene: [row, ...]} (rows without images)."""
+    import parallax_core as pc
+
+    probe = pc.Session(8, 8, device)
+    kind = "gpu" if probe.device_type in ("discrete", "integrated") else "cpu"
+    out = out or os.path.join(HERE, "results", kind)
+    os.makedirs(out, exist_ok=True)
+    variant = None
+    if "mitsuba" in peers:
+        from bench import mitsuba_peer
+
+        variant = mitsuba_peer.mitsuba_available("cuda_ad_rgb" if kind == "gpu" else "llvm_ad_rgb")
+        if variant is None:
+            print("bench.converge: Mitsuba 3 is not available; skipping it", file=sys.stderr)
+    results = {}
+    for name in scenes:
+        scene = load_scene(name, width, npz_dir)
+        reference = reference_image(name, scene, reference_seconds or 10 * seconds, device, reference_dir)
+        rows = []
+        for method in methods:
+            image, spp, used, curve = render_parallax(scene, method, seconds, device, reference,
+                                                      f"{name}: parallax {method}")
+            rows.append(dict(renderer=f"Parallax {method}", image=image, spp=spp, seconds=used, curve=curve))
+        for peer in peers:
+            if peer.startswith("cycles"):
+                if npz_dir:
+                    continue  # no Blender here
+                guiding = peer == "cycles_guiding"
+                image, spp, used, curve = render_cycles(name, scene.width, seconds, guiding, reference,
+                                                        f"{name}: {peer}")
+                label = "Cycles (path guiding)" if guiding else "Cycles"
+            elif peer == "mitsuba" and variant:
+                image, spp, used, curve = render_mitsuba(scene, seconds, variant, reference, f"{name}: mitsuba")
+                label = f"Mitsuba 3 ({variant})"
+            else:
+                continue
+            rows.append(dict(renderer=label, image=image, spp=spp, seconds=used, curve=curve))
+        for row in rows:
+            row["rel_mse"] = rel_mse(row["image"], reference)
+        write_outputs(out, name, rows, reference)
+        results[name] = [{k: v for k, v in r.items() if k != "image"} for r in rows]
+        with open(os.path.join(out, "results.json"), "w") as f:
+            json.dump({"device": probe.device, "kind": kind, "seconds": seconds, "width": width,
+                       "scenes": results}, f, indent=1)
+    return results
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--scenes", default=",".join(SCENES))
+    p.add_argument("--seconds", type=float, default=120.0)
+    p.add_argument("--device", default="auto")
+    p.add_argument("--methods", default="pt,nee,mis")
+    p.add_argument("--peers", default="cycles,cycles_guiding,mitsuba")
+    p.add_argument("--width", type=int, default=320)
+    p.add_argument("--reference-seconds", type=float, help="default: 10 x --seconds")
+    p.add_argument("--npz", help="read (or with --export-only write) DIR/NAME.npz scenes")
+    p.add_argument("--export-only", action="store_true")
+    p.add_argument("--out", help="default: bench/results/cpu or bench/results/gpu")
+    a = p.parse_args(argv)
+    scenes = [s for s in a.scenes.split(",") if s]
+    if a.export_only:
+        os.makedirs(a.npz, exist_ok=True)
+        for name in scenes:
+            export_scene(name, a.width).save(os.path.join(a.npz, name + ".npz"))
+            print(f"{name} -> {os.path.join(a.npz, name + '.npz')}")
+        return 0
+    results = run(scenes, a.seconds, a.device, a.methods.split(","), [x for x in a.peers.split(",") if x],
+                  a.width, a.reference_seconds, a.npz, a.out)
+    for name, rows in results.items():
+        print(f"\n{name}")
+        for row in sorted(rows, key=lambda r: r["rel_mse"]):
+            print(f"  {row['renderer']:28s} relMSE {row['rel_mse']:.4g}  {row['spp']:6d} spp  {row['seconds']:.1f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

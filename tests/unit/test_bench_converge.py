@@ -1,0 +1,47 @@
+"""Smoke run of the evaluation harness (bench.converge, bench.spp_per_frame, bench.scaling):
+tiny images and seconds, so it cannot rot; the numbers are not judged here (DESIGN)."""
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+from bench import converge, scaling, spp_per_frame  # noqa: E402
+
+
+def test_rel_mse_is_ruppert_et_al():
+    reference = np.full((10, 100, 3), 0.5)
+    image = reference.copy()
+    image[0, 0] = 100.0  # one outlier pixel in 1000: dropped
+    image[1] += 0.1
+    expected = (0.1 ** 2 / (0.25 + 1e-3)) * 100 / 999
+    assert converge.rel_mse(image, reference) == pytest.approx(expected)
+    assert converge.rel_mse(reference, reference) == 0.0
+
+
+def test_converge_smoke(tmp_path):
+    peers = ["cycles"]
+    results = converge.run(scenes=["cornell_box"], seconds=1.0, methods=["pt", "mis"], peers=peers,
+                           width=24, reference_seconds=2.0, out=str(tmp_path),
+                           reference_dir=str(tmp_path / "references"))
+    rows = results["cornell_box"]
+    assert [r["renderer"] for r in rows] == ["Parallax pt", "Parallax mis", "Cycles"]
+    for row in rows:
+        assert row["spp"] > 0 and np.isfinite(row["rel_mse"]) and row["curve"]
+    for name in ("cornell_box.md", "cornell_box_convergence.png", "cornell_box_images.png", "results.json"):
+        assert (tmp_path / name).stat().st_size > 0
+    assert json.loads((tmp_path / "results.json").read_text())["scenes"]["cornell_box"]
+    assert (tmp_path / "references" / "cornell_box_24x24.json").exists()
+
+
+def test_spp_per_frame_and_scaling_smoke(tmp_path):
+    spp_per_frame.SPP = (1, 4)
+    spp_per_frame.main(["--scenes", "cornell_box", "--width", "16", "--seconds", "0.1", "--out", str(tmp_path)])
+    rates = json.loads((tmp_path / "spp_per_frame.json").read_text())["rates"]["cornell_box"]
+    assert set(rates) == {"1", "4"} and all(v > 0 for v in rates.values())
+    scaling.main(["--triangles", "2k,8k", "--resolution", "16", "--frames", "1", "--out", str(tmp_path)])
+    rows = json.loads((tmp_path / "scaling.json").read_text())["rows"]
+    assert [r["triangles"] > 0 and r["frame_ms"] > 0 for r in rows] == [True, True]
+    assert rows[1]["triangles"] > rows[0]["triangles"]
