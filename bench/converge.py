@@ -281,10 +281,16 @@ def write_outputs(out, name, rows, reference):
     plt.close(fig)
 
 
+def _slug(label):
+    return "".join(c if c.isalnum() else "_" for c in label.lower())
+
+
 def run(scenes=SCENES, seconds=120.0, device="auto", methods=("pt", "nee", "mis"),
         peers=("cycles", "cycles_guiding", "mitsuba"), width=320, reference_seconds=None,
-        npz_dir=None, out=None, reference_dir=os.path.join(HERE, "references")):
-    """Runs the comparison; returns {scene: [row, ...]} (rows without images)."""
+        npz_dir=None, out=None, reference_dir=os.path.join(HERE, "references"), append=False):
+    """Runs the comparison; returns {scene: [row, ...]} (rows without images). With `append`,
+    rows of renderers not run now are kept from the earlier results.json in `out` (their
+    images from out/raw/)."""
     import parallax_core as pc
 
     probe = pc.Session(8, 8, device)
@@ -299,6 +305,13 @@ def run(scenes=SCENES, seconds=120.0, device="auto", methods=("pt", "nee", "mis"
         if variant is None:
             print("bench.converge: Mitsuba 3 is not available; skipping it", file=sys.stderr)
     results = {}
+    previous = {}
+    if append and os.path.exists(os.path.join(out, "results.json")):
+        with open(os.path.join(out, "results.json")) as f:
+            previous = json.load(f)["scenes"]
+        results = {k: v for k, v in previous.items() if k not in scenes}
+    raw = os.path.join(out, "raw")
+    os.makedirs(raw, exist_ok=True)
     for name in scenes:
         scene = load_scene(name, width, npz_dir)
         reference = reference_image(name, scene, reference_seconds or 10 * seconds, device, reference_dir)
@@ -323,6 +336,12 @@ def run(scenes=SCENES, seconds=120.0, device="auto", methods=("pt", "nee", "mis"
             rows.append(dict(renderer=label, image=image, spp=spp, seconds=used, curve=curve))
         for row in rows:
             row["rel_mse"] = rel_mse(row["image"], reference)
+            np.save(os.path.join(raw, f"{name}__{_slug(row['renderer'])}.npy"), row["image"].astype(np.float32))
+        run_now = {r["renderer"] for r in rows}
+        for old in previous.get(name, []):
+            image_file = os.path.join(raw, f"{name}__{_slug(old['renderer'])}.npy")
+            if old["renderer"] not in run_now and os.path.exists(image_file):
+                rows.append({**old, "image": np.load(image_file)})
         write_outputs(out, name, rows, reference)
         results[name] = [{k: v for k, v in r.items() if k != "image"} for r in rows]
         with open(os.path.join(out, "results.json"), "w") as f:
@@ -342,6 +361,7 @@ def main(argv=None):
     p.add_argument("--reference-seconds", type=float, help="default: 10 x --seconds")
     p.add_argument("--npz", help="read (or with --export-only write) DIR/NAME.npz scenes")
     p.add_argument("--export-only", action="store_true")
+    p.add_argument("--append", action="store_true", help="keep earlier rows of renderers not run now")
     p.add_argument("--out", help="default: bench/results/cpu or bench/results/gpu")
     a = p.parse_args(argv)
     scenes = [s for s in a.scenes.split(",") if s]
@@ -352,7 +372,7 @@ def main(argv=None):
             print(f"{name} -> {os.path.join(a.npz, name + '.npz')}")
         return 0
     results = run(scenes, a.seconds, a.device, a.methods.split(","), [x for x in a.peers.split(",") if x],
-                  a.width, a.reference_seconds, a.npz, a.out)
+                  a.width, a.reference_seconds, a.npz, a.out, append=a.append)
     for name, rows in results.items():
         print(f"\n{name}")
         for row in sorted(rows, key=lambda r: r["rel_mse"]):
