@@ -110,10 +110,15 @@ def render(path, output, engine="PARALLAX", samples=None, device=None, assignmen
     return scene
 
 
-def export(path, output):
-    """Writes the SceneData the core would receive for an F12 render of ``path``."""
+def export(path, output=None, width=None):
+    """(SceneData, warnings) the core would receive for an F12 render of ``path`` (at
+    ``width``, the height keeping the aspect, if given); saved to ``output`` if given."""
     bpy = _bpy()
     scene = open_blend(path)
+    if width:
+        aspect = scene.render.resolution_y / scene.render.resolution_x
+        scene.render.resolution_x, scene.render.resolution_y = width, max(1, round(width * aspect))
+        scene.render.resolution_percentage = 100
     from .engine import final
 
     captured = []
@@ -125,5 +130,6 @@ def export(path, output):
     if not captured:
         raise CommandError(f"{path}: the scene was not exported (no view layer rendered)")
     data, warnings = captured[0]
-    data.save(output)
+    if output:
+        data.save(output)
     return data, warnings

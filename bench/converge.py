@@ -83,19 +83,7 @@ def export_scene(name, width):
     """SceneData of blender_scenes/NAME.blend at `width`, exactly as F12 would upload it."""
     from parallax_blender import cli
 
-    scene = cli.open_blend(os.path.join(REPO, "blender_scenes", name + ".blend"))
-    aspect = scene.render.resolution_y / scene.render.resolution_x
-    scene.render.resolution_x, scene.render.resolution_y = width, max(1, round(width * aspect))
-    scene.render.resolution_percentage = 100
-    from parallax_blender.engine import final
-
-    captured = []
-    final.scene_hook = lambda data, warnings: captured.append(data)
-    try:
-        cli._render(__import__("bpy"), final)
-    finally:
-        final.scene_hook = None
-    return captured[0]
+    return cli.export(os.path.join(REPO, "blender_scenes", name + ".blend"), width=width)[0]
 
 
 def load_scene(name, width, npz_dir):
@@ -281,6 +269,14 @@ def write_outputs(out, name, rows, reference):
     plt.close(fig)
 
 
+def device_kind(device):
+    """("cpu" or "gpu", device name) of the device a session on `device` gets."""
+    import parallax_core as pc
+
+    probe = pc.Session(8, 8, device)
+    return ("gpu" if probe.device_type in ("discrete", "integrated") else "cpu"), probe.device
+
+
 def _slug(label):
     return "".join(c if c.isalnum() else "_" for c in label.lower())
 
@@ -291,10 +287,7 @@ def run(scenes=SCENES, seconds=120.0, device="auto", methods=("pt", "nee", "mis"
     """Runs the comparison; returns {scene: [row, ...]} (rows without images). With `append`,
     rows of renderers not run now are kept from the earlier results.json in `out` (their
     images from out/raw/)."""
-    import parallax_core as pc
-
-    probe = pc.Session(8, 8, device)
-    kind = "gpu" if probe.device_type in ("discrete", "integrated") else "cpu"
+    kind, device_name = device_kind(device)
     out = out or os.path.join(HERE, "results", kind)
     os.makedirs(out, exist_ok=True)
     variant = None
@@ -345,7 +338,7 @@ def run(scenes=SCENES, seconds=120.0, device="auto", methods=("pt", "nee", "mis"
         write_outputs(out, name, rows, reference)
         results[name] = [{k: v for k, v in r.items() if k != "image"} for r in rows]
         with open(os.path.join(out, "results.json"), "w") as f:
-            json.dump({"device": probe.device, "kind": kind, "seconds": seconds, "width": width,
+            json.dump({"device": device_name, "kind": kind, "seconds": seconds, "width": width,
                        "scenes": results}, f, indent=1)
     return results
 

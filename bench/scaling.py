@@ -16,7 +16,7 @@ import subprocess
 import sys
 import time
 
-from bench.converge import HERE, MAX_DEPTH, Progress
+from bench.converge import HERE, MAX_DEPTH, Progress, device_kind
 
 
 def parse(text):
@@ -77,7 +77,7 @@ def main(argv=None):
         bar.update(i + 1, f"{triangles} triangles")
         del session
     bar.close()
-    kind = "gpu" if pc.Session(8, 8, a.device).device_type in ("discrete", "integrated") else "cpu"
+    kind, device = device_kind(a.device)
     out = a.out or os.path.join(HERE, "results", kind)
     os.makedirs(out, exist_ok=True)
     lines = ["| triangles | upload (s) | 1-spp frame (ms) | memory (MB) | bytes / triangle |",
@@ -88,7 +88,6 @@ def main(argv=None):
         lines.append(f"| {r['triangles']:,} | {r['upload_s']:.2f} | {r['frame_ms']:.1f} | {mem} | {per} |")
     table = "\n".join(lines) + "\n"
     print(table)
-    device = pc.Session(8, 8, a.device).device
     with open(os.path.join(out, "scaling.md"), "w") as f:
         f.write(f"Device: {device}, {res}x{res}, MIS, 8 bounces, 1 spp per frame.\n\n" + table)
     with open(os.path.join(out, "scaling.json"), "w") as f:

@@ -14,7 +14,7 @@ import os
 import sys
 import time
 
-from bench.converge import HERE, MAX_DEPTH, Progress, load_scene
+from bench.converge import HERE, MAX_DEPTH, Progress, device_kind, load_scene
 
 SPP = (1, 2, 4, 8, 16, 32)
 
@@ -53,9 +53,7 @@ def main(argv=None):
     for name in a.scenes.split(","):
         scene = load_scene(name, a.width, a.npz)
         results[name], device = measure(scene, a.device, a.seconds, f"{name}: spp per frame")
-    import parallax_core as pc
-
-    kind = "gpu" if pc.Session(8, 8, a.device).device_type in ("discrete", "integrated") else "cpu"
+    kind, _ = device_kind(a.device)
     out = a.out or os.path.join(HERE, "results", kind)
     os.makedirs(out, exist_ok=True)
     lines = ["| spp per frame | " + " | ".join(f"{n} (M samples/s)" for n in results) + " |",
