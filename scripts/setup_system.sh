@@ -7,6 +7,7 @@ set -euo pipefail
 
 need_pkgs=(build-essential cmake python3-venv python3-dev libvulkan-dev libvulkan1 glslang-tools vulkan-tools)
 blender_pkgs=(blender python3-numpy xvfb x11-apps xdotool)  # GUI tests: Xvfb, xwd, xdotool
+need_pkgs+=(libllvm19)  # Mitsuba 3's llvm_ad_rgb variant (bench/mitsuba_peer.py); drjit aborts on LLVM 15
 sudo_cmd=""
 if [ "$(id -u)" != 0 ]; then sudo_cmd="sudo"; fi
 
