@@ -597,7 +597,7 @@ def render_for(scene, seconds, variant=None, max_depth=8, progress=None):
     included): passes of N spp with different seeds, averaged by sample count. The first
     pass is small (it includes JIT compilation); later passes are sized to take about a
     tenth of the budget each, and the last one is shrunk to fit. At least one pass runs.
-    ``progress(spp_so_far, elapsed)`` is called after each pass.
+    ``progress(mean_image, spp_so_far, elapsed)`` is called after each pass.
     Returns (image, spp, seconds used)."""
     start = time.perf_counter()
     mi = _mitsuba(variant)
@@ -615,7 +615,7 @@ def render_for(scene, seconds, variant=None, max_depth=8, progress=None):
         seed += 1
         elapsed = time.perf_counter() - start
         if progress is not None:
-            progress(total, elapsed)
+            progress(acc / total, total, elapsed)
         left = seconds - elapsed
         n = int(min(cap, max(1.0, 0.1 * seconds / per_spp), left / per_spp))
         if n < 1:

@@ -337,7 +337,7 @@ def test_npz_and_render_for(variant, tmp_path):
     b = mp.render(str(path), 16, variant, seed=3)
     np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-6)
     calls = []
-    img, spp, seconds = mp.render_for(scene, 1.5, variant, progress=lambda n, t: calls.append((n, t)))
+    img, spp, seconds = mp.render_for(scene, 1.5, variant, progress=lambda image, n, t: calls.append((n, t)))
     assert img.shape == (16, 16, 3) and spp >= 1 and calls and calls[-1][0] == spp
     assert seconds < 1.5 + 1.0
     assert abs(img.mean() / a.mean() - 1) < 0.2
