@@ -72,6 +72,20 @@ def set_png_output(image_settings):
     image_settings.color_depth = "8"
 
 
+def engine_final():
+    """The ``engine.final`` module of the Parallax engine Blender has registered: this
+    package's, or another copy's (an installed extension, the repository's add-on)."""
+    import importlib
+
+    import bpy
+
+    for cls in bpy.types.RenderEngine.__subclasses__():
+        if getattr(cls, "bl_idname", None) == "PARALLAX" and cls.is_registered:
+            return importlib.import_module(cls.__module__ + ".final")
+    from .engine import final
+    return final
+
+
 def _render(bpy, final):
     """Runs the render operator; Parallax's errors become CommandError."""
     final.last_report = final.RenderReport()
@@ -98,7 +112,7 @@ def render(path, output, engine="PARALLAX", samples=None, device=None, assignmen
         else:
             scene.cycles.device = device.upper()
     apply_settings(scene, assignments)
-    from .engine import final
+    final = engine_final()
 
     _render(bpy, final)
     result = bpy.data.images["Render Result"]
@@ -119,7 +133,7 @@ def export(path, output=None, width=None):
         aspect = scene.render.resolution_y / scene.render.resolution_x
         scene.render.resolution_x, scene.render.resolution_y = width, max(1, round(width * aspect))
         scene.render.resolution_percentage = 100
-    from .engine import final
+    final = engine_final()
 
     captured = []
     final.scene_hook = lambda data, warnings: captured.append((data, warnings))

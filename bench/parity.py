@@ -31,10 +31,8 @@ def render(bpy, cli, name, engine, size, samples, out_dir):
         scene.parallax.max_depth, scene.parallax.depth_leeway = scene.cycles.max_bounces, 0
     else:
         scene.cycles.samples = samples
-    from parallax_blender.engine import final
-
     start = time.perf_counter()
-    cli._render(bpy, final)
+    cli._render(bpy, cli.engine_final())
     seconds = time.perf_counter() - start
     exr = os.path.join(out_dir, f"{name}_{engine.lower()}.exr")
     cli.set_exr_output(scene.render.image_settings)

@@ -70,10 +70,11 @@ class SceneExporter:
                                            view_camera=self.data.camera)[1]
         if "materials" in parts:
             self._materials.build(self.data, warnings)
-        if "lights" in parts:
-            self.data.lights = []
-            lights.export_lights(depsgraph, self.data, warnings)
-            world.export_world(depsgraph.scene.world, self.data, warnings)
+        if "lights" in parts:  # exported aside, then swapped in (a render thread may be reading)
+            fresh = core.load().scene.SceneData()
+            lights.export_lights(depsgraph, fresh, warnings)
+            world.export_world(depsgraph.scene.world, fresh, warnings)
+            self.data.lights, self.data.world = fresh.lights, fresh.world
         return parts, list(warnings)
 
 

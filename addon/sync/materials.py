@@ -51,12 +51,14 @@ class MaterialTable:
         """(Re)reads every material's node tree into ``data.materials``/``data.textures``."""
         if warnings is not None:
             self._warnings = warnings
-        self._data, self._textures = data, {}
-        data.materials, data.textures = [None] * len(self._materials), []
+        # Built aside and swapped in at the end: a viewport render thread may be reading
+        # ``data`` at the same time.
+        self._out_materials, self._out_textures, self._textures = [None] * len(self._materials), [], {}
         self.has_emission = False
         for head, material in enumerate(self._materials):
             name, lobes, emission = self._read(material)
             self._add_chain(head, name, lobes, emission)
+        data.materials, data.textures = self._out_materials, self._out_textures
 
     # -- building core materials --
 
@@ -80,7 +82,7 @@ class MaterialTable:
         if np.any(emission > 0):
             self.has_emission = True
         Material = self._scene.Material
-        materials = self._data.materials
+        materials = self._out_materials
         if not lobes:
             materials[head] = Material(type="emission", base_color=(0.0, 0.0, 0.0),
                                        emission=tuple(emission), name=name)
@@ -121,8 +123,8 @@ class MaterialTable:
         if not stored_as_srgb:  # linear data: encode to sRGB bytes like the core expects
             pixels = linear_to_srgb(pixels)
         texels = np.clip(np.rint(pixels * 255.0), 0, 255).astype(np.uint8)
-        self._data.textures.append(self._scene.Texture(np.ascontiguousarray(texels), name=image.name))
-        return len(self._data.textures) - 1
+        self._out_textures.append(self._scene.Texture(np.ascontiguousarray(texels), name=image.name))
+        return len(self._out_textures) - 1
 
 
 def node_tree(id_block):
