@@ -18,8 +18,9 @@ def _bpy():
     return bpy
 
 
-def open_blend(path, engine="PARALLAX"):
-    """Registers the add-on (once) and opens ``path``; returns the scene."""
+def open_blend(path, engine="PARALLAX", width=None):
+    """Registers the add-on (once) and opens ``path``; returns the scene. ``width`` sets the
+    render width (100%), the height keeping the file's aspect."""
     bpy = _bpy()
     if not os.path.isfile(path):
         raise CommandError(f"{path}: no such file")
@@ -29,6 +30,11 @@ def open_blend(path, engine="PARALLAX"):
     bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path), load_ui=False)
     scene = bpy.context.scene
     scene.render.engine = engine
+    if width:
+        render = scene.render
+        aspect = render.resolution_y / render.resolution_x
+        render.resolution_x, render.resolution_y = width, max(1, round(width * aspect))
+        render.resolution_percentage = 100
     return scene
 
 
@@ -128,11 +134,7 @@ def export(path, output=None, width=None):
     """(SceneData, warnings) the core would receive for an F12 render of ``path`` (at
     ``width``, the height keeping the aspect, if given); saved to ``output`` if given."""
     bpy = _bpy()
-    scene = open_blend(path)
-    if width:
-        aspect = scene.render.resolution_y / scene.render.resolution_x
-        scene.render.resolution_x, scene.render.resolution_y = width, max(1, round(width * aspect))
-        scene.render.resolution_percentage = 100
+    open_blend(path, width=width)
     final = engine_final()
 
     captured = []

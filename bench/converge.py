@@ -152,10 +152,7 @@ def render_cycles(name, width, seconds, guiding, reference, label):
     bar = Progress(label, sum(marks))
     done = 0.0
     for limit in marks:
-        scene = cli.open_blend(os.path.join(REPO, "blender_scenes", name + ".blend"), "CYCLES")
-        aspect = scene.render.resolution_y / scene.render.resolution_x
-        scene.render.resolution_x, scene.render.resolution_y = width, max(1, round(width * aspect))
-        scene.render.resolution_percentage = 100
+        scene = cli.open_blend(os.path.join(REPO, "blender_scenes", name + ".blend"), "CYCLES", width)
         cycles = scene.cycles
         cycles.samples, cycles.time_limit, cycles.use_adaptive_sampling = 1 << 20, limit, False
         cycles.device = "CPU"
@@ -242,6 +239,7 @@ def write_outputs(out, name, rows, reference):
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from parallax_core.exr import srgb_encode
 
     fig, ax = plt.subplots(figsize=(6, 4))
     for row in rows:
@@ -265,8 +263,7 @@ def write_outputs(out, name, rows, reference):
     for ax in np.atleast_1d(axes).ravel():
         ax.axis("off")
     for ax, (label, image) in zip(np.atleast_1d(axes).ravel(), images):
-        srgb = np.where(image <= 0.0031308, 12.92 * image, 1.055 * np.power(np.clip(image, 0, None), 1 / 2.4) - 0.055)
-        ax.imshow(np.clip(srgb, 0, 1))
+        ax.imshow(srgb_encode(image))
         ax.set_title(label, fontsize=9)
     fig.tight_layout()
     fig.savefig(os.path.join(out, f"{name}_images.png"), dpi=110)

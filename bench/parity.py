@@ -23,9 +23,7 @@ SCENES = ("cornell_box", "veach_mis", "cornell_dielectric", "light_behind_glass"
 
 def render(bpy, cli, name, engine, size, samples, out_dir):
     path = os.path.join(REPO, "blender_scenes", name + ".blend")
-    scene = cli.open_blend(path, engine)
-    aspect = scene.render.resolution_y / scene.render.resolution_x
-    scene.render.resolution_x, scene.render.resolution_y = size, max(1, round(size * aspect))
+    scene = cli.open_blend(path, engine, size)
     if engine == "PARALLAX":
         scene.parallax.samples, scene.parallax.samples_per_frame = samples, 8
         scene.parallax.max_depth, scene.parallax.depth_leeway = scene.cycles.max_bounces, 0

@@ -98,7 +98,7 @@ class _Worker(threading.Thread):
                 if now - last_snapshot >= UPDATE_SECONDS or frame == self.frames - 1:
                     self._take_snapshot()
                     last_snapshot = now
-            if self.snapshot is None or self.snapshot[0] != self.session.stats().get("samples"):
+            if self.snapshot is None or self.snapshot[0] != self.session.samples:
                 self._take_snapshot()
         except Exception as e:  # reported by the Blender thread
             self.error = e

@@ -166,7 +166,7 @@ class _Worker(threading.Thread):
         if edited and self._preview is not None:
             self._preview.render(1)
             self._publish(self._preview, self._preview_factor)
-        samples = self._full.stats().get("samples", 0)
+        samples = self._full.samples
         if target and samples >= target:
             self.done = True
             return True
@@ -208,7 +208,7 @@ class _Worker(threading.Thread):
 
     def _publish(self, session, pixel_size):
         image = session.read("combined")
-        samples = session.stats().get("samples", 0)
+        samples = session.samples
         self.frame = (image, samples, pixel_size, self._rendering)
         self._published = time.perf_counter()
         with self._lock:

@@ -117,6 +117,8 @@ NB_MODULE(_native, m) {
              "Trace the next `rows` rows of the current frame (GIL released); True when that "
              "completed the frame. For short, interruptible dispatches.")
         .def_prop_ro("next_row", &px::Session::next_row)
+        .def_prop_ro("samples", &px::Session::samples, "Samples per pixel accumulated (cheap: no "
+                     "download, unlike stats()).")
         .def("reset", &px::Session::reset, nb::call_guard<nb::gil_scoped_release>())
         .def("stats",
              [](px::Session& s) {

@@ -60,6 +60,11 @@ public:
     // rows hold one frame more). update, set_params and reset drop a partial frame.
     bool render_rows(uint32_t rows);
     uint32_t next_row() const { return next_row_; }
+    // Samples per pixel accumulated (completed frames); cheap, unlike stats().
+    uint64_t samples() {
+        std::lock_guard<std::mutex> lock(mutex_);
+        return stats_.samples;
+    }
     // (height, width, channels) float32, row 0 = top.
     std::vector<float> read(const std::string& pass, uint32_t& channels);
     void reset();
