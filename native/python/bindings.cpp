@@ -18,20 +18,6 @@ nb::ndarray<nb::numpy, float> to_numpy(std::vector<float>&& data, std::vector<si
     return nb::ndarray<nb::numpy, float>(owned->data(), shape.size(), shape.data(), owner);
 }
 
-px::RenderParams make_params(uint32_t method, uint32_t heuristic, uint32_t spp, uint32_t max_depth, uint32_t leeway,
-                             uint32_t rr, uint32_t light_samples, uint32_t seed) {
-    px::RenderParams p;
-    p.method = method;
-    p.mis_heuristic = heuristic;
-    p.samples_per_frame = spp;
-    p.max_depth = max_depth;
-    p.depth_leeway = leeway;
-    p.rr_start_depth = rr;
-    p.light_samples = light_samples;
-    p.seed = seed;
-    return p;
-}
-
 }  // namespace
 
 NB_MODULE(_native, m) {
@@ -60,6 +46,36 @@ NB_MODULE(_native, m) {
        "which one device='auto' picks.");
 
     m.attr("METHODS") = nb::make_tuple("pt", "nee", "mis");
+
+    // px::RenderParams field by field (parallax_core.RenderParams validates and fills it); the
+    // irradiance cache's IcParams appear flat, under the setting names (ic_accuracy, ...).
+    nb::class_<px::RenderParams>(m, "_RenderParams")
+        .def(nb::init<>())
+        .def_rw("method", &px::RenderParams::method)
+        .def_rw("mis_heuristic", &px::RenderParams::mis_heuristic)
+        .def_rw("samples_per_frame", &px::RenderParams::samples_per_frame)
+        .def_rw("max_depth", &px::RenderParams::max_depth)
+        .def_rw("depth_leeway", &px::RenderParams::depth_leeway)
+        .def_rw("rr_start_depth", &px::RenderParams::rr_start_depth)
+        .def_rw("light_samples", &px::RenderParams::light_samples)
+        .def_rw("seed", &px::RenderParams::seed)
+#define PX_IC_FIELD(NAME, MEMBER)                                                                      \
+    .def_prop_rw(NAME, [](const px::RenderParams& p) { return p.ic.MEMBER; },                        \
+                 [](px::RenderParams& p, decltype(px::IcParams::MEMBER) v) { p.ic.MEMBER = v; })
+        PX_IC_FIELD("ic", enabled)
+        PX_IC_FIELD("ic_accuracy", accuracy)
+        PX_IC_FIELD("ic_min_radius", min_radius)
+        PX_IC_FIELD("ic_create_prob", create_prob)
+        PX_IC_FIELD("ic_update_prob", update_prob)
+        PX_IC_FIELD("ic_nee_samples", nee_samples)
+        PX_IC_FIELD("ic_gradients", gradients)
+        PX_IC_FIELD("ic_gradient_max", gradient_max)
+        PX_IC_FIELD("ic_visibility_check", visibility_check)
+        PX_IC_FIELD("ic_prepare_frames", prepare_frames)
+        PX_IC_FIELD("ic_capacity", capacity)
+        PX_IC_FIELD("ic_rebuild_interval", rebuild_interval)
+        PX_IC_FIELD("ic_highlight", highlight);
+#undef PX_IC_FIELD
 
     nb::class_<px::Session>(m, "Session")
         .def(nb::init<uint32_t, uint32_t, const std::string&>(), "width"_a, "height"_a, "device"_a = "auto",
@@ -93,13 +109,7 @@ NB_MODULE(_native, m) {
              "Replace the scene with SceneData.flatten() arrays; returns warnings. With `parts` (names "
              "from geometry, instances, materials, lights, camera; empty = all), `arrays` holds only "
              "those parts' arrays and the rest of the last update's scene is kept.")
-        .def("_set_params",
-             [](px::Session& s, uint32_t method, uint32_t heuristic, uint32_t spp, uint32_t max_depth,
-                uint32_t leeway, uint32_t rr, uint32_t light_samples, uint32_t seed) {
-                 s.set_params(make_params(method, heuristic, spp, max_depth, leeway, rr, light_samples, seed));
-             },
-             "method"_a, "mis_heuristic"_a, "samples_per_frame"_a, "max_depth"_a, "depth_leeway"_a,
-             "rr_start_depth"_a, "light_samples"_a, "seed"_a)
+        .def("_set_params", &px::Session::set_params, "params"_a, nb::call_guard<nb::gil_scoped_release>())
         .def("render", &px::Session::render, "frames"_a = 1, nb::call_guard<nb::gil_scoped_release>(),
              "Render `frames` frames of samples_per_frame samples each (GIL released).")
         .def("read",
@@ -133,6 +143,13 @@ NB_MODULE(_native, m) {
                  d["milliseconds"] = st.milliseconds;
                  d["frames"] = st.frames;
                  d["blas_builds"] = st.blas_builds;
+                 d["ic_entries"] = st.ic.entries;
+                 d["ic_capacity"] = st.ic.capacity;
+                 d["ic_dropped"] = st.ic.dropped;
+                 d["ic_deferred"] = st.ic.deferred;
+                 d["ic_jobs"] = st.ic.jobs;
+                 d["ic_job_milliseconds"] = st.ic.job_milliseconds;
+                 d["ic_build_milliseconds"] = st.ic.build_milliseconds;
                  d["device"] = s.device().name;
                  return d;
              })

@@ -1,6 +1,11 @@
 #include "shaders_embedded.h"
 
 #include "closesthit.spv.h"
+#include "ic_finish.spv.h"
+#include "ic_hemisphere.spv.h"
+#include "ic_query_any_hit.spv.h"
+#include "ic_query_intersection.spv.h"
+#include "ic_query_miss.spv.h"
 #include "miss.spv.h"
 #include "raygen.spv.h"
 #include "sampling_test.spv.h"
@@ -17,4 +22,9 @@ PX_SHADER(closesthit)
 PX_SHADER(miss)
 PX_SHADER(shadow_miss)
 PX_SHADER(sampling_test)
+PX_SHADER(ic_hemisphere)
+PX_SHADER(ic_query_miss)
+PX_SHADER(ic_query_intersection)
+PX_SHADER(ic_query_any_hit)
+PX_SHADER(ic_finish)
 }  // namespace px

@@ -9,4 +9,9 @@ const std::vector<uint32_t>& shader_closesthit();
 const std::vector<uint32_t>& shader_miss();
 const std::vector<uint32_t>& shader_shadow_miss();
 const std::vector<uint32_t>& shader_sampling_test();
+const std::vector<uint32_t>& shader_ic_hemisphere();
+const std::vector<uint32_t>& shader_ic_query_miss();
+const std::vector<uint32_t>& shader_ic_query_intersection();
+const std::vector<uint32_t>& shader_ic_query_any_hit();
+const std::vector<uint32_t>& shader_ic_finish();
 }  // namespace px

@@ -4,6 +4,8 @@
 // and one BSDF sample per vertex).
 layout(constant_id = 0) const uint METHOD = METHOD_MIS;
 
+#include "../techniques/irradiance_cache.glsl"
+
 layout(set = 0, binding = BINDING_TLAS) uniform accelerationStructureEXT tlas;
 layout(location = 0) rayPayloadEXT HitPayload hit;
 layout(location = 1) rayPayloadEXT uint shadow_visible;
@@ -14,6 +16,11 @@ struct PathOptions {
     uint rr_start_depth;  // Russian roulette from this bounce on (0: never)
     uint light_samples;   // NEE samples per vertex
     bool from_camera;     // the first segment is a camera ray (sees only camera-visible lights)
+    bool skip_first_emission;  // cache hemisphere rays: the entry's direct light is NEE's
+    bool ic_use;          // shade diffuse vertices from the irradiance cache where it has entries
+    bool ic_create;       // queue cache creation requests at uncovered diffuse vertices
+    bool ic_prepare;      // prepare frame: stop at the first diffuse vertex after the query
+    uint pixel;           // for creation requests (their order on the host)
 };
 
 struct PathResult {
@@ -23,6 +30,8 @@ struct PathResult {
     vec3 albedo;        // at the first non-delta vertex, through delta vertices
     uint segments;      // ray segments traced (camera ray included)
     uint rays;          // all rays traced (shadow rays included)
+    vec3 ic_irradiance; // cache value at the first diffuse vertex (0: no entry there)
+    vec2 ic_gradients;  // its entries' mean |g_t|, |g_r|
 };
 
 bool trace_shadow(vec3 origin, vec3 dir, float t_max) {
@@ -69,6 +78,9 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
     res.albedo = vec3(0.0);
     res.segments = 0u;
     res.rays = 0u;
+    res.ic_irradiance = vec3(0.0);
+    res.ic_gradients = vec2(0.0);
+    bool ic_recorded = false;
     vec3 throughput = vec3(1.0);
     vec3 albedo_throughput = vec3(1.0);
     bool albedo_done = false;
@@ -82,6 +94,7 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         res.segments++;
         float t_surface = hit.t < 0.0 ? t_max : hit.t;
         bool camera_ray = opt.from_camera && res.segments == 1u;
+        float emission_scale = (opt.skip_first_emission && res.segments == 1u) ? 0.0 : 1.0;
 
         // Analytic lights are not in the TLAS: test them against this segment.
         float t_light, light_pdf;
@@ -89,13 +102,13 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         if (HAS(FEATURE_SPHERE_LIGHTS | FEATURE_AREA_LIGHTS) &&
             intersect_analytic_lights(origin, dir, t_surface, camera_ray, t_light, light_radiance,
                                       light_pdf) != NO_INDEX) {
-            res.radiance += throughput * light_radiance * emission_weight(prev_delta, prev_pdf, light_pdf, opt.light_samples);
+            res.radiance += throughput * light_radiance * (emission_scale * emission_weight(prev_delta, prev_pdf, light_pdf, opt.light_samples));
             if (res.segments == 1u) res.first_t = t_light;
             break;
         }
         if (hit.t < 0.0) {
             vec3 le = distant_radiance(dir, camera_ray, light_pdf);
-            res.radiance += throughput * le * emission_weight(prev_delta, prev_pdf, light_pdf, opt.light_samples);
+            res.radiance += throughput * le * (emission_scale * emission_weight(prev_delta, prev_pdf, light_pdf, opt.light_samples));
             break;
         }
 
@@ -106,7 +119,7 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
             res.first_t = hit.t;
             res.first_normal = dot(sh.ns, wo) >= 0.0 ? sh.ns : -sh.ns;
         }
-        if (max3(mat.emission) > 0.0) {
+        if (max3(mat.emission) > 0.0 && emission_scale > 0.0) {
             float lp = 0.0;
             if (METHOD == METHOD_MIS && !prev_delta) {
                 uint light = instances[sh.instance].light_offset + sh.primitive;
@@ -139,8 +152,29 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
             albedo_done = true;
         }
 
-        // Next event estimation (Veach 1997 eq. 9.8 / 9.13 weights for MIS).
-        if (METHOD != METHOD_PT && !delta) {
+        // Irradiance cache at diffuse vertices (thesis 4.4): where entries cover this point the
+        // path ends here with NEE + albedo/pi * E; elsewhere it may queue a new entry and goes on.
+        bool ic_vertex = false;
+        if (USES(TECH_IC) && surf.type == MATERIAL_DIFFUSE && (opt.ic_use || opt.ic_prepare)) {
+            vec3 irradiance;
+            vec2 gradients;
+            ic_vertex = ic_lookup(sh.p, ns, irradiance, gradients);
+            if (!ic_recorded) {
+                res.ic_irradiance = irradiance;
+                res.ic_gradients = gradients;
+                ic_recorded = true;
+            }
+            if (ic_vertex) {
+                res.radiance += throughput * surf.albedo * INV_PI * irradiance;
+            } else if (opt.ic_create && rnd(rng) < tech.ic.create_prob) {
+                ic_request(sh.p, ns, opt.pixel, res.segments);
+            }
+            if (opt.ic_prepare) break;
+        }
+
+        // Next event estimation (Veach 1997 eq. 9.8 / 9.13 weights for MIS). A cache vertex
+        // takes its direct light from NEE alone (no BSDF sample follows to share it with).
+        if ((METHOD != METHOD_PT || ic_vertex) && !delta) {
             for (uint k = 0u; k < opt.light_samples; ++k) {
                 LightSample ls;
                 vec3 u = vec3(rnd(rng), rnd(rng), rnd(rng));
@@ -162,10 +196,11 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
                 }
                 res.rays++;
                 if (!trace_shadow(shadow_origin, shadow_dir, shadow_t)) continue;
-                float w = (METHOD == METHOD_MIS && !ls.delta) ? mis_weight(float(opt.light_samples) * ls.pdf, bsdf_pdf) : 1.0;
+                float w = (METHOD == METHOD_MIS && !ls.delta && !ic_vertex) ? mis_weight(float(opt.light_samples) * ls.pdf, bsdf_pdf) : 1.0;
                 res.radiance += throughput * f * ls.radiance * (w / (ls.pdf * float(opt.light_samples)));
             }
         }
+        if (ic_vertex) break;
 
         // Continue the path by sampling the BSDF.
         BsdfSample bs;

@@ -6,3 +6,13 @@ struct HitPayload {
     uint primitive;
     vec2 barycentrics;
 };
+
+// The irradiance cache query (shaders/techniques/irradiance_cache.glsl): where, and the
+// weighted sums its any-hit shader adds every usable entry to.
+struct IcQuery {
+    vec3 position;
+    vec3 normal;
+    vec3 weighted_irradiance;  // sum of w_i E_i(x)
+    float weight;              // sum of w_i
+    vec2 weighted_gradients;   // sum of w_i (|grad_t|, |grad_r|)
+};

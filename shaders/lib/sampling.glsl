@@ -53,3 +53,13 @@ vec3 uniform_cone(vec2 u, float omc) {
 PX_SAMPLE_CDF(sample_light_cdf, light_cdf)
 PX_SAMPLE_CDF(sample_env_marginal, env_marginal)
 PX_SAMPLE_CDF(sample_env_conditional, env_conditional)
+
+// Stratum (j, k) of an m x n stratified cosine-weighted hemisphere (Ward & Heckbert 1992;
+// thesis eq. 3.20): theta = asin(sqrt((j + u.x) / m)), phi = 2 pi (k + u.y) / n. Every stratum
+// has the same cosine-weighted measure, so one ray per stratum is cos(theta)/pi distributed.
+vec3 stratified_cosine_hemisphere(uint j, uint k, uint m, uint n, vec2 u) {
+    float sin2 = (float(j) + u.x) / float(m);
+    float sin_t = sqrt(sin2), cos_t = sqrt(max(0.0, 1.0 - sin2));
+    float phi = 2.0 * PI * (float(k) + u.y) / float(n);
+    return vec3(sin_t * cos(phi), sin_t * sin(phi), cos_t);
+}

@@ -39,7 +39,14 @@ PX_CONST uint BINDING_ENV_MARGINAL = 16;   // float[env_height + 1]
 PX_CONST uint BINDING_ENV_CONDITIONAL = 17;// float[env_height * (env_width + 1)]
 PX_CONST uint BINDING_SCENE = 18;          // SceneInfo (uniform-like, one element)
 PX_CONST uint BINDING_TEST_IO = 19;        // sampling test shader: vec4 in/out
-PX_CONST uint BINDING_COUNT = 20;
+PX_CONST uint BINDING_TECH_PARAMS = 20;    // TechniqueParams (one element)
+PX_CONST uint BINDING_IC_TLAS = 21;        // irradiance cache: TLAS over the entries' AABBs
+PX_CONST uint BINDING_IC_ENTRIES = 22;     // IcEntry[capacity]
+PX_CONST uint BINDING_IC_AABBS = 23;       // float[6] per entry (VkAabbPositionsKHR)
+PX_CONST uint BINDING_IC_QUEUE = 24;       // uint count, 3 pad, IcRequest[]
+PX_CONST uint BINDING_IC_JOBS = 25;        // IcJob[], written by the host
+PX_CONST uint BINDING_IC_SAMPLES = 26;     // IcSample[jobs * IC_STRATA]
+PX_CONST uint BINDING_COUNT = 27;
 
 // ---- film passes ------------------------------------------------------------------------
 PX_CONST uint PASS_COMBINED = 0;   // rgb radiance, a = 1
@@ -47,7 +54,9 @@ PX_CONST uint PASS_DEPTH = 1;      // x = z-depth along the camera axis (1e10 on
 PX_CONST uint PASS_NORMAL = 2;     // xyz = world shading normal of the first hit
 PX_CONST uint PASS_ALBEDO = 3;     // rgb = albedo at the first non-specular vertex
 PX_CONST uint PASS_RAY_DEPTH = 4;  // x = number of path segments traced
-PX_CONST uint PASS_COUNT = 5;
+PX_CONST uint PASS_IC_IRRADIANCE = 5;  // rgb = cached irradiance at the first diffuse vertex
+PX_CONST uint PASS_IC_GRADIENTS = 6;   // r = |translational|, g = |rotational| / ic.gradient_max
+PX_CONST uint PASS_COUNT = 7;
 
 // ---- enums ------------------------------------------------------------------------------
 PX_CONST uint METHOD_PT = 0;   // BSDF sampling only
@@ -181,6 +190,8 @@ struct FrameParams {
     float test_param0;
     uint row_offset;        // first image row of this dispatch (frames may go in row bands)
     vec4 test_params;
+    uint mode;              // FRAME_RENDER or FRAME_IC_PREPARE
+    uint ic_job_count;      // hemisphere / finish dispatches: jobs in BINDING_IC_JOBS
 };
 
 // Sampling test routines (shaders/tests/sampling_test.comp).
@@ -188,6 +199,9 @@ PX_CONST uint TEST_DIFFUSE = 0;
 PX_CONST uint TEST_CONDUCTOR = 1;
 PX_CONST uint TEST_DIELECTRIC = 2;
 PX_CONST uint TEST_LIGHT = 3;   // light sampling from a shading point (all lights)
+PX_CONST uint TEST_IC_HEMISPHERE = 4;  // the cache's stratified cosine hemisphere (one ray per stratum)
+
+#include "techniques.h"
 
 #ifdef __cplusplus
 }  // namespace px

@@ -75,6 +75,14 @@ void main() {
         return;
     }
 
+    if (routine == TEST_IC_HEMISPHERE) {  // sample i uses stratum i mod IC_STRATA
+        uint stratum = i % IC_STRATA;
+        vec3 wi = stratified_cosine_hemisphere(stratum / IC_PHI, stratum % IC_PHI, IC_THETA, IC_PHI, rnd2(rng));
+        io[2u * i] = vec4(wi, wi.z * INV_PI);
+        io[2u * i + 1u] = vec4(1.0, wi.z * INV_PI, wi.z * INV_PI, 1.0);
+        return;
+    }
+
     Surface s;
     s.type = routine == TEST_DIFFUSE ? MATERIAL_DIFFUSE : routine == TEST_CONDUCTOR ? MATERIAL_CONDUCTOR : MATERIAL_DIELECTRIC;
     s.albedo = vec3(1.0);

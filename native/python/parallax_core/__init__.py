@@ -15,6 +15,7 @@ import os
 
 from ._native import METHODS, devices
 from ._native import Session as _NativeSession
+from ._native import _RenderParams
 from .scene import PART_KEYS, PARTS, parts_set
 
 __all__ = ["Session", "RenderParams", "devices", "METHODS", "PASSES", "PARTS"]
@@ -35,16 +36,52 @@ class RenderParams:
     rr_start_depth: int = 3         # Russian roulette from this bounce on; 0 = off
     light_samples: int = 1          # NEE samples per vertex
     seed: int = 0
+    # Irradiance cache (thesis 3.2.3, 4.4; px::IcParams in shaders/shared/techniques.h, which
+    # checks the ranges).
+    ic: bool = False                # on/off
+    ic_accuracy: float = 0.2        # Ward's a: influence radius a*R, weight threshold 1/a
+    ic_min_radius: float = 0.1      # lower clamp of the harmonic-mean distance R (metres)
+    ic_create_prob: float = 0.01    # an uncovered diffuse vertex queues a new entry
+    ic_update_prob: float = 1e-5    # per path and frame: refresh one entry (round robin)
+    ic_nee_samples: int = 1         # light samples per vertex of the entries' hemisphere paths
+    ic_gradients: bool = False      # Ward & Heckbert rotational + translational gradients
+    ic_gradient_max: float = 5.0    # clamp of the relative gradients' length
+    ic_visibility_check: bool = True  # skip entries in front of the query point (Ward 1988)
+    ic_prepare_frames: int = 50     # frames that only fill the cache before accumulation
+    ic_capacity: int = 65536        # entries
+    ic_rebuild_interval: int = 1    # frames between BLAS rebuilds (refits in between)
+    ic_highlight: bool = False      # IC Irradiance pass shows the colour only (fig. 4.13)
 
     def validate(self) -> None:
         if self.method not in METHODS:
             raise ValueError(f"unknown method {self.method!r} (choose from {', '.join(METHODS)})")
         if self.mis_heuristic not in HEURISTICS:
             raise ValueError(f"unknown MIS heuristic {self.mis_heuristic!r} (balance or power)")
-        for name in ("samples_per_frame", "max_depth", "depth_leeway", "rr_start_depth", "light_samples", "seed"):
-            value = getattr(self, name)
-            if not isinstance(value, int) or isinstance(value, bool) or value < 0 or value >= 2**32:
-                raise ValueError(f"{name} must be a non-negative integer, got {value!r}")
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if f.type in ("int", "bool"):
+                if not isinstance(value, int) or value < 0 or value >= 2**32 or (f.type == "bool" and value > 1):
+                    kind = "a boolean" if f.type == "bool" else "a non-negative integer"
+                    raise ValueError(f"{f.name} must be {kind}, got {value!r}")
+            elif f.type == "float":
+                if isinstance(value, bool) or not isinstance(value, (int, float)):
+                    raise ValueError(f"{f.name} must be a number, got {value!r}")
+
+    def native(self):
+        """The px::RenderParams these settings make (the core validates the ranges)."""
+        p = _RenderParams()
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if f.name == "method":
+                value = METHODS.index(value)
+            elif f.name == "mis_heuristic":
+                value = HEURISTICS.index(value)
+            elif f.type == "bool":
+                value = int(bool(value))
+            elif f.type == "float":
+                value = float(value)
+            setattr(p, f.name, value)
+        return p
 
 
 class Session(_NativeSession):
@@ -68,9 +105,7 @@ class Session(_NativeSession):
             raise TypeError(f"unknown render parameter(s): {', '.join(sorted(unknown))}")
         params = dataclasses.replace(self._params, **changes)
         params.validate()
-        self._set_params(
-            METHODS.index(params.method), HEURISTICS.index(params.mis_heuristic), params.samples_per_frame,
-            params.max_depth, params.depth_leeway, params.rr_start_depth, params.light_samples, params.seed)
+        self._set_params(params.native())
         self._params = params
 
     def update(self, scene, spatial_order: bool = True, parts=None) -> list[str]:

@@ -3,6 +3,7 @@
 #include "shaders_embedded.h"
 
 #include <chrono>
+#include <cstring>
 #include <stdexcept>
 
 namespace px {
@@ -10,13 +11,14 @@ namespace px {
 bool RenderParams::operator==(const RenderParams& o) const {
     return method == o.method && mis_heuristic == o.mis_heuristic && samples_per_frame == o.samples_per_frame &&
            max_depth == o.max_depth && depth_leeway == o.depth_leeway && rr_start_depth == o.rr_start_depth &&
-           light_samples == o.light_samples && seed == o.seed;
+           light_samples == o.light_samples && seed == o.seed && std::memcmp(&ic, &o.ic, sizeof(ic)) == 0;
 }
 
 const std::vector<PassInfo>& pass_table() {
     static const std::vector<PassInfo> table = {
         {"combined", PASS_COMBINED, 4}, {"depth", PASS_DEPTH, 1},        {"normal", PASS_NORMAL, 3},
         {"albedo", PASS_ALBEDO, 3},     {"ray_depth", PASS_RAY_DEPTH, 1},
+        {"ic_irradiance", PASS_IC_IRRADIANCE, 3}, {"ic_gradients", PASS_IC_GRADIENTS, 3},
     };
     return table;
 }
@@ -26,7 +28,7 @@ Session::Session(uint32_t width, uint32_t height, const std::string& device) : w
         throw std::invalid_argument("image size " + std::to_string(width) + "x" + std::to_string(height) +
                                     " is out of range (1..16384)");
     ctx_ = Context::shared(device);
-    set_ = std::make_unique<DescriptorSet>(*ctx_, BINDING_COUNT, BINDING_TLAS);
+    set_ = std::make_unique<DescriptorSet>(*ctx_, BINDING_COUNT, std::vector<uint32_t>{BINDING_TLAS, BINDING_IC_TLAS});
     const size_t pixels = size_t(width) * height;
     film_ = Buffer(*ctx_, pixels * PASS_COUNT * sizeof(vec4), kStorageUsage);
     ray_count_ = Buffer(*ctx_, pixels * sizeof(uint32_t), kStorageUsage);
@@ -34,7 +36,29 @@ Session::Session(uint32_t width, uint32_t height, const std::string& device) : w
     set_->bind_buffer(BINDING_FILM, film_);
     set_->bind_buffer(BINDING_RAY_COUNT, ray_count_);
     set_->bind_buffer(BINDING_TEST_IO, test_io_);
+    technique_params_ = Buffer(*ctx_, sizeof(TechniqueParams), kStorageUsage);
+    set_->bind_buffer(BINDING_TECH_PARAMS, technique_params_);
+    ic_ = std::make_unique<IrradianceCache>(*ctx_);
+    ic_->bind(*set_);
+    upload_technique_params();
     reset();
+}
+
+void Session::upload_technique_params() {
+    TechniqueParams t{};
+    t.ic = ic_->params();
+    technique_params_.upload(&t, sizeof(t));
+}
+
+// Caller holds mutex_.
+void Session::reset_accumulation() {
+    stats_ = {};
+    next_row_ = 0;
+    film_.fill_zero();
+    ray_count_.fill_zero();
+    if (scene_) ic_->configure(params_.ic, scene_->host().info);
+    ic_->bind(*set_);
+    upload_technique_params();
 }
 
 Session::~Session() = default;
@@ -74,10 +98,7 @@ std::vector<std::string> Session::update(const SceneArrays& arrays, bool spatial
     scene_ = std::move(next);
     arrays_ = std::move(next_arrays);
     scene_->bind(*set_);
-    stats_ = {};
-    next_row_ = 0;
-    film_.fill_zero();
-    ray_count_.fill_zero();
+    reset_accumulation();  // a new scene: the cache starts over, no stale irradiance
     return warnings;
 }
 
@@ -88,93 +109,160 @@ void Session::set_params(const RenderParams& p) {
         throw std::invalid_argument("samples_per_frame must be in 1..4096");
     if (p.light_samples < 1 || p.light_samples > 64) throw std::invalid_argument("light_samples must be in 1..64");
     if (p.max_depth > 1024 || p.depth_leeway > 1024) throw std::invalid_argument("max_depth/depth_leeway must be <= 1024");
+    validate_ic_params(p.ic);
     std::lock_guard<std::mutex> lock(mutex_);
     if (p == params_) return;
     params_ = p;
-    stats_ = {};
-    next_row_ = 0;
-    film_.fill_zero();
-    ray_count_.fill_zero();
+    reset_accumulation();  // any setting changes what the cache holds: it starts over
 }
 
 void Session::reset() {
     std::lock_guard<std::mutex> lock(mutex_);
-    stats_ = {};
-    next_row_ = 0;
-    film_.fill_zero();
-    ray_count_.fill_zero();
+    reset_accumulation();
 }
 
 // Pipelines are compiled once per device and specialisation and shared by every session
 // (their descriptor set layouts are the same object): a new F12 render or viewport session
 // does not wait for a compile again. Like the device they are kept until the process ends
 // (never destroyed at exit, when the driver may already be going away).
-RayTracingPipeline& Session::pipeline() {
+RayTracingPipeline& Session::pipeline(uint32_t program) {
     static std::mutex mutex;
     static auto& pipelines =
-        *new std::map<std::pair<Context*, std::array<uint32_t, 3>>, std::unique_ptr<RayTracingPipeline>>();
-    const std::array<uint32_t, 3> key = {params_.method, params_.mis_heuristic, scene_->host().features};
+        *new std::map<std::pair<Context*, std::array<uint32_t, 5>>, std::unique_ptr<RayTracingPipeline>>();
+    const uint32_t techniques = params_.ic.enabled ? TECH_IC : 0u;
+    // Specialisation constants 0-3 (integrator.glsl, mis.glsl, common.glsl, irradiance_cache.glsl).
+    const std::array<uint32_t, 5> key = {params_.method, params_.mis_heuristic, scene_->host().features, techniques,
+                                         program};
     std::lock_guard<std::mutex> lock(mutex);
     auto it = pipelines.find({ctx_.get(), key});
     if (it != pipelines.end()) return *it->second;
+    // Stages, then groups: raygen | miss: scene, shadow, cache query | hit: triangles (TLAS
+    // instances' SBT offset 0), cache entries (offset 1, procedural: intersection + any-hit).
     std::vector<ShaderStage> stages = {
-        {VK_SHADER_STAGE_RAYGEN_BIT_KHR, &shader_raygen()},
+        {VK_SHADER_STAGE_RAYGEN_BIT_KHR, program == PROGRAM_IC_HEMISPHERE ? &shader_ic_hemisphere() : &shader_raygen()},
         {VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR, &shader_closesthit()},
         {VK_SHADER_STAGE_MISS_BIT_KHR, &shader_miss()},
         {VK_SHADER_STAGE_MISS_BIT_KHR, &shader_shadow_miss()},
+        {VK_SHADER_STAGE_MISS_BIT_KHR, &shader_ic_query_miss()},
+        {VK_SHADER_STAGE_INTERSECTION_BIT_KHR, &shader_ic_query_intersection()},
+        {VK_SHADER_STAGE_ANY_HIT_BIT_KHR, &shader_ic_query_any_hit()},
     };
     std::vector<ShaderGroup> groups = {
         {VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, 0},
         {VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, 2},
         {VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, 3},
+        {VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, 4},
         {VK_RAY_TRACING_SHADER_GROUP_TYPE_TRIANGLES_HIT_GROUP_KHR, VK_SHADER_UNUSED_KHR, 1},
+        {VK_RAY_TRACING_SHADER_GROUP_TYPE_PROCEDURAL_HIT_GROUP_KHR, VK_SHADER_UNUSED_KHR, VK_SHADER_UNUSED_KHR, 6, 5},
     };
     auto p = std::make_unique<RayTracingPipeline>(*ctx_, set_->layout(), uint32_t(sizeof(FrameParams)), stages, groups,
-                                                  std::vector<uint32_t>(key.begin(), key.end()));
+                                                  std::vector<uint32_t>(key.begin(), key.begin() + 4));
     return *pipelines.emplace(std::make_pair(ctx_.get(), key), std::move(p)).first->second;
 }
 
-void Session::trace(uint32_t frames, uint32_t rows) {
+ComputePipeline& Session::ic_finish_pipeline() {
+    static std::mutex mutex;
+    static auto& pipelines = *new std::map<Context*, std::unique_ptr<ComputePipeline>>();
+    std::lock_guard<std::mutex> lock(mutex);
+    auto& p = pipelines[ctx_.get()];
+    if (!p) p = std::make_unique<ComputePipeline>(*ctx_, set_->layout(), uint32_t(sizeof(FrameParams)), shader_ic_finish());
+    return *p;
+}
+
+FrameParams Session::frame_params(uint32_t frame) const {
+    FrameParams fp{};
+    fp.width = width_;
+    fp.height = height_;
+    fp.frame = frame;
+    fp.seed = params_.seed;
+    fp.samples_per_frame = params_.samples_per_frame;
+    fp.max_depth = params_.max_depth;
+    fp.depth_leeway = params_.depth_leeway;
+    fp.rr_start_depth = params_.rr_start_depth;
+    fp.light_samples = params_.light_samples;
+    fp.mode = FRAME_RENDER;
+    return fp;
+}
+
+bool Session::record_bands(VkCommandBuffer cmd, RayTracingPipeline& pipe, uint32_t frame, uint32_t& rows) {
+    while (rows > 0) {
+        uint32_t band = std::min(height_ - next_row_, rows);
+        FrameParams fp = frame_params(frame);
+        fp.row_offset = next_row_;
+        pipe.trace(cmd, set_->set(), &fp, sizeof(fp), width_, band);
+        VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+        b.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
+        b.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_READ_BIT;
+        vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_RAY_TRACING_SHADER_BIT_KHR,
+                             VK_PIPELINE_STAGE_RAY_TRACING_SHADER_BIT_KHR | VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &b, 0,
+                             nullptr, 0, nullptr);
+        next_row_ += band;
+        if (rows != UINT32_MAX) rows -= band;
+        if (next_row_ == height_) {
+            next_row_ = 0;
+            return true;
+        }
+    }
+    return false;
+}
+
+// A prepare frame (thesis 4.4): camera paths to their first diffuse vertex only queue cache
+// entries, which are made before the next frame; nothing reaches the film.
+void Session::prepare_frame() {
+    RayTracingPipeline& camera = pipeline(PROGRAM_CAMERA);
+    FrameParams fp = frame_params(0x80000000u | ic_->prepared_frames());
+    fp.mode = FRAME_IC_PREPARE;
+    ctx_->submit_and_wait([&](VkCommandBuffer cmd) { camera.trace(cmd, set_->set(), &fp, sizeof(fp), width_, height_); });
+    ic_->after_frame(pipeline(PROGRAM_IC_HEMISPHERE), ic_finish_pipeline(), *set_, fp,
+                     uint64_t(width_) * height_ * params_.samples_per_frame, true);
+}
+
+// Without the cache, all frames go in one submission. With it, each frame is a submission of
+// its own followed by the cache's host step (its creation jobs and BLAS refit), and a new
+// frame is preceded by the cache's remaining prepare frames: all of them for render(), one
+// per call for render_rows() (so a caller can still stop between short calls).
+bool Session::trace(uint32_t frames, uint32_t rows) {
     if (!scene_) throw std::runtime_error("no scene: call update(scene) before render()");
-    RayTracingPipeline& pipe = pipeline();
     auto start = std::chrono::steady_clock::now();
     uint32_t completed = 0;
-    ctx_->submit_and_wait([&](VkCommandBuffer cmd) {
-        // Row bands of the current frame, then whole frames; each band sees the same frame
-        // index (RNG streams) as the rest of its frame.
-        uint32_t budget = frames ? UINT32_MAX : rows;
-        while (budget > 0 && (frames == 0 ? true : completed < frames)) {
-            uint32_t band = std::min(height_ - next_row_, budget);
-            FrameParams fp{};
-            fp.width = width_;
-            fp.height = height_;
-            fp.row_offset = next_row_;
-            fp.frame = stats_.frames + completed;
-            fp.seed = params_.seed;
-            fp.samples_per_frame = params_.samples_per_frame;
-            fp.max_depth = params_.max_depth;
-            fp.depth_leeway = params_.depth_leeway;
-            fp.rr_start_depth = params_.rr_start_depth;
-            fp.light_samples = params_.light_samples;
-            pipe.trace(cmd, set_->set(), &fp, sizeof(fp), width_, band);
-            VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-            b.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
-            b.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_READ_BIT;
-            vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_RAY_TRACING_SHADER_BIT_KHR,
-                                 VK_PIPELINE_STAGE_RAY_TRACING_SHADER_BIT_KHR | VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1,
-                                 &b, 0, nullptr, 0, nullptr);
-            next_row_ += band;
-            if (budget != UINT32_MAX) budget -= band;
-            if (next_row_ == height_) {
-                next_row_ = 0;
+    if (!ic_->enabled()) {
+        RayTracingPipeline& pipe = pipeline(PROGRAM_CAMERA);
+        ctx_->submit_and_wait([&](VkCommandBuffer cmd) {
+            uint32_t budget = frames ? UINT32_MAX : rows;
+            while (frames == 0 ? budget > 0 : completed < frames) {
+                if (!record_bands(cmd, pipe, stats_.frames + completed, budget)) break;
                 ++completed;
                 if (frames == 0) break;  // render_rows: at most the rest of one frame
             }
+        });
+    } else {
+        RayTracingPipeline& pipe = pipeline(PROGRAM_CAMERA);
+        const uint64_t paths = uint64_t(width_) * height_ * params_.samples_per_frame;
+        bool prepared_only = false;
+        while (next_row_ == 0 && ic_->needs_prepare()) {
+            prepare_frame();
+            if (frames == 0) {
+                prepared_only = true;
+                break;
+            }
         }
-    });
+        while (!prepared_only && (frames == 0 || completed < frames)) {
+            uint32_t budget = frames ? UINT32_MAX : rows;
+            bool done = false;
+            const uint32_t frame = stats_.frames + completed;
+            ctx_->submit_and_wait([&](VkCommandBuffer cmd) { done = record_bands(cmd, pipe, frame, budget); });
+            if (done) {
+                ic_->after_frame(pipeline(PROGRAM_IC_HEMISPHERE), ic_finish_pipeline(), *set_, frame_params(frame),
+                                 paths, false);
+                ++completed;
+            }
+            if (frames == 0) break;
+        }
+    }
     stats_.milliseconds += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     stats_.frames += completed;
     stats_.samples += uint64_t(completed) * params_.samples_per_frame;
+    return completed > 0;
 }
 
 void Session::render(uint32_t frames) {
@@ -185,8 +273,7 @@ void Session::render(uint32_t frames) {
 bool Session::render_rows(uint32_t rows) {
     if (rows == 0) throw std::invalid_argument("render_rows needs at least one row");
     std::lock_guard<std::mutex> lock(mutex_);
-    trace(0, rows);
-    return next_row_ == 0;
+    return trace(0, rows);
 }
 
 std::vector<float> Session::read(const std::string& pass, uint32_t& channels) {
@@ -223,6 +310,7 @@ SessionStats Session::stats() {
     stats_.rays = total;
     SessionStats out = stats_;
     out.blas_builds = blas_builds_;
+    out.ic = ic_->stats();
     return out;
 }
 

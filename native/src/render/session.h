@@ -2,6 +2,7 @@
 // samples_per_frame samples per pixel to the running sums; read() divides by the count.
 #pragma once
 #include "scene/scene.h"
+#include "techniques/irradiance_cache.h"
 #include "vk/pipeline.h"
 
 #include <array>
@@ -20,6 +21,7 @@ struct RenderParams {
     uint32_t rr_start_depth = 3;
     uint32_t light_samples = 1;
     uint32_t seed = 0;
+    IcParams ic;  // irradiance cache (techniques/irradiance_cache.h)
     bool operator==(const RenderParams& o) const;
 };
 
@@ -29,6 +31,7 @@ struct SessionStats {
     double milliseconds = 0;  // GPU-side render time since the last reset (wall clock)
     uint32_t frames = 0;
     uint64_t blas_builds = 0;  // BLASes built by this session's updates (never reset; debugging)
+    IcStats ic;
 };
 
 struct PassInfo {
@@ -55,7 +58,8 @@ public:
     // Adds `frames` whole frames (finishing a frame that render_rows began first).
     void render(uint32_t frames);
     // Traces the next `rows` rows of the current frame (short dispatches, so a caller can
-    // react between them); returns true when that completed the frame. Sample counts include
+    // react between them); returns true when that completed the frame. With the irradiance
+    // cache on, a call at a frame's start may instead run one cache prepare frame (false). Sample counts include
     // completed frames only, so read() is exact after a completed frame (in between, traced
     // rows hold one frame more). update, set_params and reset drop a partial frame.
     bool render_rows(uint32_t rows);
@@ -80,15 +84,25 @@ public:
     size_t triangle_count() const { return scene_ ? scene_->triangle_count() : 0; }
 
 private:
-    void trace(uint32_t frames, uint32_t rows);  // whole frames, or (frames == 0) rows of one
-    RayTracingPipeline& pipeline();
+    // Whole frames, or (frames == 0) rows of one; true if a frame was completed.
+    bool trace(uint32_t frames, uint32_t rows);
+    // Records row bands of the current frame from next_row_ (at most `rows` rows); returns
+    // whether the frame is complete.
+    bool record_bands(VkCommandBuffer cmd, RayTracingPipeline& pipe, uint32_t frame, uint32_t& rows);
+    void prepare_frame();           // one irradiance-cache prepare frame, then its entries
+    void reset_accumulation();      // film, stats and partial frame; the cache starts over
+    void upload_technique_params();
+    FrameParams frame_params(uint32_t frame) const;
+    RayTracingPipeline& pipeline(uint32_t program);
+    ComputePipeline& ic_finish_pipeline();
     std::shared_ptr<Context> ctx_;  // first member: destroyed after everything using it
     uint32_t width_, height_;
     std::unique_ptr<DescriptorSet> set_;
     std::unique_ptr<Scene> scene_;  // written only by update(), under update_mutex_ and mutex_
     std::map<std::string, std::shared_ptr<const OwnedArray>> arrays_;  // the last arrays of every part
     uint64_t blas_builds_ = 0;
-    Buffer film_, ray_count_, test_io_;
+    Buffer film_, ray_count_, test_io_, technique_params_;
+    std::unique_ptr<IrradianceCache> ic_;
     // One pipeline per (method, heuristic, scene features) combination, built on first use.
     std::unique_ptr<ComputePipeline> test_pipeline_;
     RenderParams params_;

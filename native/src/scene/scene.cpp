@@ -87,23 +87,6 @@ uint32_t morton3(vec3 p) {
     return (spread(q(p.x)) << 2) | (spread(q(p.y)) << 1) | spread(q(p.z));
 }
 
-// Permutation sorting `points` along a Morton curve within their bounding box.
-std::vector<uint32_t> morton_order(const std::vector<vec3>& points) {
-    vec3 lo{INFINITY, INFINITY, INFINITY}, hi{-INFINITY, -INFINITY, -INFINITY};
-    for (auto p : points) lo = vmin(lo, p), hi = vmax(hi, p);
-    vec3 ext = hi - lo;
-    vec3 inv{ext.x > 0 ? 1 / ext.x : 0, ext.y > 0 ? 1 / ext.y : 0, ext.z > 0 ? 1 / ext.z : 0};
-    std::vector<std::pair<uint32_t, uint32_t>> keys(points.size());
-    for (size_t i = 0; i < points.size(); ++i) {
-        vec3 d = points[i] - lo;
-        keys[i] = {morton3({d.x * inv.x, d.y * inv.y, d.z * inv.z}), uint32_t(i)};
-    }
-    std::sort(keys.begin(), keys.end());
-    std::vector<uint32_t> order(points.size());
-    for (size_t i = 0; i < keys.size(); ++i) order[i] = keys[i].second;
-    return order;
-}
-
 // Cycles' light units -> radiance (see DESIGN "Units match Cycles").
 Light analytic_light(uint type, vec3 pos, vec3 dir, vec3 axis_u, vec3 axis_v, float radius, vec3 power,
                      float spot_size, float spot_blend, float sun_angle) {
@@ -621,6 +604,23 @@ void prepare_camera(const SceneArrays& a, SceneInfo& info) {
 }
 
 }  // namespace
+
+std::vector<uint32_t> morton_order(const std::vector<vec3>& points) {
+    vec3 lo{INFINITY, INFINITY, INFINITY}, hi{-INFINITY, -INFINITY, -INFINITY};
+    for (auto p : points) lo = vmin(lo, p), hi = vmax(hi, p);
+    vec3 ext = hi - lo;
+    vec3 inv{ext.x > 0 ? 1 / ext.x : 0, ext.y > 0 ? 1 / ext.y : 0, ext.z > 0 ? 1 / ext.z : 0};
+    std::vector<std::pair<uint32_t, uint32_t>> keys(points.size());
+    for (size_t i = 0; i < points.size(); ++i) {
+        vec3 d = points[i] - lo;
+        keys[i] = {morton3({d.x * inv.x, d.y * inv.y, d.z * inv.z}), uint32_t(i)};
+    }
+    std::sort(keys.begin(), keys.end());
+    std::vector<uint32_t> order(points.size());
+    for (size_t i = 0; i < keys.size(); ++i) order[i] = keys[i].second;
+    return order;
+}
+
 
 OwnedArray::OwnedArray(const ArrayView& v) : shape(v.shape), kind(v.kind), itemsize(v.itemsize) {
     const auto* p = static_cast<const uint8_t*>(v.data);

@@ -118,6 +118,10 @@ SceneHost prepare_scene(const SceneArrays& arrays, bool spatial_order);
 // is never modified.
 SceneHost update_scene(const SceneHost& previous, const SceneArrays& arrays, bool spatial_order, uint32_t parts);
 
+// Permutation sorting `points` along a Morton curve within their bounding box (the order
+// lavapipe's BVH builder needs its primitives in).
+std::vector<uint32_t> morton_order(const std::vector<vec3>& points);
+
 class Scene {
 public:
     // Uploads `host`. GPU data of the parts `previous` shares with `host` (the same host

@@ -90,6 +90,62 @@ std::vector<std::unique_ptr<AccelerationStructure>> build_triangle_blases(
     return result;
 }
 
+namespace {
+struct AabbBuild {
+    VkAccelerationStructureGeometryKHR geometry{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_KHR};
+    VkAccelerationStructureBuildGeometryInfoKHR info{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_GEOMETRY_INFO_KHR};
+    VkAccelerationStructureBuildSizesInfoKHR sizes{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_SIZES_INFO_KHR};
+    AabbBuild(Context& ctx, const Buffer& aabbs, uint32_t count, VkBuildAccelerationStructureModeKHR mode) {
+        geometry.geometryType = VK_GEOMETRY_TYPE_AABBS_KHR;
+        geometry.flags = 0;  // not opaque: the any-hit shader sees every entry
+        geometry.geometry.aabbs = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_AABBS_DATA_KHR};
+        geometry.geometry.aabbs.data.deviceAddress = aabbs.address();
+        geometry.geometry.aabbs.stride = sizeof(VkAabbPositionsKHR);
+        info.type = VK_ACCELERATION_STRUCTURE_TYPE_BOTTOM_LEVEL_KHR;
+        info.flags = VK_BUILD_ACCELERATION_STRUCTURE_PREFER_FAST_TRACE_BIT_KHR |
+                     VK_BUILD_ACCELERATION_STRUCTURE_ALLOW_UPDATE_BIT_KHR;
+        info.mode = mode;
+        info.geometryCount = 1;
+        info.pGeometries = &geometry;
+        ctx.rt().get_build_sizes(ctx.device(), VK_ACCELERATION_STRUCTURE_BUILD_TYPE_DEVICE_KHR, &info, &count, &sizes);
+    }
+    void run(Context& ctx, AccelerationStructure& dst, const AccelerationStructure* src, uint32_t count) {
+        VkDeviceSize scratch_size = info.mode == VK_BUILD_ACCELERATION_STRUCTURE_MODE_UPDATE_KHR
+                                        ? sizes.updateScratchSize : sizes.buildScratchSize;
+        Buffer scratch(ctx, scratch_size + 256, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+        info.dstAccelerationStructure = dst.handle();
+        info.srcAccelerationStructure = src ? src->handle() : VK_NULL_HANDLE;
+        info.scratchData.deviceAddress = align_up(scratch.address(), 256);
+        VkAccelerationStructureBuildRangeInfoKHR range{count, 0, 0, 0};
+        const VkAccelerationStructureBuildRangeInfoKHR* range_ptr = &range;
+        ctx.submit_and_wait([&](VkCommandBuffer cmd) {
+            // The AABBs were written by shaders (ic_finish.comp) or copied from the host.
+            VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+            b.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT | VK_ACCESS_HOST_WRITE_BIT;
+            b.dstAccessMask = VK_ACCESS_ACCELERATION_STRUCTURE_READ_BIT_KHR | VK_ACCESS_SHADER_READ_BIT;
+            vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
+                                 VK_PIPELINE_STAGE_ACCELERATION_STRUCTURE_BUILD_BIT_KHR, 0, 1, &b, 0, nullptr, 0,
+                                 nullptr);
+            ctx.rt().cmd_build_as(cmd, 1, &info, &range_ptr);
+            barrier_after_build(cmd);
+        });
+    }
+};
+}  // namespace
+
+std::unique_ptr<AccelerationStructure> build_aabb_blas(Context& ctx, const Buffer& aabbs, uint32_t count) {
+    AabbBuild build(ctx, aabbs, count, VK_BUILD_ACCELERATION_STRUCTURE_MODE_BUILD_KHR);
+    auto blas = std::make_unique<AccelerationStructure>(ctx, VK_ACCELERATION_STRUCTURE_TYPE_BOTTOM_LEVEL_KHR,
+                                                        build.sizes.accelerationStructureSize);
+    build.run(ctx, *blas, nullptr, count);
+    return blas;
+}
+
+void refit_aabb_blas(Context& ctx, AccelerationStructure& blas, const Buffer& aabbs, uint32_t count) {
+    AabbBuild build(ctx, aabbs, count, VK_BUILD_ACCELERATION_STRUCTURE_MODE_UPDATE_KHR);
+    build.run(ctx, blas, &blas, count);
+}
+
 std::unique_ptr<AccelerationStructure> build_tlas(Context& ctx, const std::vector<TlasInstance>& instances) {
     std::vector<VkAccelerationStructureInstanceKHR> vk_instances(instances.size());
     for (size_t i = 0; i < instances.size(); ++i) {

@@ -15,6 +15,7 @@ public:
     AccelerationStructure& operator=(const AccelerationStructure&) = delete;
     VkAccelerationStructureKHR handle() const { return as_; }
     VkDeviceAddress address() const { return address_; }
+    VkDeviceSize size() const { return storage_.size(); }
 
 private:
     Context& ctx_;
@@ -40,6 +41,12 @@ struct TlasInstance {
     uint32_t sbt_offset;
     VkDeviceAddress blas;
 };
+
+// A BLAS over `count` AABBs (VkAabbPositionsKHR: 6 floats each) at the start of `aabbs`:
+// procedural, not opaque (any-hit shaders run), built to allow in-place refits.
+std::unique_ptr<AccelerationStructure> build_aabb_blas(Context& ctx, const Buffer& aabbs, uint32_t count);
+// Refits `blas` (built by build_aabb_blas with the same count) to the AABBs' new bounds.
+void refit_aabb_blas(Context& ctx, AccelerationStructure& blas, const Buffer& aabbs, uint32_t count);
 
 // A TLAS over `instances` (in the given order: order them spatially first on lavapipe).
 std::unique_ptr<AccelerationStructure> build_tlas(Context& ctx, const std::vector<TlasInstance>& instances);

@@ -1,5 +1,6 @@
 #include "vk/pipeline.h"
 
+#include <algorithm>
 #include <cstring>
 #include <map>
 #include <mutex>
@@ -12,17 +13,19 @@ static constexpr VkShaderStageFlags kAllStages =
     VK_SHADER_STAGE_ANY_HIT_BIT_KHR | VK_SHADER_STAGE_INTERSECTION_BIT_KHR | VK_SHADER_STAGE_COMPUTE_BIT;
 
 namespace {
-VkDescriptorSetLayout shared_layout(Context& ctx, uint32_t binding_count, uint32_t tlas_binding) {
+bool contains(const std::vector<uint32_t>& v, uint32_t x) { return std::find(v.begin(), v.end(), x) != v.end(); }
+
+VkDescriptorSetLayout shared_layout(Context& ctx, uint32_t binding_count, const std::vector<uint32_t>& tlas_bindings) {
     static std::mutex mutex;
-    static std::map<std::tuple<VkDevice, uint32_t, uint32_t>, VkDescriptorSetLayout> layouts;
+    static std::map<std::tuple<VkDevice, uint32_t, std::vector<uint32_t>>, VkDescriptorSetLayout> layouts;
     std::lock_guard<std::mutex> lock(mutex);
-    VkDescriptorSetLayout& layout = layouts[{ctx.device(), binding_count, tlas_binding}];
+    VkDescriptorSetLayout& layout = layouts[{ctx.device(), binding_count, tlas_bindings}];
     if (layout != VK_NULL_HANDLE) return layout;
     std::vector<VkDescriptorSetLayoutBinding> bindings(binding_count);
     for (uint32_t i = 0; i < binding_count; ++i) {
         bindings[i].binding = i;
-        bindings[i].descriptorType = i == tlas_binding ? VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR
-                                                       : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+        bindings[i].descriptorType = contains(tlas_bindings, i) ? VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR
+                                                                : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
         bindings[i].descriptorCount = 1;
         bindings[i].stageFlags = kAllStages;
     }
@@ -34,10 +37,11 @@ VkDescriptorSetLayout shared_layout(Context& ctx, uint32_t binding_count, uint32
 }
 }  // namespace
 
-DescriptorSet::DescriptorSet(Context& ctx, uint32_t binding_count, uint32_t tlas_binding)
-    : ctx_(ctx), layout_(shared_layout(ctx, binding_count, tlas_binding)) {
-    VkDescriptorPoolSize sizes[2] = {{VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR, 1},
-                                     {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, binding_count}};
+DescriptorSet::DescriptorSet(Context& ctx, uint32_t binding_count, const std::vector<uint32_t>& tlas_bindings)
+    : ctx_(ctx), layout_(shared_layout(ctx, binding_count, tlas_bindings)) {
+    const uint32_t tlas_count = uint32_t(tlas_bindings.size());
+    VkDescriptorPoolSize sizes[2] = {{VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR, tlas_count},
+                                     {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, binding_count - tlas_count}};
     VkDescriptorPoolCreateInfo pinfo{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
     pinfo.maxSets = 1;
     pinfo.poolSizeCount = 2;

@@ -27,8 +27,9 @@ struct ShaderGroup {
 class DescriptorSet {
 public:
     // Every set of one device with the same bindings shares one layout, kept for the process
-    // (like the device), so a pipeline compiled for one set works with all of them.
-    DescriptorSet(Context& ctx, uint32_t binding_count, uint32_t tlas_binding);
+    // (like the device), so a pipeline compiled for one set works with all of them. Bindings
+    // in `tlas_bindings` are acceleration structures, the others storage buffers.
+    DescriptorSet(Context& ctx, uint32_t binding_count, const std::vector<uint32_t>& tlas_bindings);
     ~DescriptorSet();
     void bind_buffer(uint32_t binding, const Buffer& buffer);
     void bind_tlas(uint32_t binding, VkAccelerationStructureKHR tlas);

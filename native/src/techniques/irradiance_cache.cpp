@@ -1,0 +1,234 @@
+#include "techniques/irradiance_cache.h"
+
+#include <algorithm>
+#include <cassert>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <tuple>
+
+namespace px {
+
+namespace {
+
+// Creation requests one frame can queue; the rest are deferred (their points stay uncovered
+// and ask again). Bounds one frame's hemisphere dispatch to IC_STRATA * 2 * this paths.
+constexpr uint32_t kQueueCapacity = 1024;
+constexpr uint32_t kMaxJobs = 2 * kQueueCapacity;  // creations + refreshes
+
+double ms_since(std::chrono::steady_clock::time_point start) {
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+void check_range(const char* name, double value, double lo, double hi, bool lo_open = false) {
+    if (!std::isfinite(value) || value > hi || (lo_open ? value <= lo : value < lo))
+        throw std::invalid_argument(std::string(name) + " must be in " + (lo_open ? "(" : "[") + std::to_string(lo) +
+                                    ", " + std::to_string(hi) + "], got " + std::to_string(value));
+}
+
+void check_flag(const char* name, uint32_t value) {
+    if (value > 1) throw std::invalid_argument(std::string(name) + " must be 0 or 1");
+}
+
+}  // namespace
+
+void validate_ic_params(const IcParams& p) {
+    check_flag("ic", p.enabled);
+    check_flag("ic_gradients", p.gradients);
+    check_flag("ic_visibility_check", p.visibility_check);
+    check_flag("ic_highlight", p.highlight);
+    check_range("ic_accuracy", p.accuracy, 0.0, 2.0, true);
+    check_range("ic_min_radius", p.min_radius, 0.0, 1e6, true);
+    check_range("ic_create_prob", p.create_prob, 0.0, 1.0);
+    check_range("ic_update_prob", p.update_prob, 0.0, 1.0);
+    check_range("ic_nee_samples", p.nee_samples, 1, 64);
+    check_range("ic_gradient_max", p.gradient_max, 0.0, 1e6);
+    check_range("ic_prepare_frames", p.prepare_frames, 0, 10000);
+    check_range("ic_capacity", p.capacity, 1, 4000000);
+    check_range("ic_rebuild_interval", p.rebuild_interval, 1, 100000);
+}
+
+IrradianceCache::IrradianceCache(Context& ctx) : ctx_(ctx) {
+    configure(IcParams{}, SceneInfo{});
+}
+
+void IrradianceCache::configure(const IcParams& params, const SceneInfo& scene) {
+    params_ = params;
+    params_.queue_capacity = kQueueCapacity;
+    scene_ = scene;
+    // Disabled: one empty slot keeps every binding valid (the shaders never query it).
+    const uint32_t slots = enabled() ? params_.capacity : 1;
+    if (slots != allocated_) {
+        allocated_ = slots;
+        allocate();
+    }
+    reset();
+}
+
+void IrradianceCache::allocate() {
+    // Release first: at a large capacity old and new buffers need not fit side by side.
+    blas_.reset();
+    tlas_.reset();
+    entries_ = Buffer();
+    aabbs_ = Buffer();
+    entries_ = Buffer(ctx_, size_t(allocated_) * sizeof(IcEntry), kStorageUsage);
+    aabbs_ = Buffer(ctx_, size_t(allocated_) * sizeof(VkAabbPositionsKHR),
+                    kStorageUsage | VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR);
+    if (!queue_.valid()) {
+        queue_ = Buffer(ctx_, 16 + size_t(kQueueCapacity) * sizeof(IcRequest), kStorageUsage);
+        jobs_ = Buffer(ctx_, size_t(kMaxJobs) * sizeof(IcJob), kStorageUsage);
+        samples_ = Buffer(ctx_, size_t(kMaxJobs) * IC_STRATA * sizeof(IcSample), kStorageUsage);
+    }
+}
+
+void IrradianceCache::reset() {
+    count_ = update_cursor_ = prepared_frames_ = frames_since_rebuild_ = 0;
+    frame_counter_ = 0;
+    stats_ = {};
+    stats_.capacity = enabled() ? params_.capacity : 0;
+    entries_.fill_zero();
+    queue_.fill_zero();
+    rebuild();
+}
+
+// Every slot from count_ on is an empty entry (radius 0) whose AABB is a point outside the
+// scene, so refits after creations only grow the boxes of the slots that were filled.
+void IrradianceCache::rebuild() {
+    auto start = std::chrono::steady_clock::now();
+    std::vector<IcEntry> entries(count_);
+    if (count_) {
+        entries_.download(entries.data(), entries.size() * sizeof(IcEntry));
+        std::vector<vec3> points(count_);
+        for (uint32_t i = 0; i < count_; ++i) points[i] = entries[i].position;
+        std::vector<IcEntry> sorted(count_);
+        auto order = morton_order(points);
+        for (uint32_t i = 0; i < count_; ++i) sorted[i] = entries[order[i]];
+        entries.swap(sorted);
+        entries_.upload(entries.data(), entries.size() * sizeof(IcEntry));
+        update_cursor_ = 0;
+    }
+    const float far = 4.0f * scene_.scene_radius + 1.0f;
+    const vec3 c = scene_.scene_center;
+    const VkAabbPositionsKHR empty{c.x + far, c.y + far, c.z + far, c.x + far, c.y + far, c.z + far};
+    std::vector<VkAabbPositionsKHR> boxes(allocated_, empty);
+    for (uint32_t i = 0; i < count_; ++i) {
+        const IcEntry& e = entries[i];
+        const float r = params_.accuracy * e.radius;
+        boxes[i] = {e.position.x - r, e.position.y - r, e.position.z - r,
+                    e.position.x + r, e.position.y + r, e.position.z + r};
+    }
+    aabbs_.upload(boxes.data(), boxes.size() * sizeof(VkAabbPositionsKHR));
+    blas_.reset();
+    blas_ = build_aabb_blas(ctx_, aabbs_, allocated_);
+    build_tlas_over_blas();
+    built_count_ = count_;
+    frames_since_rebuild_ = 0;
+    stats_.build_milliseconds += ms_since(start);
+}
+
+void IrradianceCache::build_tlas_over_blas() {
+    TlasInstance instance{};
+    instance.transform = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+    instance.custom_index = 0;
+    instance.mask = 0xff;
+    instance.sbt_offset = 1;  // the cache's hit group (ic_query.rint + ic_query.rahit)
+    instance.blas = blas_->address();
+    tlas_ = build_tlas(ctx_, {instance});
+}
+
+void IrradianceCache::bind(DescriptorSet& set) const {
+    set.bind_tlas(BINDING_IC_TLAS, tlas_->handle());
+    set.bind_buffer(BINDING_IC_ENTRIES, entries_);
+    set.bind_buffer(BINDING_IC_AABBS, aabbs_);
+    set.bind_buffer(BINDING_IC_QUEUE, queue_);
+    set.bind_buffer(BINDING_IC_JOBS, jobs_);
+    set.bind_buffer(BINDING_IC_SAMPLES, samples_);
+}
+
+size_t IrradianceCache::bytes_per_entry() const {
+    return sizeof(IcEntry) + sizeof(VkAabbPositionsKHR) + size_t(blas_->size() / std::max(allocated_, 1u));
+}
+
+void IrradianceCache::after_frame(const RayTracingPipeline& hemisphere, const ComputePipeline& finish,
+                                  DescriptorSet& set, FrameParams frame, uint64_t paths, bool prepare) {
+    assert(enabled());
+    ++frame_counter_;
+    ++frames_since_rebuild_;
+    if (prepare) ++prepared_frames_;
+
+    // The frame's creation requests, in a fixed order (the queue's is the threads').
+    uint32_t queued = 0;
+    queue_.download(&queued, sizeof(queued));
+    const uint32_t n = std::min(queued, kQueueCapacity);
+    stats_.deferred += queued - n;
+    std::vector<IcRequest> requests(n);
+    if (n) queue_.download(requests.data(), n * sizeof(IcRequest), 16);
+    const uint32_t zero = 0;
+    queue_.upload(&zero, sizeof(zero));
+    std::sort(requests.begin(), requests.end(), [](const IcRequest& a, const IcRequest& b) {
+        return std::tie(a.pixel, a.sample_index, a.position.x, a.position.y, a.position.z) <
+               std::tie(b.pixel, b.sample_index, b.position.x, b.position.y, b.position.z);
+    });
+
+    std::vector<IcJob> jobs;
+    const uint32_t existing = count_;
+    for (const IcRequest& r : requests) {
+        if (count_ >= params_.capacity) {  // full: no write past the end
+            ++stats_.dropped;
+            continue;
+        }
+        jobs.push_back({r.position, count_++, r.normal, IC_JOB_CREATE});
+    }
+    const uint32_t created = uint32_t(jobs.size());
+    // Refreshes (thesis 4.4): each path refreshes an entry with probability update_prob; the
+    // entries take turns. Binomially many, from a generator seeded by the seed and frame.
+    if (!prepare && existing && params_.update_prob > 0) {
+        std::mt19937_64 rng((uint64_t(frame.seed) << 32) ^ (frame_counter_ * 0x9e3779b97f4a7c15ull));
+        std::binomial_distribution<uint64_t> refreshes(paths, params_.update_prob);
+        const uint64_t k = std::min<uint64_t>(refreshes(rng), kMaxJobs - created);
+        for (uint64_t i = 0; i < k; ++i)
+            jobs.push_back({vec3{0, 0, 0}, update_cursor_++ % existing, vec3{0, 0, 1}, IC_JOB_UPDATE});
+    }
+
+    if (!jobs.empty()) {
+        auto start = std::chrono::steady_clock::now();
+        jobs_.upload(jobs.data(), jobs.size() * sizeof(IcJob));
+        frame.ic_job_count = uint32_t(jobs.size());
+        ctx_.submit_and_wait([&](VkCommandBuffer cmd) {
+            VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+            b.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_HOST_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
+            b.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
+            vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, 0, 1, &b,
+                                 0, nullptr, 0, nullptr);
+            hemisphere.trace(cmd, set.set(), &frame, sizeof(frame), IC_STRATA, frame.ic_job_count);
+            vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, 0, 1, &b,
+                                 0, nullptr, 0, nullptr);
+            finish.dispatch(cmd, set.set(), &frame, sizeof(frame), (frame.ic_job_count + 63) / 64);
+            vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, 0, 1, &b,
+                                 0, nullptr, 0, nullptr);
+        });
+        stats_.job_milliseconds += ms_since(start);
+        stats_.jobs += jobs.size();
+    }
+    stats_.entries = count_;
+
+    // New entries reach the structure: a refit, or a rebuild in Morton order every
+    // rebuild_interval frames and when the prepare frames are done.
+    const bool prepared = prepare && prepared_frames_ == params_.prepare_frames;
+    if (count_ != built_count_ && (frames_since_rebuild_ >= params_.rebuild_interval || prepared)) {
+        rebuild();
+    } else if (created) {
+        auto start = std::chrono::steady_clock::now();
+        refit_aabb_blas(ctx_, *blas_, aabbs_, allocated_);
+        build_tlas_over_blas();
+        stats_.build_milliseconds += ms_since(start);
+    } else {
+        return;
+    }
+    set.bind_tlas(BINDING_IC_TLAS, tlas_->handle());
+}
+
+}  // namespace px

@@ -1,0 +1,70 @@
+// Irradiance cache, host side (thesis 3.2.3, 4.4; shaders/techniques/irradiance_cache.glsl).
+//
+// Owns the entries, their AABBs (the geometry of the cache's own BLAS/TLAS, queried by
+// zero-length rays), the creation queue and the job and sample buffers. After each frame the
+// session calls after_frame(): the queued creation requests (sorted, so a seed gives the same
+// cache every run) and this frame's random refreshes become jobs for the hemisphere dispatch
+// (ic_hemisphere.rgen, IC_STRATA rays per job) and the finish dispatch (ic_finish.comp), which
+// write the entries; then the BLAS is refit, or every rebuild_interval frames rebuilt with the
+// entries in Morton order (lavapipe's builder splits in input order).
+#pragma once
+#include "scene/scene.h"
+#include "vk/pipeline.h"
+
+#include <memory>
+
+namespace px {
+
+// Throws std::invalid_argument naming the setting that is out of range.
+void validate_ic_params(const IcParams& p);
+
+struct IcStats {
+    uint32_t entries = 0;   // used slots
+    uint32_t capacity = 0;
+    uint64_t dropped = 0;   // creations refused because the cache was full
+    uint64_t deferred = 0;  // requests past one frame's queue (uncovered points ask again)
+    uint64_t jobs = 0;      // hemisphere estimates computed (creations + refreshes)
+    double job_milliseconds = 0;    // hemisphere + finish dispatches
+    double build_milliseconds = 0;  // BLAS refits and rebuilds, TLAS builds
+};
+
+class IrradianceCache {
+public:
+    explicit IrradianceCache(Context& ctx);
+    // New settings or scene (bounds): every entry is dropped; buffers follow the capacity.
+    void configure(const IcParams& params, const SceneInfo& scene);
+    // Drops every entry; prepare frames run again.
+    void reset();
+    void bind(DescriptorSet& set) const;
+    const IcParams& params() const { return params_; }  // with queue_capacity filled in
+    bool enabled() const { return params_.enabled != 0; }
+    bool needs_prepare() const { return enabled() && prepared_frames_ < params_.prepare_frames; }
+    uint32_t prepared_frames() const { return prepared_frames_; }
+    // After a frame of `paths` camera paths (a prepare frame when `prepare`): turns the queue
+    // and the frame's refreshes into entries, then refits or rebuilds the acceleration
+    // structures (and binds the new TLAS into `set`).
+    void after_frame(const RayTracingPipeline& hemisphere, const ComputePipeline& finish, DescriptorSet& set,
+                     FrameParams frame, uint64_t paths, bool prepare);
+    const IcStats& stats() const { return stats_; }
+    size_t bytes_per_entry() const;
+
+private:
+    void allocate();
+    void rebuild();    // entries in Morton order, new BLAS, new TLAS
+    void build_tlas_over_blas();
+    Context& ctx_;
+    IcParams params_{};
+    SceneInfo scene_{};
+    Buffer entries_, aabbs_, queue_, jobs_, samples_;
+    std::unique_ptr<AccelerationStructure> blas_, tlas_;
+    uint32_t count_ = 0;           // used slots
+    uint32_t allocated_ = 0;       // capacity the buffers were made for
+    uint32_t update_cursor_ = 0;   // round-robin refresh position
+    uint32_t prepared_frames_ = 0;
+    uint32_t frames_since_rebuild_ = 0;
+    uint32_t built_count_ = 0;     // used slots at the last rebuild
+    uint64_t frame_counter_ = 0;   // frames processed since the last reset (refresh RNG)
+    IcStats stats_;
+};
+
+}  // namespace px
