@@ -38,9 +38,14 @@ def open_blend(path, engine="PARALLAX", width=None):
     return scene
 
 
+BOOL_WORDS = {"1": True, "true": True, "on": True, "yes": True,
+              "0": False, "false": False, "off": False, "no": False}
+
+
 def apply_settings(scene, assignments):
     """``PROP=VALUE`` pairs: PROP is a Parallax setting (``samples``) or a path from the
-    scene (``render.resolution_x``, ``cycles.samples``); VALUE is a Python literal or a word."""
+    scene (``render.resolution_x``, ``cycles.samples``); VALUE is a Python literal or a word
+    (for a boolean: 1/0, true/false, on/off, yes/no)."""
     for item in assignments:
         name, sep, text = item.partition("=")
         if not sep:
@@ -53,10 +58,16 @@ def apply_settings(scene, assignments):
             raise CommandError(f"--set {item!r}: scene has no '{owner_path}'") from e
         if not hasattr(owner, attr):
             raise CommandError(f"--set {item!r}: '{owner_path}' has no property '{attr}'")
-        try:
-            value = ast.literal_eval(text.strip())
-        except (ValueError, SyntaxError):
-            value = text.strip()
+        prop = owner.bl_rna.properties.get(attr) if hasattr(owner, "bl_rna") else None
+        if prop is not None and prop.type == "BOOLEAN" and not prop.is_array:
+            value = BOOL_WORDS.get(text.strip().lower())
+            if value is None:
+                raise CommandError(f"--set {item!r}: expected one of {', '.join(BOOL_WORDS)}")
+        else:
+            try:
+                value = ast.literal_eval(text.strip())
+            except (ValueError, SyntaxError):
+                value = text.strip()
         try:
             setattr(owner, attr, value)
         except (TypeError, ValueError, AttributeError) as e:

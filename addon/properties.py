@@ -24,6 +24,11 @@ DEVICE_ITEMS = (
 )
 
 
+IC_SETTINGS = ("ic", "ic_accuracy", "ic_min_radius", "ic_create_prob", "ic_update_prob",
+               "ic_nee_samples", "ic_gradients", "ic_gradient_max", "ic_visibility_check",
+               "ic_prepare_frames", "ic_capacity", "ic_rebuild_interval", "ic_highlight")
+
+
 class ParallaxRenderSettings(bpy.types.PropertyGroup):
     # Sampling
     samples: IntProperty(
@@ -70,6 +75,59 @@ class ParallaxRenderSettings(bpy.types.PropertyGroup):
     mis_heuristic: EnumProperty(
         name="MIS Heuristic", description="How MIS weighs light and BSDF samples",
         items=HEURISTIC_ITEMS, default="power")
+    # Irradiance cache (thesis, sec. 3.2.3 and 4.4; Ward, Rubinstein & Clear 1988; Ward & Heckbert 1992)
+    ic: BoolProperty(
+        name="Irradiance Cache", description="Reuse indirect diffuse irradiance from sparse cache "
+        "entries, each the mean of a hemisphere of paths, interpolated between nearby entries "
+        "(Ward, Rubinstein & Clear 1988; thesis, sec. 4.4). Biased but smooth",
+        default=False, update=lambda self, ctx: _update_scene_passes(self))
+    ic_accuracy: FloatProperty(
+        name="Accuracy", description="Ward's accuracy a: an entry is used where its error "
+        "estimate is below a, i.e. within a times its radius and for normals close to its own. "
+        "Smaller is more accurate and needs more entries (Ward et al. 1988)",
+        default=0.2, min=0.001, max=2.0, soft_min=0.05, precision=3)
+    ic_min_radius: FloatProperty(
+        name="Min Radius", description="Lower limit of an entry's radius, the harmonic mean "
+        "distance of its hemisphere paths, in scene units: keeps corners and contact regions "
+        "from needing unbounded numbers of entries", default=0.1, min=0.0001, soft_max=10.0,
+        precision=4, subtype="DISTANCE", unit="LENGTH")
+    ic_visibility_check: BoolProperty(
+        name="Visibility Check", description="Skip entries that lie in front of the shaded "
+        "point (Ward et al. 1988's 'in front' test), so light does not leak across creases",
+        default=True)
+    ic_create_prob: FloatProperty(
+        name="Creation Probability", description="Probability that a path vertex without a "
+        "valid cache entry queues the creation of one (thesis, sec. 4.4)", default=0.01,
+        min=0.0, max=1.0, precision=4, subtype="FACTOR")
+    ic_update_prob: FloatProperty(
+        name="Update Probability", description="Probability per pixel and frame of refreshing "
+        "a cache entry with new hemisphere paths, so early noisy entries improve over time",
+        default=1e-5, min=0.0, max=1.0, precision=6, subtype="FACTOR")
+    ic_nee_samples: IntProperty(
+        name="Entry Light Samples", description="Light samples per vertex of the hemisphere "
+        "paths that compute a cache entry", default=1, min=1, max=64)
+    ic_prepare_frames: IntProperty(
+        name="Prepare Frames", description="Frames that only fill the cache before the image "
+        "starts to accumulate", default=50, min=0, max=10000)
+    ic_capacity: IntProperty(
+        name="Capacity", description="Maximum number of cache entries; creations beyond it are "
+        "dropped (and counted in the render stats)", default=65536, min=1, max=4_000_000)
+    ic_rebuild_interval: IntProperty(
+        name="Rebuild Interval", description="Rebuild the cache's acceleration structure from "
+        "scratch, in Morton order, every this many frames (in between, frames that add entries "
+        "only refit it; on lavapipe a refit tree traces several times slower, hence 1)",
+        default=1, min=1, max=100000)
+    ic_gradients: BoolProperty(
+        name="Gradients", description="Extrapolate each entry with its rotational and "
+        "translational irradiance gradients (Ward & Heckbert 1992) for smoother interpolation",
+        default=False)
+    ic_gradient_max: FloatProperty(
+        name="Max Gradient Length", description="Clamp of the gradients' length relative to the "
+        "entry's irradiance, against extrapolating noisy gradients",
+        default=5.0, min=0.0, soft_max=20.0)
+    ic_highlight: BoolProperty(
+        name="Colour Highlight", description="The IC Irradiance pass shows only the colour "
+        "(the thesis' colour-highlight mode, fig. 4.13)", default=False)
     # Device
     device: EnumProperty(
         name="Device", description="Vulkan device to render on", items=DEVICE_ITEMS, default="auto")
@@ -81,7 +139,8 @@ class ParallaxRenderSettings(bpy.types.PropertyGroup):
             samples_per_frame=self.samples_per_frame, max_depth=self.max_depth,
             depth_leeway=self.depth_leeway,
             rr_start_depth=self.rr_start_depth if self.use_russian_roulette else 0,
-            light_samples=self.light_samples, seed=self.seed)
+            light_samples=self.light_samples, seed=self.seed,
+            **{name: getattr(self, name) for name in IC_SETTINGS})
 
 
 class ParallaxViewLayerSettings(bpy.types.PropertyGroup):
@@ -91,6 +150,20 @@ class ParallaxViewLayerSettings(bpy.types.PropertyGroup):
     use_pass_ray_depth: BoolProperty(
         name="Ray Depth", description="Mean number of path segments traced per pixel",
         default=False, update=lambda self, ctx: _update_passes(ctx))
+    use_pass_ic_irradiance: BoolProperty(
+        name="IC Irradiance", description="Irradiance cache: the cached indirect irradiance at "
+        "the first diffuse hit, without the surface colour (with the Irradiance Cache on)",
+        default=True, update=lambda self, ctx: _update_passes(ctx))
+    use_pass_ic_gradients: BoolProperty(
+        name="IC Gradients", description="Irradiance cache: R = length of the translational "
+        "gradient, G = of the rotational gradient (with the Irradiance Cache on)",
+        default=True, update=lambda self, ctx: _update_passes(ctx))
+
+
+def _update_scene_passes(settings):
+    # A scene setting that adds or removes passes: every view layer of the scene.
+    for view_layer in settings.id_data.view_layers:
+        view_layer.update_render_passes()
 
 
 def _update_passes(context):

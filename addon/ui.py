@@ -54,6 +54,59 @@ class PARALLAX_PT_lights(_RenderPanel, bpy.types.Panel):
         row.prop(context.scene.parallax, "mis_heuristic")
 
 
+class PARALLAX_PT_irradiance_cache(_RenderPanel, bpy.types.Panel):
+    bl_label = "Irradiance Cache"
+    bl_options = {"DEFAULT_CLOSED"}
+    properties = ()
+
+    def draw_header(self, context):
+        self.layout.prop(context.scene.parallax, "ic", text="")
+
+    def draw(self, context):
+        pass  # the settings are in the sub-panels
+
+
+class _IrradianceCacheSubPanel(_RenderPanel):
+    bl_parent_id = "PARALLAX_PT_irradiance_cache"
+
+    def draw(self, context):
+        self.layout.active = self.settings_active(context.scene.parallax)
+        super().draw(context)
+
+    def settings_active(self, settings):
+        """Greyed out (still editable) when this is False."""
+        return settings.ic
+
+
+class PARALLAX_PT_ic_accuracy(_IrradianceCacheSubPanel, bpy.types.Panel):
+    bl_label = "Accuracy"
+    properties = ("ic_accuracy", "ic_min_radius", "ic_visibility_check")
+
+
+class PARALLAX_PT_ic_creation(_IrradianceCacheSubPanel, bpy.types.Panel):
+    bl_label = "Creation"
+    properties = ("ic_create_prob", "ic_update_prob", "ic_nee_samples", "ic_prepare_frames",
+                  "ic_capacity", "ic_rebuild_interval")
+
+
+class PARALLAX_PT_ic_gradients(_IrradianceCacheSubPanel, bpy.types.Panel):
+    bl_label = "Gradients"
+    properties = ("ic_gradient_max",)
+
+    def draw_header(self, context):
+        settings = context.scene.parallax
+        self.layout.active = settings.ic
+        self.layout.prop(settings, "ic_gradients", text="")
+
+    def settings_active(self, settings):
+        return settings.ic and settings.ic_gradients
+
+
+class PARALLAX_PT_ic_visualisation(_IrradianceCacheSubPanel, bpy.types.Panel):
+    bl_label = "Visualisation"
+    properties = ("ic_highlight",)
+
+
 class PARALLAX_PT_device(_RenderPanel, bpy.types.Panel):
     bl_label = "Device"
     properties = ("device",)
@@ -79,6 +132,10 @@ class PARALLAX_PT_passes(_ParallaxPanel, bpy.types.Panel):
         col.prop(view_layer, "use_pass_normal", text="Normal")
         col.prop(view_layer.parallax, "use_pass_denoising_data")
         col.prop(view_layer.parallax, "use_pass_ray_depth")
+        col = layout.column(heading="Irradiance Cache")
+        col.active = context.scene.parallax.ic
+        col.prop(view_layer.parallax, "use_pass_ic_irradiance", text="Irradiance")
+        col.prop(view_layer.parallax, "use_pass_ic_gradients", text="Gradients")
 
 
 _device_lines = None
@@ -98,7 +155,9 @@ def detected_devices():
     return _device_lines
 
 
-classes = (PARALLAX_PT_sampling, PARALLAX_PT_light_paths, PARALLAX_PT_lights, PARALLAX_PT_device,
+classes = (PARALLAX_PT_sampling, PARALLAX_PT_light_paths, PARALLAX_PT_lights,
+           PARALLAX_PT_irradiance_cache, PARALLAX_PT_ic_accuracy, PARALLAX_PT_ic_creation,
+           PARALLAX_PT_ic_gradients, PARALLAX_PT_ic_visualisation, PARALLAX_PT_device,
            PARALLAX_PT_passes)
 
 # Built-in panels that make sense for Parallax: output, format, colour management, and

@@ -232,6 +232,19 @@ def add_point_light(name, location, radius, power, color=(1.0, 1.0, 1.0)):
     return obj
 
 
+def add_sun_light(name, direction, strength, angle_degrees, color=(1.0, 1.0, 1.0)):
+    """Cycles sun: `strength` W/m^2 arriving along `direction` (where the light travels), of
+    angular diameter `angle_degrees`. Not seen by camera rays."""
+    light = bpy.data.lights.new(name, "SUN")
+    light.energy = strength
+    light.color = color
+    light.angle = math.radians(angle_degrees)
+    rotation = Vector(direction).to_track_quat("-Z", "Y").to_euler()
+    obj = add_object(name, light, (0, 0, 10), rotation)
+    obj.visible_camera = False
+    return obj
+
+
 def add_camera(location, target, fov_degrees):
     """Perspective camera looking at `target`; the FOV spans the image's larger side."""
     cam = bpy.data.cameras.new("Camera")
@@ -438,12 +451,63 @@ def build_atrium():
     add_camera((-7.2, -1.6, 1.7), (4.0, 1.5, 3.0), 75.0)
 
 
+# Sun room, as parallax_core.scenes.sun_room: room size, window (centre y, centre z, width,
+# height) in the +X wall, sun elevation and azimuth (degrees), strength (W/m^2), angle.
+SUN_ROOM_SIZE = (4.0, 5.0, 2.8)
+SUN_ROOM_WINDOW = (0.6, 1.55, 1.2, 1.0)
+SUN_ROOM_SUN = (36.6, 20.0, 5.0, 0.5)
+
+
+def wall_with_hole_geometry(x, y_range, z_range, hole):
+    """Quads of the wall plane x = `x` around the rectangular `hole` (y0, y1, z0, z1), facing
+    -X (counter-clockwise seen from -X, where the viewer's right is -Y)."""
+    (ya, yb), (za, zb) = y_range, z_range
+    y0, y1, z0, z1 = hole
+    verts, faces = [], []
+    for lo_y, hi_y, lo_z, hi_z in ((ya, yb, za, z0), (ya, yb, z1, zb),
+                                   (ya, y0, z0, z1), (y1, yb, z0, z1)):
+        faces.append(tuple(range(len(verts), len(verts) + 4)))
+        verts += [Vector((x, hi_y, lo_z)), Vector((x, lo_y, lo_z)),
+                  Vector((x, lo_y, hi_z)), Vector((x, hi_y, hi_z))]
+    return verts, faces
+
+
+def build_sun_room():
+    """A closed room lit by a sun through one window: mostly indirect light."""
+    sx, sy, sz = SUN_ROOM_SIZE
+    wy, wz, ww, wh = SUN_ROOM_WINDOW
+    floor = diffuse("Floor", (0.60, 0.45, 0.32))
+    ceiling = diffuse("Ceiling", (0.80, 0.80, 0.78))
+    cream = diffuse("WallCream", (0.78, 0.74, 0.62))
+    blue = diffuse("WallBlue", (0.62, 0.70, 0.78))
+    green = diffuse("WallGreen", (0.66, 0.76, 0.62))
+    # One mesh (watertight shared edges): five inward sides and the +X wall around the window.
+    sides = {"-z": floor, "+z": ceiling, "-x": cream, "+y": blue, "-y": green}
+    shell = box_geometry((sx, sy, sz), Matrix.Translation((0, 0, sz / 2)), sides, inward=True)
+    hole = (wy - ww / 2, wy + ww / 2, wz - wh / 2, wz + wh / 2)
+    window_wall = wall_with_hole_geometry(sx / 2, (-sy / 2, sy / 2), (0.0, sz), hole)
+    materials = [floor, ceiling, cream, blue, green]
+    indices = ([materials.index(m) for m in sides.values()]
+               + [materials.index(cream)] * len(window_wall[1]))
+    add_object("Room", make_mesh("Room", merge([shell, window_wall]), materials, indices))
+    add_box("Cabinet", (1.4, 0.6, 0.9), diffuse("Cabinet", (0.62, 0.30, 0.24)), (-0.4, 2.1, 0.45))
+    add_box("Bench", (1.2, 0.5, 0.5), diffuse("Bench", (0.30, 0.38, 0.55)), (0.25, 0.55, 0.25),
+            math.radians(15.0))
+    elevation, azimuth, strength, angle = SUN_ROOM_SUN
+    el, az = math.radians(elevation), math.radians(azimuth)
+    to_sun = Vector((math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)))
+    add_sun_light("Sun", -to_sun, strength, angle, (1.0, 0.95, 0.88))
+    set_world((0.02, 0.025, 0.035), 1.0)
+    add_camera((-1.8, -2.3, 1.6), (1.2, 1.0, 0.9), 65.0)
+
+
 SCENES = {  # name: (builder, resolution)
     "cornell_box": (build_cornell_box, (512, 512)),
     "veach_mis": (build_veach_mis, (512, 512)),
     "cornell_dielectric": (build_cornell_dielectric, (512, 512)),
     "light_behind_glass": (build_light_behind_glass, (512, 512)),
     "atrium": (build_atrium, (640, 480)),
+    "sun_room": (build_sun_room, (512, 512)),
 }
 
 

@@ -26,6 +26,7 @@ void main() {
     uint job_index = gl_GlobalInvocationID.x;
     if (job_index >= params.ic_job_count) return;
     IcJob job = ic_jobs[job_index];
+    if (job.kind == IC_JOB_UPDATE) job.normal = ic_entries[job.slot].normal;  // the host sends none
     const float M = float(IC_THETA), N = float(IC_PHI);
 
     vec3 sum = vec3(0.0);
@@ -56,24 +57,29 @@ void main() {
         }
     }
     vec3 irradiance = sum * (PI / float(IC_STRATA));
-    float min_r = tech.ic.min_radius;
-    float radius = clamp(float(IC_STRATA) / max(inverse_distances, 1e-30), min_r, IC_MAX_RADIUS_FACTOR * min_r);
-
     vec3 tangent, bitangent;
     make_basis(job.normal, tangent, bitangent);
     float lum_e = luminance(irradiance);
     float scale = lum_e > 0.0 ? 1.0 / lum_e : 0.0;
     vec3 grad_r = cross(job.normal, (rot.x * tangent + rot.y * bitangent) * scale);
     vec3 grad_t = (trans.x * tangent + trans.y * bitangent) * scale;
+    // Gradient-limited radius (Krivanek et al. 2008): R <= E / |grad_t E|, so within the
+    // influence radius a R the irradiance changes by at most about a. Where irradiance varies
+    // steeply (next to a small bright source) entries shrink instead of smearing it out.
+    float min_r = tech.ic.min_radius;
+    float radius = float(IC_STRATA) / max(inverse_distances, 1e-30);
+    if (length(grad_t) > 0.0) radius = min(radius, 1.0 / length(grad_t));
+    radius = clamp(radius, min_r, IC_MAX_RADIUS_FACTOR * min_r);
     float g_max = tech.ic.gradient_max;
     if (length(grad_r) > g_max) grad_r *= g_max / length(grad_r);
     if (length(grad_t) > g_max) grad_t *= g_max / length(grad_t);
 
     if (job.kind == IC_JOB_UPDATE) {
-        // Refresh: blend the new estimate in with weight 1 - min(n/(n+1), 0.95); the entry
-        // keeps its place and radius, so its AABB stays.
+        // Refresh: the entry becomes the mean of all its estimates (weight n/(n+1) on the old
+        // value), so refreshes converge it; the reference capped that weight at 0.95, which
+        // leaves a noise floor. The entry keeps its place and radius, so its AABB stays.
         IcEntry e = ic_entries[job.slot];
-        float keep = min(float(e.updates) / float(e.updates + 1u), 0.95);
+        float keep = float(e.updates) / float(e.updates + 1u);
         e.irradiance = mix(irradiance, e.irradiance, keep);
         e.grad_r = mix(grad_r, e.grad_r, keep);
         e.grad_t = mix(grad_t, e.grad_t, keep);

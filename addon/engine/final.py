@@ -77,7 +77,7 @@ class _Worker(threading.Thread):
         self.time_limit = time_limit
         self.core_passes = core_passes
         self.rows_per_band = max(1, session.height // 16)  # adapted to the measured band time
-        self.snapshot = None  # (samples, seconds, rays per second, {core pass: image})
+        self.snapshot = None  # (samples, seconds, rays per second, {core pass: image}, stats)
         self.error = None
         self._stop_event = threading.Event()
         self.start_time = time.perf_counter()
@@ -122,7 +122,13 @@ class _Worker(threading.Thread):
         render_seconds = stats.get("milliseconds", 0.0) / 1e3  # device time, without compiling
         rate = stats.get("rays", 0) / render_seconds if render_seconds > 0 else 0.0
         self.snapshot = (int(stats.get("samples", 0)), time.perf_counter() - self.start_time,
-                         rate, images)
+                         rate, images, stats)
+
+
+def ic_status(stats):
+    """The irradiance cache's part of the stats line."""
+    return (f"IC {stats.get('ic_entries', 0)}/{stats.get('ic_capacity', 0)} entries, "
+            f"{stats.get('ic_dropped', 0)} dropped")
 
 
 def _write_result(result, snapshot):
@@ -166,7 +172,7 @@ def render(engine, depsgraph):
     for message in warnings:
         engine.report({"WARNING"}, f"Parallax: {message}")
 
-    wanted = passes.enabled(view_layer)
+    wanted = passes.enabled(scene, view_layer)
     per_frame = settings.samples_per_frame
     frames = -(-settings.samples // per_frame)
     total = frames * per_frame
@@ -183,8 +189,10 @@ def render(engine, depsgraph):
             shown = snapshot
             _write_result(result, snapshot)
             engine.update_result(result)
-            samples, seconds, rate, _ = snapshot
+            samples, seconds, rate, _, stats = snapshot
             line = f"Sample {samples}/{total} | {rate / 1e6:.1f} M rays/s | {seconds:.1f} s"
+            if settings.ic:
+                line += f" | {ic_status(stats)}"
             engine.update_stats("", line)
             if progress_stream is not None:
                 progress_stream.write(f"\rParallax: {line}  ")

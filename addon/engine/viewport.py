@@ -160,7 +160,9 @@ class _Worker(threading.Thread):
             self._preview_factor, preview_parts = factor, None
         for session, session_parts in ((self._full, parts), (self._preview, preview_parts)):
             if session is not None:
-                session.set_params(**params)
+                # The quick preview frame skips the irradiance cache: its prepare frames
+                # (cache creation) would cost many frames; the full-size session shows it.
+                session.set_params(**(params if session is self._full else {**params, "ic": False}))
                 if edited:
                     session.update(scene, parts=None if session_parts is None else sorted(session_parts))
         if edited and self._preview is not None:

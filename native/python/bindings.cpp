@@ -147,6 +147,7 @@ NB_MODULE(_native, m) {
                  d["ic_capacity"] = st.ic.capacity;
                  d["ic_dropped"] = st.ic.dropped;
                  d["ic_deferred"] = st.ic.deferred;
+                 d["ic_merged"] = st.ic.merged;
                  d["ic_jobs"] = st.ic.jobs;
                  d["ic_job_milliseconds"] = st.ic.job_milliseconds;
                  d["ic_build_milliseconds"] = st.ic.build_milliseconds;

@@ -1,10 +1,13 @@
 """`parallax render FILE.blend` / `parallax export`: bpy in a subprocess, the F12 code path."""
+import re
 import subprocess
 import sys
 
 import numpy as np
+import pytest
 from blender_helpers import SCENES, read_layers
 
+import parallax_core
 from parallax_core.scene import SceneData
 
 PARALLAX = [sys.executable, "-m", "parallax_core"]
@@ -51,3 +54,16 @@ def test_bad_arguments_exit_with_a_clear_error(tmp_path):
         r = run("render", *args, "-o", out, check=False)
         assert r.returncode == 2, (args, r.stderr)
         assert "parallax: error:" in r.stderr and message in r.stderr and "Traceback" not in r.stderr
+
+
+@pytest.mark.skipif("ic" not in parallax_core.RenderParams.__dataclass_fields__,
+                    reason="parallax_core has no irradiance cache yet (RenderParams.ic)")
+def test_render_blend_with_the_irradiance_cache(tmp_path):
+    exr = tmp_path / "ic.exr"
+    r = run("render", CORNELL, "-o", str(exr), "--samples", "2", *SMALL, "--set", "ic=true",
+            "--set", "ic_prepare_frames=2", "--set", "ic_capacity=5000", "--set", "ic_gradients=1")
+    found = re.search(r"IC (\d+)/5000 entries, (\d+) dropped", r.stderr)  # F12's stats line
+    assert found and int(found.group(1)) > 0, r.stderr
+    layers = read_layers(exr)
+    assert layers["IC Irradiance"].shape == layers["IC Gradients"].shape == (16, 24, 3)
+    assert layers["IC Irradiance"].mean() > 0.0

@@ -67,4 +67,5 @@ def test_render_params_match_the_core(bpy):
     scene = bpy.context.scene
     assert isinstance(scene.parallax, ParallaxRenderSettings)
     fields = {f.name for f in dataclasses.fields(RenderParams)}
-    assert set(scene.parallax.render_params()) == fields
+    params = set(scene.parallax.render_params())
+    assert params == fields

@@ -1,9 +1,14 @@
 """The `parallax` console script: scene -> npz -> render -> multi-channel EXR."""
+import dataclasses
+import re
 import subprocess
 import sys
 
 import numpy as np
+import pytest
 
+import parallax_core
+from parallax_core.cli import parse_params
 from parallax_core.exr import read_exr
 
 PARALLAX = [sys.executable, "-m", "parallax_core"]
@@ -43,3 +48,74 @@ def test_errors_exit_cleanly(tmp_path):
     np.savez(bad, **data)
     r = run("render", str(bad), "-o", str(tmp_path / "x.exr"), check=False)
     assert r.returncode == 2 and "NaN" in r.stderr and "Traceback" not in r.stderr
+
+
+needs_core_ic = pytest.mark.skipif(
+    "ic" not in parallax_core.RenderParams.__dataclass_fields__,
+    reason="parallax_core has no irradiance cache yet (RenderParams.ic)")
+
+
+@dataclasses.dataclass
+class _Params:  # RenderParams' field types, as real types (RenderParams' are strings)
+    method: str = "mis"
+    max_depth: int = 8
+    ic: bool = False
+    ic_accuracy: float = 0.2
+
+
+def test_set_values_are_parsed_by_the_field_type():
+    parsed = parse_params(["ic=on", "ic_accuracy=0.3", "max_depth= 3", "method='nee'"], _Params)
+    assert parsed == {"ic": True, "ic_accuracy": 0.3, "max_depth": 3, "method": "nee"}
+    assert type(parsed["ic"]) is bool and type(parsed["ic_accuracy"]) is float
+    for word, value in (("1", True), ("0", False), ("TRUE", True), ("false", False), ("on", True),
+                        ("off", False), ("yes", True), ("no", False)):
+        assert parse_params([f"ic={word}"], _Params) == {"ic": value}
+    # The real RenderParams (string annotations).
+    assert parse_params(["method=nee", "seed=4", "mis_heuristic=balance"]) == {
+        "method": "nee", "seed": 4, "mis_heuristic": "balance"}
+    for item, message in (("bogus=1", "method, max_depth, ic, ic_accuracy"),
+                          ("max_depth=2.5", "expected an integer"),
+                          ("ic_accuracy=abc", "expected a number"),
+                          ("ic_accuracy=nan", "finite"),
+                          ("ic=maybe", "yes/no"),
+                          ("ic", "expected NAME=VALUE")):
+        with pytest.raises(ValueError, match=re.escape(message)):
+            parse_params([item], _Params)
+
+
+def _ray_depth(tmp_path, name, *args):
+    npz, exr = tmp_path / "cb.npz", tmp_path / f"{name}.exr"
+    if not npz.exists():
+        run("scene", "cornell_box", "-o", str(npz), "--width", "16", "--height", "12")
+    r = run("render", str(npz), "-o", str(exr), "--spp", "4", *args)
+    return float(np.mean(read_exr(str(exr))["RayDepth.V"])), r
+
+
+def test_set_applies_render_parameters_to_npz_scenes(tmp_path):
+    default, r = _ray_depth(tmp_path, "default")
+    assert "IC " not in r.stdout
+    shallow, _ = _ray_depth(tmp_path, "shallow", "--set", "max_depth=1", "--set", "method=nee")
+    assert shallow < default
+    for args, message in ((("--set", "bogus=1"), "max_depth"),
+                          (("--set", "max_depth=abc"), "expected an integer"),
+                          (("--set", "method=bogus"), "bogus"),
+                          (("--engine", "CYCLES"), ".blend files only")):
+        r = run("render", str(tmp_path / "cb.npz"), "-o", str(tmp_path / "x.exr"), *args, check=False)
+        assert r.returncode == 2 and "parallax: error:" in r.stderr and message in r.stderr, (args, r.stderr)
+        assert "Traceback" not in r.stderr
+
+
+@needs_core_ic
+def test_npz_render_with_the_irradiance_cache(tmp_path):
+    npz, exr = tmp_path / "cb.npz", tmp_path / "ic.exr"
+    run("scene", "cornell_box", "-o", str(npz), "--width", "16", "--height", "12")
+    r = run("render", str(npz), "-o", str(exr), "--spp", "2", "--set", "ic=1", "--set", "ic_gradients=yes",
+            "--set", "ic_prepare_frames=2", "--set", "ic_capacity=5000", "--set", "ic_accuracy=0.3")
+    found = re.search(r"IC (\d+)/5000 entries, (\d+) dropped", r.stdout)
+    assert found and int(found.group(1)) > 0, r.stdout
+    channels = read_exr(str(exr))
+    irradiance = np.stack([channels[f"IC Irradiance.{c}"] for c in "RGB"], axis=-1)
+    gradients = np.stack([channels[f"IC Gradients.{c}"] for c in "RGB"], axis=-1)
+    assert irradiance.shape == gradients.shape == (12, 16, 3)
+    assert np.isfinite(irradiance).all() and irradiance.mean() > 0.0
+    assert np.isfinite(gradients).all() and (gradients[..., 2] == 0).all()

@@ -32,7 +32,8 @@ from parallax_core import scenes
 from parallax_core.scene import (Light, Material, Mesh, SceneData, World,
                                  direction_to_equirectangular, equirectangular_to_direction)
 
-TEST_DIFFUSE, TEST_CONDUCTOR, TEST_DIELECTRIC, TEST_LIGHT = 0, 1, 2, 3
+TEST_DIFFUSE, TEST_CONDUCTOR, TEST_DIELECTRIC, TEST_LIGHT, TEST_IC_HEMISPHERE = 0, 1, 2, 3, 4
+IC_THETA, IC_PHI = 10, 20  # shaders/shared/techniques.h
 EVAL = 16                 # routine + EVAL: evaluate at given directions
 N = 300_000               # samples per chi-square test
 DISTANT = 1e29            # sample distance at or above this: a light at infinity
@@ -397,6 +398,25 @@ def test_bsdf_pdf_and_weight_consistent(session, case):
 # ---- lights: one kind per scene -----------------------------------------------------------
 
 P0 = np.zeros(3)  # shading point of the single-light scenes
+
+
+def test_ic_stratified_hemisphere(session):
+    """The irradiance cache's hemisphere (ic_hemisphere.rgen, thesis eq. 3.20): sample i lies in
+    stratum i mod 200 (theta index j = s // IC_PHI, phi index k = s % IC_PHI, with
+    sin^2(theta) in [j, j+1) / IC_THETA and phi in 2 pi [k, k+1) / IC_PHI), and together the
+    samples follow cos(theta) / pi."""
+    n = N // (IC_THETA * IC_PHI) * (IC_THETA * IC_PHI)
+    r = session.test_sampling(TEST_IC_HEMISPHERE, [0.0, 0.0, 1.0, 0.0, 0.0], n, seed=SEED + 900)
+    d = r[:, 0, :3].astype(np.float64)
+    np.testing.assert_allclose(r[:, 0, 3], np.maximum(d[:, 2], 0.0) / math.pi, rtol=1e-5, atol=1e-7)
+    stratum = np.arange(n) % (IC_THETA * IC_PHI)
+    j, k = stratum // IC_PHI, stratum % IC_PHI
+    sin2 = 1.0 - d[:, 2] ** 2
+    assert np.all(sin2 >= j / IC_THETA - 1e-5) and np.all(sin2 <= (j + 1) / IC_THETA + 1e-5)
+    phi = np.mod(np.arctan2(d[:, 1], d[:, 0]), 2 * math.pi) / (2 * math.pi) * IC_PHI
+    assert np.all((phi >= k - 1e-3) & (phi <= k + 1 + 1e-3) | (k == IC_PHI - 1) & (phi < 1e-3))
+    check_fit("ic stratified cosine hemisphere", SphereGrid.sphere(16, 32), d, n,
+              lambda dirs: np.maximum(np.asarray(dirs)[:, 2], 0.0) / math.pi)
 
 
 def emission_mesh(corners, material):

@@ -649,7 +649,7 @@ def test_exr_round_trip(tmp_path):
     back = exr.read_exr(tmp_path / "a.exr")
     assert set(back) == {"Combined.R", "Combined.G", "Combined.B", "Combined.A", "Depth.Z",
                          "Normal.X", "Normal.Y", "Normal.Z", "Albedo.R", "Albedo.G", "Albedo.B",
-                         "RayDepth.V", "IcIrradiance.R", "IcIrradiance.G", "IcIrradiance.B"}
+                         "RayDepth.V", "IC Irradiance.R", "IC Irradiance.G", "IC Irradiance.B"}
     np.testing.assert_array_equal(back["Combined.G"], passes["combined"][:, :, 1])
     np.testing.assert_array_equal(back["Normal.Z"], passes["normal"][:, :, 2])
     np.testing.assert_array_equal(back["RayDepth.V"], passes["ray_depth"])

@@ -9,6 +9,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import sys
 import time
@@ -36,6 +37,75 @@ def cmd_info(args):
     if chosen:
         print(f"using: {chosen[0].get('name')}")
     return 0
+
+
+BOOL_WORDS = {"1": True, "true": True, "on": True, "yes": True,
+              "0": False, "false": False, "off": False, "no": False}
+
+
+def _parse_bool(text):
+    value = BOOL_WORDS.get(text.lower())
+    if value is None:
+        raise ValueError("expected 1/0, true/false, on/off or yes/no")
+    return value
+
+
+def _parse_int(text):
+    try:
+        return int(text)
+    except ValueError:
+        raise ValueError("expected an integer") from None
+
+
+def _parse_float(text):
+    try:
+        value = float(text)
+    except ValueError:
+        raise ValueError("expected a number") from None
+    if not math.isfinite(value):
+        raise ValueError("expected a finite number")
+    return value
+
+
+def _parse_str(text):
+    if len(text) >= 2 and text[0] == text[-1] and text[0] in "'\"":
+        return text[1:-1]  # method='nee', as --set for .blend files takes it
+    return text
+
+
+_PARSERS = {"bool": _parse_bool, "int": _parse_int, "float": _parse_float, "str": _parse_str}
+
+
+def parse_params(assignments, params_type=None):
+    """``NAME=VALUE`` pairs (``--set`` for .npz scenes) -> keyword arguments for
+    ``Session.set_params``. NAME must be a field of ``params_type`` (RenderParams); VALUE is
+    parsed by the field's type. Raises ValueError naming the item."""
+    if params_type is None:
+        from . import RenderParams as params_type
+    fields = {f.name: f for f in dataclasses.fields(params_type)}
+    params = {}
+    for item in assignments:
+        name, sep, text = item.partition("=")
+        name, text = name.strip(), text.strip()
+        if not sep:
+            raise ValueError(f"--set {item!r}: expected NAME=VALUE")
+        field = fields.get(name)
+        if field is None:
+            raise ValueError(f"--set {item!r}: for .npz scenes NAME is a render parameter: "
+                             f"{', '.join(fields)}")
+        kind = field.type if isinstance(field.type, str) else getattr(field.type, "__name__", "")
+        parse = _PARSERS.get(kind) or _PARSERS.get(type(field.default).__name__, _parse_str)
+        try:
+            params[name] = parse(text)
+        except ValueError as e:
+            raise ValueError(f"--set {item!r}: {e}") from None
+    return params
+
+
+def ic_status(stats):
+    """The irradiance cache's stats line (as F12 shows it)."""
+    return (f"IC {stats.get('ic_entries', 0)}/{stats.get('ic_capacity', 0)} entries, "
+            f"{stats.get('ic_dropped', 0)} dropped")
 
 
 def _device_arg(value):
@@ -98,9 +168,9 @@ def cmd_export(args):
 def cmd_render(args):
     if args.scene.lower().endswith(".blend"):
         return cmd_render_blend(args)
-    for flag in ("engine", "set"):
-        if getattr(args, flag):
-            raise ValueError(f"--{flag} applies to .blend files only")
+    if args.engine:
+        raise ValueError("--engine applies to .blend files only")
+    overrides = parse_params(args.set or ())
     from .exr import write_exr, write_png
     from .scene import SceneData
 
@@ -119,7 +189,7 @@ def cmd_render(args):
         print(f"parallax: warning: {w}", file=sys.stderr)
 
     spp = max(1, args.samples if args.samples is not None else args.spp)
-    per_frame = max(1, min(args.spp_per_frame, spp))
+    per_frame = max(1, min(overrides.get("samples_per_frame", args.spp_per_frame), spp))
     frames = math.ceil(spp / per_frame)
     if frames * per_frame != spp:
         print(f"parallax: note: {spp} spp is not a multiple of --spp-per-frame {per_frame}; "
@@ -132,13 +202,14 @@ def cmd_render(args):
     for key in ("seed", "max_depth", "light_samples"):
         if getattr(args, key) is not None:
             params[key] = getattr(args, key)
+    params.update(overrides, samples_per_frame=per_frame)
     session.set_params(**params)
     session.update(scene)
 
     start = time.perf_counter()
     try:
         for frame in range(frames):
-            session.render(1)
+            session.render(1)  # the first call runs the irradiance cache's prepare frames too
             stats = session.stats()
             seconds = stats.get("milliseconds", 0.0) / 1e3 or (time.perf_counter() - start)
             _progress((frame + 1) * per_frame, frames * per_frame,
@@ -146,7 +217,9 @@ def cmd_render(args):
     finally:
         sys.stderr.write("\n")
 
-    passes = {name: session.read(name) for name in session.pass_names()}
+    ic = params.get("ic", False)
+    passes = {name: session.read(name) for name in session.pass_names()
+              if ic or not name.startswith("ic_")}  # the cache's passes only with the cache on
     write_exr(args.output, passes)
     if args.png:
         write_png(args.png, passes["combined"])
@@ -157,6 +230,8 @@ def cmd_render(args):
     print(f"{stats.get('samples', frames * per_frame)} spp, {rays / 1e6:.1f} Mrays in "
           f"{seconds:.2f} s{rate} on {stats.get('device', '?')} -> {args.output}"
           + (f", {args.png}" if args.png else ""))
+    if ic:
+        print(ic_status(stats))
     return 0
 
 
@@ -195,8 +270,10 @@ def build_parser():
                    "setting; for .npz the same as --spp)")
     r.add_argument("--engine", help=".blend only: PARALLAX (default) or CYCLES")
     r.add_argument("--set", action="append", metavar="PROP=VALUE",
-                   help=".blend only: a Parallax setting (samples=64) or a path from the scene "
-                   "(render.resolution_x=320, cycles.samples=64); repeatable")
+                   help="a setting; repeatable. .npz: a render parameter (method=nee, ic=1, "
+                   "ic_accuracy=0.3; overrides the options above). .blend: a Parallax setting "
+                   "(samples=64) or a path from the scene (render.resolution_x=320, "
+                   "cycles.samples=64)")
     r.add_argument("--method", choices=("pt", "nee", "mis"), default="mis")
     r.add_argument("--device", help="auto (default), cpu, gpu or a device index")
     r.add_argument("--seed", type=int)

@@ -13,6 +13,8 @@ PASS_LAYERS = {
     "normal": ("Normal", {3: "XYZ"}),
     "albedo": ("Albedo", None),
     "ray_depth": ("RayDepth", None),
+    "ic_irradiance": ("IC Irradiance", None),  # the names Blender's render layers use
+    "ic_gradients": ("IC Gradients", None),
 }
 DEFAULT_CHANNELS = {1: "V", 2: "XY", 3: "RGB", 4: "RGBA"}
 

@@ -15,7 +15,7 @@ from .scene import (Camera, Light, Material, Mesh, SceneData, World,
 __all__ = [
     "quad", "box", "uv_sphere", "merge",
     "cornell_box", "veach_mis", "furnace_sphere", "closed_emitter_box",
-    "triangle_soup_scene", "env_map_scene", "SCENES",
+    "triangle_soup_scene", "env_map_scene", "sun_room", "SCENES",
 ]
 
 
@@ -266,6 +266,77 @@ def env_map_scene(width=256, height=256, map_width=512, sun_elevation=35.0,
     return SceneData(meshes, [], materials, [], [], world, camera, width, height)
 
 
+# Sun room (metres, Z up): the room spans x in [-SUN_ROOM_SIZE[0]/2, +...], likewise y, and
+# z in [0, SUN_ROOM_SIZE[2]]; the window is a hole in the +X wall (centre y, centre z,
+# width, height); the sun stands SUN_ROOM_SUN_ELEVATION degrees above the horizon, in the
+# direction of azimuth SUN_ROOM_SUN_AZIMUTH degrees (atan2(y, x)): outside the window.
+SUN_ROOM_SIZE = (4.0, 5.0, 2.8)
+SUN_ROOM_WINDOW = (0.6, 1.55, 1.2, 1.0)
+SUN_ROOM_SUN_ELEVATION = 36.6
+SUN_ROOM_SUN_AZIMUTH = 20.0
+SUN_ROOM_SUN_STRENGTH = 5.0     # W/m^2
+SUN_ROOM_SUN_ANGLE = 0.5        # degrees
+SUN_ROOM_WORLD = (0.02, 0.025, 0.035)
+
+
+def _wall_with_hole(x, y_range, z_range, hole, toward, material, name):
+    """The wall plane x = ``x`` over y_range x z_range, minus the rectangular ``hole``
+    (y0, y1, z0, z1), as four quads facing ``toward``."""
+    (ya, yb), (za, zb) = y_range, z_range
+    y0, y1, z0, z1 = hole
+    P = lambda y, z: (x, y, z)
+    rects = [(ya, yb, za, z0), (ya, yb, z1, zb),   # below and above the hole
+             (ya, y0, z0, z1), (y1, yb, z0, z1)]   # beside it
+    return merge([_oriented_quad([P(r[0], r[2]), P(r[1], r[2]), P(r[1], r[3]), P(r[0], r[3])],
+                                 toward, material, name) for r in rects], name)
+
+
+def sun_room(width=256, height=256):
+    """An interior lit mostly indirectly: a closed 4 x 5 x 2.8 m room (diffuse walls of
+    different light colours, a wooden floor, a cabinet against the back wall and a low bench)
+    whose only opening is a 1.2 x 1.0 m window in the +X wall. A sun of
+    SUN_ROOM_SUN_STRENGTH W/m^2 (angle SUN_ROOM_SUN_ANGLE degrees) shines through it onto
+    the floor and the bench; a dim world colour is the sky seen through the window. The
+    camera stands in the corner opposite the window (-X, -Y) and looks across the room:
+    apart from the sun patch, everything it sees is lit indirectly."""
+    hx, hy, hz = SUN_ROOM_SIZE[0] / 2, SUN_ROOM_SIZE[1] / 2, SUN_ROOM_SIZE[2]
+    wy, wz, ww, wh = SUN_ROOM_WINDOW
+    materials = [
+        Material("diffuse", (0.60, 0.45, 0.32), name="floor"),
+        Material("diffuse", (0.80, 0.80, 0.78), name="ceiling"),
+        Material("diffuse", (0.78, 0.74, 0.62), name="wall_cream"),   # +X (window) and -X
+        Material("diffuse", (0.62, 0.70, 0.78), name="wall_blue"),    # +Y
+        Material("diffuse", (0.66, 0.76, 0.62), name="wall_green"),   # -Y
+        Material("diffuse", (0.62, 0.30, 0.24), name="cabinet"),
+        Material("diffuse", (0.30, 0.38, 0.55), name="bench"),
+    ]
+    inside = (0.0, 0.0, hz / 2)
+    P = lambda *c: np.array(c, dtype=np.float64)
+    walls = {
+        "floor": ([P(-hx, -hy, 0), P(hx, -hy, 0), P(hx, hy, 0), P(-hx, hy, 0)], 0),
+        "ceiling": ([P(-hx, -hy, hz), P(hx, -hy, hz), P(hx, hy, hz), P(-hx, hy, hz)], 1),
+        "wall_west": ([P(-hx, -hy, 0), P(-hx, hy, 0), P(-hx, hy, hz), P(-hx, -hy, hz)], 2),
+        "wall_north": ([P(-hx, hy, 0), P(hx, hy, 0), P(hx, hy, hz), P(-hx, hy, hz)], 3),
+        "wall_south": ([P(-hx, -hy, 0), P(hx, -hy, 0), P(hx, -hy, hz), P(-hx, -hy, hz)], 4),
+    }
+    hole = (wy - ww / 2, wy + ww / 2, wz - wh / 2, wz + wh / 2)
+    # One mesh, so its shared edges are watertight: no sunlight slips in between walls.
+    meshes = [merge([_oriented_quad(c, inside, m, name) for name, (c, m) in walls.items()]
+                    + [_wall_with_hole(hx, (-hy, hy), (0.0, hz), hole, inside, 2, "wall_east")],
+                    "room")]
+    meshes.append(box((-0.4, 2.1, 0.45), (1.4, 0.6, 0.9), 0.0, 5, "cabinet"))
+    meshes.append(box((0.25, 0.55, 0.25), (1.2, 0.5, 0.5), math.radians(15.0), 6, "bench"))
+    el, az = math.radians(SUN_ROOM_SUN_ELEVATION), math.radians(SUN_ROOM_SUN_AZIMUTH)
+    to_sun = (math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el))
+    sun = Light("sun", color=(1.0, 0.95, 0.88), power=SUN_ROOM_SUN_STRENGTH,
+                direction=tuple(-c for c in to_sun), angle=math.radians(SUN_ROOM_SUN_ANGLE),
+                camera_visible=False, name="sun")
+    camera = Camera.look_at((-1.8, -2.3, 1.6), (1.2, 1.0, 0.9), fov_y_degrees=65.0,
+                            width=width, height=height, clip_start=0.05)
+    return SceneData(meshes, [], materials, [], [sun], World(SUN_ROOM_WORLD, 1.0), camera,
+                     width, height)
+
+
 # name -> builder, for `parallax scene NAME`
 SCENES = {
     "cornell_box": cornell_box,
@@ -274,4 +345,5 @@ SCENES = {
     "closed_emitter_box": closed_emitter_box,
     "triangle_soup": triangle_soup_scene,
     "env_map_scene": env_map_scene,
+    "sun_room": sun_room,
 }

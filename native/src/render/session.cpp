@@ -212,9 +212,10 @@ void Session::prepare_frame() {
     RayTracingPipeline& camera = pipeline(PROGRAM_CAMERA);
     FrameParams fp = frame_params(0x80000000u | ic_->prepared_frames());
     fp.mode = FRAME_IC_PREPARE;
+    fp.samples_per_frame = 1;  // thesis 4.4: prepare frames at 1 spp
     ctx_->submit_and_wait([&](VkCommandBuffer cmd) { camera.trace(cmd, set_->set(), &fp, sizeof(fp), width_, height_); });
-    ic_->after_frame(pipeline(PROGRAM_IC_HEMISPHERE), ic_finish_pipeline(), *set_, fp,
-                     uint64_t(width_) * height_ * params_.samples_per_frame, true);
+    ic_->after_frame(pipeline(PROGRAM_IC_HEMISPHERE), ic_finish_pipeline(), *set_, fp, uint64_t(width_) * height_,
+                     true);
 }
 
 // Without the cache, all frames go in one submission. With it, each frame is a submission of

@@ -4,11 +4,13 @@
 #include <cassert>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <random>
 #include <stdexcept>
 #include <string>
 #include <tuple>
+#include <unordered_map>
 
 namespace px {
 
@@ -23,10 +25,16 @@ double ms_since(std::chrono::steady_clock::time_point start) {
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
+std::string number(double v) {
+    char text[32];
+    std::snprintf(text, sizeof(text), "%g", v);
+    return text;
+}
+
 void check_range(const char* name, double value, double lo, double hi, bool lo_open = false) {
     if (!std::isfinite(value) || value > hi || (lo_open ? value <= lo : value < lo))
-        throw std::invalid_argument(std::string(name) + " must be in " + (lo_open ? "(" : "[") + std::to_string(lo) +
-                                    ", " + std::to_string(hi) + "], got " + std::to_string(value));
+        throw std::invalid_argument(std::string(name) + " must be in " + (lo_open ? "(" : "[") + number(lo) + ", " +
+                                    number(hi) + "], got " + number(value));
 }
 
 void check_flag(const char* name, uint32_t value) {
@@ -175,11 +183,36 @@ void IrradianceCache::after_frame(const RayTracingPipeline& hemisphere, const Co
 
     std::vector<IcJob> jobs;
     const uint32_t existing = count_;
+    // Requests of one frame cluster where the cache has a hole. One whose point lies within
+    // 4 a R_min of an accepted one facing the same way would be covered by that entry (R >=
+    // R_min): it is merged into it rather than computed again.
+    const float merge_distance = 4.0f * params_.accuracy * params_.min_radius;
+    std::unordered_map<uint64_t, std::vector<uint32_t>> grid;
+    auto cell = [&](vec3 p, int dx, int dy, int dz) {
+        auto c = [&](float v, int d) { return uint64_t(int64_t(std::floor(v / merge_distance)) + d) & 0x1fffff; };
+        return c(p.x, dx) | c(p.y, dy) << 21 | c(p.z, dz) << 42;
+    };
     for (const IcRequest& r : requests) {
+        bool covered = false;
+        for (int d = 0; d < 27 && !covered; ++d) {
+            auto it = grid.find(cell(r.position, d % 3 - 1, d / 3 % 3 - 1, d / 9 - 1));
+            if (it == grid.end()) continue;
+            for (uint32_t j : it->second) {
+                const IcJob& a = jobs[j];
+                vec3 v{r.position.x - a.position.x, r.position.y - a.position.y, r.position.z - a.position.z};
+                float n = r.normal.x * a.normal.x + r.normal.y * a.normal.y + r.normal.z * a.normal.z;
+                if (v.x * v.x + v.y * v.y + v.z * v.z < merge_distance * merge_distance && n > 0.9f) covered = true;
+            }
+        }
+        if (covered) {
+            ++stats_.merged;
+            continue;
+        }
         if (count_ >= params_.capacity) {  // full: no write past the end
             ++stats_.dropped;
             continue;
         }
+        grid[cell(r.position, 0, 0, 0)].push_back(uint32_t(jobs.size()));
         jobs.push_back({r.position, count_++, r.normal, IC_JOB_CREATE});
     }
     const uint32_t created = uint32_t(jobs.size());

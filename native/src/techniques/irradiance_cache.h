@@ -23,6 +23,7 @@ struct IcStats {
     uint32_t capacity = 0;
     uint64_t dropped = 0;   // creations refused because the cache was full
     uint64_t deferred = 0;  // requests past one frame's queue (uncovered points ask again)
+    uint64_t merged = 0;    // requests next to another of the same frame (one entry for both)
     uint64_t jobs = 0;      // hemisphere estimates computed (creations + refreshes)
     double job_milliseconds = 0;    // hemisphere + finish dispatches
     double build_milliseconds = 0;  // BLAS refits and rebuilds, TLAS builds

@@ -1,0 +1,202 @@
+"""Irradiance cache (thesis 3.2.3, 4.4): an analytic furnace, its bias against converged MIS on
+the Cornell box and the thesis' own scene, gradients, the visibility check at a concave corner,
+capacity overflow, determinism, resets on edits, the passes and the settings' validation."""
+from __future__ import annotations
+
+import math
+import os
+import sys
+
+import numpy as np
+import pytest
+
+import parallax_core as pc
+from parallax_core import scenes
+from parallax_core.scene import Camera, Light, Material, SceneData, World
+
+from helpers import block, render, same_render
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
+from bench import shared_scenes  # noqa: E402
+
+# Small images fill the cache quickly only with a higher creation probability than the default.
+FAST_IC = dict(ic=True, ic_prepare_frames=12, ic_create_prob=0.05)
+
+
+def block_rel_mse(img, ref, k=8):
+    """relMSE (Ruppert et al. 2020) of k x k block means: the bias, with most noise averaged."""
+    b, r = block(img, k), block(ref, k)
+    return float(((b - r) ** 2 / (r ** 2 + 1e-3)).mean())
+
+
+def closed_sphere(albedo=0.5, emission=1.0, size=24):
+    """The camera inside a closed sphere whose inside is diffuse `albedo` and emits `emission`:
+    every pixel converges to emission / (1 - albedo)."""
+    mesh = scenes.uv_sphere((0.0, 0.0, 0.0), 2.0, 32, 16, 0, "sphere")
+    mat = Material("diffuse", (albedo,) * 3, emission=(emission,) * 3, name="furnace")
+    camera = Camera.look_at((0.0, 0.0, 0.0), (0.0, 1.0, 0.0), fov_y_degrees=70.0, width=size, height=size)
+    return SceneData([mesh], [], [mat], [], [], World((0.0, 0.0, 0.0), 1.0), camera, size, size)
+
+
+def test_furnace_sphere_gives_the_analytic_answer():
+    sc = closed_sphere()
+    img, s = render(sc, "mis", spp=64, spp_per_frame=16, max_depth=64, **FAST_IC)
+    st = s.stats()
+    assert st["ic_entries"] > 0
+    # Every visible point was shaded from the cache (first diffuse vertex found entries).
+    assert np.all(s.read("ic_irradiance")[..., :3] > 0.0)
+    assert abs(img.mean() / 2.0 - 1.0) < 0.01, img.mean()
+
+
+def cornell_light_at_ceiling(size=64):
+    """The Cornell box with its light 1 mm (not 2 cm) below the ceiling. Our light emits from
+    both sides (Cycles' mesh emission), so 2 cm below the ceiling it floods the gap above it
+    with light as bright as the light itself, which the rest of the room sees only through a
+    2 cm slit: about a tenth of the light's power arrives through rays that hit that slit by
+    rare chance. A cache entry's 200 hemisphere rays cannot resolve that heavy tail, and the
+    mean of an IC render of the original box moves by a few per cent with the seed (measured:
+    -3.5 % to +2.4 %). At 1 mm the slit carries about 0.5 % of the power."""
+    sc = scenes.cornell_box(size, size)
+    light = sc.meshes[-1]
+    light.positions = np.array(light.positions, dtype=np.float64)
+    light.positions[:, 2] = 1.999
+    return sc
+
+
+@pytest.fixture(scope="module")
+def bias_scenes():
+    """(name, scene, converged MIS image) for the bias tests."""
+    cases = [("cornell_box", cornell_light_at_ceiling())]
+    if shared_scenes.available("thesis_irradianceCache"):
+        cases.append(("thesis_irradianceCache", shared_scenes.thesis_irradiance_cache(96, 54)))
+    else:
+        print(f"note: {shared_scenes.SHARED_SCENES} lacks thesis_irradianceCache: Cornell box only")
+    return [(name, sc, render(sc, "mis", spp=512, spp_per_frame=32, seed=7)[0]) for name, sc in cases]
+
+
+def test_bias_is_bounded(bias_scenes):
+    """Converged IC against converged MIS: block relMSE < 0.01 and the mean within 2 %."""
+    for name, scene, ref in bias_scenes:
+        img, _ = render(scene, "mis", spp=128, spp_per_frame=16, **FAST_IC)
+        err, mean_bias = block_rel_mse(img, ref), img.mean() / ref.mean() - 1.0
+        print(f"{name}: block relMSE {err:.5f}, mean {mean_bias:+.4f}")
+        assert np.isfinite(img).all()
+        assert err < 0.01, (name, err)
+        assert abs(mean_bias) < 0.02, (name, mean_bias)
+
+
+def test_gradients_reduce_the_error(bias_scenes):
+    """Ward & Heckbert's gradients extrapolate each entry to the query point: with large
+    entries (accuracy 0.5), where interpolation error dominates, they lower the block error
+    (measured: by about half on the Cornell box)."""
+    name, scene, ref = bias_scenes[0]
+    errors = {}
+    for gradients in (False, True):
+        img, _ = render(scene, "mis", spp=128, spp_per_frame=16, ic_gradients=gradients,
+                        **{**FAST_IC, "ic_accuracy": 0.5})
+        errors[gradients] = block_rel_mse(img, ref)
+    print(f"{name}: block relMSE without / with gradients {errors}")
+    assert errors[True] < 0.8 * errors[False], errors
+
+
+def table_scene(size=48):
+    """The concave space under a table: a floor, a slab 0.35 m above it and a white ceiling
+    lit by an upward-facing area light, so everything is lit indirectly from above. The slab's
+    top sees the bright ceiling; the floor under it sees the slab's dark underside. Entries on
+    the slab's top lie 'in front of' floor points beneath it (Ward's d_i < 0): without the
+    visibility check their large radius lets that irradiance leak onto the floor below."""
+    mats = [Material("diffuse", (0.8, 0.8, 0.8), name="white")]
+    meshes = [
+        scenes.quad([(-4, -4, 0), (4, -4, 0), (4, 4, 0), (-4, 4, 0)], 0, "floor"),
+        scenes.quad([(-4, -4, 2), (-4, 4, 2), (4, 4, 2), (4, -4, 2)], 0, "ceiling"),
+        scenes.box((0.0, 0.0, 0.375), (1.4, 1.4, 0.05), 0.0, 0, "table"),
+    ]
+    light = Light("area", power=600.0, position=(2.5, 2.5, 1.0), direction=(0.0, 0.0, 1.0), size=1.0)
+    camera = Camera.look_at((0.0, -4.5, 0.6), (0.0, 0.0, 0.25), fov_y_degrees=22.0, width=size, height=size)
+    return SceneData(meshes, [], mats, [], [light], World((0.0, 0.0, 0.0), 1.0), camera, size, size)
+
+
+def test_visibility_check_reduces_leaking_at_a_concave_corner():
+    sc = table_scene()
+    ref, _ = render(sc, "mis", spp=256, spp_per_frame=32, seed=3)
+    errors = {}
+    for check in (False, True):
+        img, _ = render(sc, "mis", spp=64, spp_per_frame=16, ic_accuracy=0.6, ic_visibility_check=check, **FAST_IC)
+        errors[check] = block_rel_mse(img, ref, 4)
+    print("block relMSE without / with the visibility check:", errors)
+    assert errors[True] < 0.5 * errors[False], errors
+
+
+def test_capacity_overflow_is_counted_and_harmless():
+    sc = scenes.cornell_box(32, 32)
+    img, s = render(sc, "mis", spp=8, spp_per_frame=4, ic=True, ic_capacity=10, ic_prepare_frames=4,
+                    ic_create_prob=0.2)
+    st = s.stats()
+    assert st["ic_entries"] == 10 and st["ic_capacity"] == 10
+    assert st["ic_dropped"] > 0
+    assert np.isfinite(img).all() and img.mean() > 0.0
+    for name in ("ic_irradiance", "ic_gradients"):
+        assert np.isfinite(s.read(name)).all()
+
+
+def test_same_seed_same_cache_and_image():
+    sc = scenes.cornell_box(32, 32)
+    a, sa = render(sc, "mis", spp=8, spp_per_frame=4, ic_gradients=True, **FAST_IC)
+    b, sb = render(sc, "mis", spp=8, spp_per_frame=4, ic_gradients=True, **FAST_IC)
+    assert sa.stats()["ic_entries"] == sb.stats()["ic_entries"]
+    assert same_render(a, b, sa.device_type)
+    assert same_render(sa.read("ic_irradiance"), sb.read("ic_irradiance"), sa.device_type)
+
+
+def test_scene_edit_drops_stale_irradiance():
+    """After an edit the cache starts over: the edited session renders exactly what a fresh
+    session of the edited scene renders (the viewport never shows stale irradiance)."""
+    before, after = scenes.cornell_box(24, 24), scenes.cornell_box(24, 24)
+    after.materials[0] = Material("diffuse", (0.2, 0.2, 0.9), name="white")
+    params = dict(spp=4, spp_per_frame=4, **FAST_IC)
+    _, edited = render(before, "mis", **params)
+    edited.update(after, parts={"materials"})
+    img_edited, _ = render(after, "mis", session=edited, **params)
+    img_fresh, fresh = render(after, "mis", **params)
+    assert same_render(img_edited, img_fresh, fresh.device_type)
+    assert same_render(edited.read("ic_irradiance"), fresh.read("ic_irradiance"), fresh.device_type)
+
+
+def test_passes():
+    sc = scenes.cornell_box(32, 32)
+    _, s = render(sc, "mis", spp=4, spp_per_frame=4, ic_gradients=True, **FAST_IC)
+    irradiance, gradients = s.read("ic_irradiance"), s.read("ic_gradients")
+    assert irradiance.shape == (32, 32, 3) and gradients.shape == (32, 32, 3)
+    assert (irradiance.sum(-1) > 0).mean() > 0.8  # most first hits are covered by entries
+    assert np.all(gradients >= 0.0) and np.all(gradients[..., :2] <= 1.0 + 1e-5)  # |g| / g_max
+    assert gradients[..., :2].max() > 0.0 and np.all(gradients[..., 2] == 0.0)
+    # Colour highlight (thesis fig. 4.13): the white part removed, so one channel is 0.
+    _, h = render(sc, "mis", spp=4, spp_per_frame=4, ic_highlight=True, **FAST_IC)
+    highlight = h.read("ic_irradiance")
+    assert np.allclose(highlight.min(-1), 0.0, atol=1e-6)
+    assert highlight.max() > 0.0
+    # Off: the passes stay black.
+    _, off = render(sc, "mis", spp=4, spp_per_frame=4)
+    assert off.read("ic_irradiance").max() == 0.0 and off.stats()["ic_entries"] == 0
+
+
+def test_prepare_frames_fill_before_accumulation():
+    sc = scenes.cornell_box(32, 32)
+    s = pc.Session(32, 32)
+    s.update(sc)
+    s.set_params(samples_per_frame=1, **{**FAST_IC, "ic_prepare_frames": 5})
+    # render_rows runs one prepare frame per call and reports no frame completed.
+    for _ in range(5):
+        assert s.render_rows(32) is False
+    assert s.samples == 0 and s.stats()["ic_entries"] > 0
+    assert s.render_rows(32) is True and s.samples == 1
+
+
+@pytest.mark.parametrize("name,value", [("ic_accuracy", 0.0), ("ic_accuracy", 3.0), ("ic_min_radius", 0.0),
+                                        ("ic_create_prob", 1.5), ("ic_capacity", 0), ("ic_nee_samples", 0),
+                                        ("ic_rebuild_interval", 0), ("ic_gradient_max", float("nan"))])
+def test_bad_settings_are_rejected(name, value):
+    s = pc.Session(4, 4)
+    with pytest.raises(ValueError, match=name):
+        s.set_params(ic=True, **{name: value})
+    assert s.params.ic is False  # nothing changed
