@@ -31,6 +31,10 @@ layout(push_constant, scalar) uniform PushConstants { FrameParams params; };
 layout(constant_id = 2) const uint SCENE_FEATURES = FEATURE_ALL;
 #define HAS(FEATURE) ((SCENE_FEATURES & (FEATURE)) != 0u)
 
+// TECH_* bits of the enabled techniques (shaders/shared/techniques.h); the others fold away.
+layout(constant_id = 3) const uint TECHNIQUES = 0u;
+#define USES(TECH) ((TECHNIQUES & (TECH)) != 0u)
+
 float max3(vec3 v) { return max(v.x, max(v.y, v.z)); }
 float luminance(vec3 c) { return dot(c, vec3(0.2126, 0.7152, 0.0722)); }
 float sqr(float x) { return x * x; }

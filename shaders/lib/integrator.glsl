@@ -37,7 +37,7 @@ struct PathResult {
 bool trace_shadow(vec3 origin, vec3 dir, float t_max) {
     shadow_visible = 0u;
     traceRayEXT(tlas, gl_RayFlagsOpaqueEXT | gl_RayFlagsTerminateOnFirstHitEXT | gl_RayFlagsSkipClosestHitShaderEXT,
-                0xff, 0, 0, 1, origin, 0.0, dir, t_max, 1);
+                0xff, 0, 0, MISS_SHADOW, origin, 0.0, dir, t_max, 1);
     return shadow_visible != 0u;
 }
 
@@ -89,7 +89,7 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
     uint bounces = 0u, discrete = 0u;
 
     for (;;) {
-        traceRayEXT(tlas, gl_RayFlagsOpaqueEXT, 0xff, 0, 0, 0, origin, t_min, dir, t_max, 0);
+        traceRayEXT(tlas, gl_RayFlagsOpaqueEXT, 0xff, 0, 0, MISS_SCENE, origin, t_min, dir, t_max, 0);
         res.rays++;
         res.segments++;
         float t_surface = hit.t < 0.0 ? t_max : hit.t;

@@ -48,6 +48,13 @@ PX_CONST uint BINDING_IC_JOBS = 25;        // IcJob[], written by the host
 PX_CONST uint BINDING_IC_SAMPLES = 26;     // IcSample[jobs * IC_STRATA]
 PX_CONST uint BINDING_COUNT = 27;
 
+// ---- shader binding table: miss shaders and hit groups (RayTracingPipeline group order) -
+PX_CONST uint MISS_SCENE = 0;         // miss.rmiss: the world
+PX_CONST uint MISS_SHADOW = 1;        // shadow.rmiss: the light is visible
+PX_CONST uint MISS_IC_QUERY = 2;      // ic_query.rmiss: nothing to do
+PX_CONST uint HIT_GROUP_TRIANGLES = 0;  // the scene TLAS' instances (closesthit.rchit)
+PX_CONST uint HIT_GROUP_IC = 1;         // the cache TLAS' instance (ic_query.rint + .rahit)
+
 // ---- film passes ------------------------------------------------------------------------
 PX_CONST uint PASS_COMBINED = 0;   // rgb radiance, a = 1
 PX_CONST uint PASS_DEPTH = 1;      // x = z-depth along the camera axis (1e10 on a miss)

@@ -9,9 +9,6 @@
 // Entry points that cannot trace rays (intersection, any-hit, compute) define PX_NO_TRACE
 // and get only the bindings and the weight maths.
 
-layout(constant_id = 3) const uint TECHNIQUES = 0u;
-#define USES(TECH) ((TECHNIQUES & (TECH)) != 0u)
-
 layout(set = 0, binding = BINDING_TECH_PARAMS, scalar) readonly buffer TechParamsBuffer { TechniqueParams tech; };
 layout(set = 0, binding = BINDING_IC_ENTRIES, scalar) buffer IcEntryBuffer { IcEntry ic_entries[]; };
 
@@ -42,8 +39,6 @@ layout(set = 0, binding = BINDING_IC_QUEUE, scalar) buffer IcQueueBuffer {
     IcRequest ic_requests[];
 };
 layout(location = 2) rayPayloadEXT IcQuery ic_query;
-
-const uint MISS_IC_QUERY = 2u;  // miss shader index of the cache query (ic_query.rmiss)
 
 // The weighted mean of the usable entries around (p, n) (eq. 3.18) and their mean gradient
 // lengths; false where there is none.

@@ -162,6 +162,21 @@ def test_scene_edit_drops_stale_irradiance():
     assert same_render(edited.read("ic_irradiance"), fresh.read("ic_irradiance"), fresh.device_type)
 
 
+def test_camera_move_keeps_the_cache():
+    """Irradiance does not depend on the view: orbiting keeps the entries (no prepare frames
+    again), while any edit of the scene data drops them."""
+    sc = scenes.cornell_box(24, 24)
+    _, s = render(sc, "mis", spp=4, spp_per_frame=4, **FAST_IC)
+    entries = s.stats()["ic_entries"]
+    assert entries > 0
+    sc.camera = Camera.look_at((0.4, -3.8, 1.2), (0.0, 0.0, 1.0), fov_y_degrees=39.3, width=24, height=24)
+    s.update(sc, parts={"camera"})
+    assert s.stats()["ic_entries"] == entries and s.samples == 0
+    assert s.render_rows(24) is True  # no prepare frame first: this call completes a frame
+    s.update(sc, parts={"materials"})
+    assert s.stats()["ic_entries"] == 0
+
+
 def test_passes():
     sc = scenes.cornell_box(32, 32)
     _, s = render(sc, "mis", spp=4, spp_per_frame=4, ic_gradients=True, **FAST_IC)

@@ -51,12 +51,12 @@ void Session::upload_technique_params() {
 }
 
 // Caller holds mutex_.
-void Session::reset_accumulation() {
+void Session::reset_accumulation(bool keep_cache) {
     stats_ = {};
     next_row_ = 0;
     film_.fill_zero();
     ray_count_.fill_zero();
-    if (scene_) ic_->configure(params_.ic, scene_->host().info);
+    if (scene_ && !keep_cache) ic_->configure(params_.ic, scene_->host().info);
     ic_->bind(*set_);
     upload_technique_params();
 }
@@ -98,7 +98,9 @@ std::vector<std::string> Session::update(const SceneArrays& arrays, bool spatial
     scene_ = std::move(next);
     arrays_ = std::move(next_arrays);
     scene_->bind(*set_);
-    reset_accumulation();  // a new scene: the cache starts over, no stale irradiance
+    // Edited scene data: the cache starts over (no stale irradiance). A camera move leaves
+    // the irradiance where it was: the cache is kept and fills the new view's holes.
+    reset_accumulation(parts == PART_CAMERA);
     return warnings;
 }
 
@@ -136,8 +138,8 @@ RayTracingPipeline& Session::pipeline(uint32_t program) {
     std::lock_guard<std::mutex> lock(mutex);
     auto it = pipelines.find({ctx_.get(), key});
     if (it != pipelines.end()) return *it->second;
-    // Stages, then groups: raygen | miss: scene, shadow, cache query | hit: triangles (TLAS
-    // instances' SBT offset 0), cache entries (offset 1, procedural: intersection + any-hit).
+    // Stages, then groups: raygen | miss: MISS_SCENE, MISS_SHADOW, MISS_IC_QUERY | hit groups:
+    // HIT_GROUP_TRIANGLES, HIT_GROUP_IC (procedural: intersection + any-hit).
     std::vector<ShaderStage> stages = {
         {VK_SHADER_STAGE_RAYGEN_BIT_KHR, program == PROGRAM_IC_HEMISPHERE ? &shader_ic_hemisphere() : &shader_raygen()},
         {VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR, &shader_closesthit()},

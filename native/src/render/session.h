@@ -90,7 +90,8 @@ private:
     // whether the frame is complete.
     bool record_bands(VkCommandBuffer cmd, RayTracingPipeline& pipe, uint32_t frame, uint32_t& rows);
     void prepare_frame();           // one irradiance-cache prepare frame, then its entries
-    void reset_accumulation();      // film, stats and partial frame; the cache starts over
+    // Film, stats and partial frame; the irradiance cache starts over unless `keep_cache`.
+    void reset_accumulation(bool keep_cache = false);
     void upload_technique_params();
     FrameParams frame_params(uint32_t frame) const;
     RayTracingPipeline& pipeline(uint32_t program);

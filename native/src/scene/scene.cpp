@@ -784,7 +784,7 @@ Scene::Scene(Context& ctx, SceneHost host, const Scene* previous) : host_(std::m
         }
         t.custom_index = uint32_t(i);
         t.mask = 0xff;
-        t.sbt_offset = 0;
+        t.sbt_offset = HIT_GROUP_TRIANGLES;
         t.blas = mesh_blas_[inst.mesh]->address();
         tlas_instances.push_back(t);
     }

@@ -142,7 +142,7 @@ void IrradianceCache::build_tlas_over_blas() {
     instance.transform = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
     instance.custom_index = 0;
     instance.mask = 0xff;
-    instance.sbt_offset = 1;  // the cache's hit group (ic_query.rint + ic_query.rahit)
+    instance.sbt_offset = HIT_GROUP_IC;
     instance.blas = blas_->address();
     tlas_ = build_tlas(ctx_, {instance});
 }
