@@ -4,10 +4,8 @@ import subprocess
 import sys
 
 import numpy as np
-import pytest
 from blender_helpers import SCENES, read_layers
 
-import parallax_core
 from parallax_core.scene import SceneData
 
 PARALLAX = [sys.executable, "-m", "parallax_core"]
@@ -56,8 +54,6 @@ def test_bad_arguments_exit_with_a_clear_error(tmp_path):
         assert "parallax: error:" in r.stderr and message in r.stderr and "Traceback" not in r.stderr
 
 
-@pytest.mark.skipif("ic" not in parallax_core.RenderParams.__dataclass_fields__,
-                    reason="parallax_core has no irradiance cache yet (RenderParams.ic)")
 def test_render_blend_with_the_irradiance_cache(tmp_path):
     exr = tmp_path / "ic.exr"
     r = run("render", CORNELL, "-o", str(exr), "--samples", "2", *SMALL, "--set", "ic=true",

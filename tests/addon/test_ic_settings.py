@@ -13,15 +13,11 @@ from blender_helpers import open_scene, render
 
 import parallax_core
 
-needs_core_ic = pytest.mark.skipif(
-    "ic" not in parallax_core.RenderParams.__dataclass_fields__,
-    reason="parallax_core has no irradiance cache yet (RenderParams.ic)")
-
 # The core's interface: every setting with its default, and a value other than the default.
 DEFAULTS = dict(ic=False, ic_accuracy=0.2, ic_min_radius=0.1, ic_create_prob=0.01,
                 ic_update_prob=1e-5, ic_nee_samples=1, ic_gradients=False, ic_gradient_max=5.0,
                 ic_visibility_check=True, ic_prepare_frames=50, ic_capacity=65536,
-                ic_rebuild_interval=100, ic_highlight=False)
+                ic_rebuild_interval=1, ic_highlight=False)
 CHANGED = dict(ic=True, ic_accuracy=0.35, ic_min_radius=0.05, ic_create_prob=0.2,
                ic_update_prob=1e-4, ic_nee_samples=3, ic_gradients=True, ic_gradient_max=2.5,
                ic_visibility_check=False, ic_prepare_frames=7, ic_capacity=1000,
@@ -66,7 +62,6 @@ def test_ic_limits_are_the_cores_ranges(bpy):
         assert prop.hard_max == high if high is not None else prop.hard_max > 1e30, name
 
 
-@needs_core_ic
 def test_core_takes_the_ic_settings(fresh):
     core_defaults = dataclasses.asdict(parallax_core.RenderParams())
     assert_params(core_defaults, DEFAULTS)
@@ -157,7 +152,6 @@ def test_ic_status_line():
         "IC 12/100 entries, 3 dropped"
 
 
-@needs_core_ic
 def test_f12_writes_the_ic_layers_and_stats(bpy, tmp_path, monkeypatch):
     scene = open_scene(bpy, "cornell_box", 16, 16)
     scene.parallax.samples = 2

@@ -3,7 +3,6 @@ the Cornell box and the thesis' own scene, gradients, the visibility check at a 
 capacity overflow, determinism, resets on edits, the passes and the settings' validation."""
 from __future__ import annotations
 
-import math
 import os
 import sys
 

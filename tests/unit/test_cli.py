@@ -7,7 +7,6 @@ import sys
 import numpy as np
 import pytest
 
-import parallax_core
 from parallax_core.cli import parse_params
 from parallax_core.exr import read_exr
 
@@ -49,10 +48,6 @@ def test_errors_exit_cleanly(tmp_path):
     r = run("render", str(bad), "-o", str(tmp_path / "x.exr"), check=False)
     assert r.returncode == 2 and "NaN" in r.stderr and "Traceback" not in r.stderr
 
-
-needs_core_ic = pytest.mark.skipif(
-    "ic" not in parallax_core.RenderParams.__dataclass_fields__,
-    reason="parallax_core has no irradiance cache yet (RenderParams.ic)")
 
 
 @dataclasses.dataclass
@@ -105,7 +100,6 @@ def test_set_applies_render_parameters_to_npz_scenes(tmp_path):
         assert "Traceback" not in r.stderr
 
 
-@needs_core_ic
 def test_npz_render_with_the_irradiance_cache(tmp_path):
     npz, exr = tmp_path / "cb.npz", tmp_path / "ic.exr"
     run("scene", "cornell_box", "-o", str(npz), "--width", "16", "--height", "12")
