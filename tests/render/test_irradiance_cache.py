@@ -98,7 +98,7 @@ def test_gradients_reduce_the_error(bias_scenes):
     assert errors[True] < 0.8 * errors[False], errors
 
 
-def table_scene(size=48):
+def table_scene(size=64):
     """The concave space under a table: a floor, a slab 0.35 m above it and a white ceiling
     lit by an upward-facing area light, so everything is lit indirectly from above. The slab's
     top sees the bright ceiling; the floor under it sees the slab's dark underside. Entries on
@@ -123,7 +123,7 @@ def test_visibility_check_reduces_leaking_at_a_concave_corner():
         img, _ = render(sc, "mis", spp=64, spp_per_frame=16, ic_accuracy=0.6, ic_visibility_check=check, **FAST_IC)
         errors[check] = block_rel_mse(img, ref, 4)
     print("block relMSE without / with the visibility check:", errors)
-    assert errors[True] < 0.5 * errors[False], errors
+    assert errors[True] < 0.6 * errors[False], errors  # measured 0.36-0.42 over three seeds
 
 
 def test_capacity_overflow_is_counted_and_harmless():

@@ -170,7 +170,7 @@ def cmd_render(args):
         return cmd_render_blend(args)
     if args.engine:
         raise ValueError("--engine applies to .blend files only")
-    overrides = parse_params(args.set or ())
+    overrides = parse_params(args.set) if args.set else {}  # (needs the native module)
     from .exr import write_exr, write_png
     from .scene import SceneData
 
