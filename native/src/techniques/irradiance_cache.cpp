@@ -97,6 +97,7 @@ void IrradianceCache::reset() {
     frame_counter_ = 0;
     stats_ = {};
     stats_.capacity = enabled() ? params_.capacity : 0;
+    if (!enabled() && tlas_) return;  // off: the empty placeholder never changes
     entries_.fill_zero();
     queue_.fill_zero();
     rebuild();
