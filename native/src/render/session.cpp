@@ -139,24 +139,28 @@ RayTracingPipeline& Session::pipeline(uint32_t program) {
     auto it = pipelines.find({ctx_.get(), key});
     if (it != pipelines.end()) return *it->second;
     // Stages, then groups: raygen | miss: MISS_SCENE, MISS_SHADOW, MISS_IC_QUERY | hit groups:
-    // HIT_GROUP_TRIANGLES, HIT_GROUP_IC (procedural: intersection + any-hit).
+    // HIT_GROUP_TRIANGLES, HIT_GROUP_IC (procedural: intersection + any-hit). The cache's
+    // shaders are left out of pipelines that never query it (less to compile).
     std::vector<ShaderStage> stages = {
         {VK_SHADER_STAGE_RAYGEN_BIT_KHR, program == PROGRAM_IC_HEMISPHERE ? &shader_ic_hemisphere() : &shader_raygen()},
         {VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR, &shader_closesthit()},
         {VK_SHADER_STAGE_MISS_BIT_KHR, &shader_miss()},
         {VK_SHADER_STAGE_MISS_BIT_KHR, &shader_shadow_miss()},
-        {VK_SHADER_STAGE_MISS_BIT_KHR, &shader_ic_query_miss()},
-        {VK_SHADER_STAGE_INTERSECTION_BIT_KHR, &shader_ic_query_intersection()},
-        {VK_SHADER_STAGE_ANY_HIT_BIT_KHR, &shader_ic_query_any_hit()},
     };
     std::vector<ShaderGroup> groups = {
         {VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, 0},
         {VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, 2},
         {VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, 3},
-        {VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, 4},
         {VK_RAY_TRACING_SHADER_GROUP_TYPE_TRIANGLES_HIT_GROUP_KHR, VK_SHADER_UNUSED_KHR, 1},
-        {VK_RAY_TRACING_SHADER_GROUP_TYPE_PROCEDURAL_HIT_GROUP_KHR, VK_SHADER_UNUSED_KHR, VK_SHADER_UNUSED_KHR, 6, 5},
     };
+    if (techniques & TECH_IC) {
+        stages.push_back({VK_SHADER_STAGE_MISS_BIT_KHR, &shader_ic_query_miss()});
+        stages.push_back({VK_SHADER_STAGE_INTERSECTION_BIT_KHR, &shader_ic_query_intersection()});
+        stages.push_back({VK_SHADER_STAGE_ANY_HIT_BIT_KHR, &shader_ic_query_any_hit()});
+        groups.insert(groups.begin() + 3, {VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, 4});  // misses before hits
+        groups.push_back({VK_RAY_TRACING_SHADER_GROUP_TYPE_PROCEDURAL_HIT_GROUP_KHR, VK_SHADER_UNUSED_KHR,
+                          VK_SHADER_UNUSED_KHR, 6, 5});
+    }
     auto p = std::make_unique<RayTracingPipeline>(*ctx_, set_->layout(), uint32_t(sizeof(FrameParams)), stages, groups,
                                                   std::vector<uint32_t>(key.begin(), key.begin() + 4));
     return *pipelines.emplace(std::make_pair(ctx_.get(), key), std::move(p)).first->second;
