@@ -169,7 +169,10 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
             } else if (opt.ic_create && rnd(rng) < tech.ic.create_prob) {
                 ic_request(sh.p, ns, opt.pixel, res.segments);
             }
-            if (opt.ic_prepare) break;
+            if (opt.ic_prepare) {
+                if (!ic_vertex) atomicAdd(ic_queue_uncovered, 1u);
+                break;
+            }
         }
 
         // Next event estimation (Veach 1997 eq. 9.8 / 9.13 weights for MIS). A cache vertex

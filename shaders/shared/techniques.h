@@ -39,7 +39,7 @@ struct IcParams {
     uint gradients PX_DEFAULT(0);           // Ward & Heckbert rotational + translational
     float gradient_max PX_DEFAULT(5.0f);    // clamp of the relative gradients' length
     uint visibility_check PX_DEFAULT(1);    // Ward 1988: reject entries in front of the point
-    uint prepare_frames PX_DEFAULT(50);     // frames that only fill the cache (host)
+    uint prepare_frames PX_DEFAULT(50);     // most frames that only fill the cache (host)
     uint capacity PX_DEFAULT(65536);        // entries
     uint rebuild_interval PX_DEFAULT(1);    // frames between BLAS rebuilds (refits in between)
     uint highlight PX_DEFAULT(0);           // IC Irradiance pass: colour only (thesis fig. 4.13)

@@ -35,7 +35,8 @@ vec3 ic_entry_irradiance(IcEntry e, vec3 p, vec3 n) {
 layout(set = 0, binding = BINDING_IC_TLAS) uniform accelerationStructureEXT ic_tlas;
 layout(set = 0, binding = BINDING_IC_QUEUE, scalar) buffer IcQueueBuffer {
     uint ic_queue_count;
-    uint ic_queue_pad0, ic_queue_pad1, ic_queue_pad2;
+    uint ic_queue_uncovered;  // prepare frames: paths whose first diffuse vertex had no entry
+    uint ic_queue_pad0, ic_queue_pad1;
     IcRequest ic_requests[];
 };
 layout(location = 2) rayPayloadEXT IcQuery ic_query;

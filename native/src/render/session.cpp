@@ -219,7 +219,10 @@ void Session::prepare_frame() {
     FrameParams fp = frame_params(0x80000000u | ic_->prepared_frames());
     fp.mode = FRAME_IC_PREPARE;
     fp.samples_per_frame = 1;  // thesis 4.4: prepare frames at 1 spp
-    ctx_->submit_and_wait([&](VkCommandBuffer cmd) { camera.trace(cmd, set_->set(), &fp, sizeof(fp), width_, height_); });
+    ctx_->submit_and_wait([&](VkCommandBuffer cmd) {
+        ic_->record_frame_start(cmd);
+        camera.trace(cmd, set_->set(), &fp, sizeof(fp), width_, height_);
+    });
     ic_->after_frame(pipeline(PROGRAM_IC_HEMISPHERE), ic_finish_pipeline(), *set_, fp, uint64_t(width_) * height_,
                      true);
 }
@@ -257,7 +260,10 @@ bool Session::trace(uint32_t frames, uint32_t rows) {
             uint32_t budget = frames ? UINT32_MAX : rows;
             bool done = false;
             const uint32_t frame = stats_.frames + completed;
-            ctx_->submit_and_wait([&](VkCommandBuffer cmd) { done = record_bands(cmd, pipe, frame, budget); });
+            ctx_->submit_and_wait([&](VkCommandBuffer cmd) {
+                if (next_row_ == 0) ic_->record_frame_start(cmd);
+                done = record_bands(cmd, pipe, frame, budget);
+            });
             if (done) {
                 ic_->after_frame(pipeline(PROGRAM_IC_HEMISPHERE), ic_finish_pipeline(), *set_, frame_params(frame),
                                  paths, false);

@@ -92,6 +92,15 @@ void IrradianceCache::allocate() {
     }
 }
 
+void IrradianceCache::record_frame_start(VkCommandBuffer cmd) const {
+    vkCmdFillBuffer(cmd, queue_.handle(), 0, 16, 0);
+    VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    b.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    b.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_RAY_TRACING_SHADER_BIT_KHR, 0, 1, &b, 0,
+                         nullptr, 0, nullptr);
+}
+
 void IrradianceCache::reset() {
     count_ = update_cursor_ = prepared_frames_ = frames_since_rebuild_ = 0;
     frame_counter_ = 0;
@@ -103,8 +112,10 @@ void IrradianceCache::reset() {
     rebuild();
 }
 
-// Every slot from count_ on is an empty entry (radius 0) whose AABB is a point outside the
-// scene, so refits after creations only grow the boxes of the slots that were filled.
+// The BLAS holds the used slots and, when frames between rebuilds refit it, room for the
+// entries one frame may add: empty slots (radius 0) whose AABB is a point outside the scene,
+// so a refit only grows the boxes of the slots that were filled. Its build time grows with
+// the entries, not with the capacity.
 void IrradianceCache::rebuild() {
     auto start = std::chrono::steady_clock::now();
     std::vector<IcEntry> entries(count_);
@@ -122,7 +133,9 @@ void IrradianceCache::rebuild() {
     const float far = 4.0f * scene_.scene_radius + 1.0f;
     const vec3 c = scene_.scene_center;
     const VkAabbPositionsKHR empty{c.x + far, c.y + far, c.z + far, c.x + far, c.y + far, c.z + far};
-    std::vector<VkAabbPositionsKHR> boxes(allocated_, empty);
+    const uint32_t room = params_.rebuild_interval > 1 ? kQueueCapacity : 0;
+    built_slots_ = std::max(1u, std::min(allocated_, count_ + room));
+    std::vector<VkAabbPositionsKHR> boxes(built_slots_, empty);
     for (uint32_t i = 0; i < count_; ++i) {
         const IcEntry& e = entries[i];
         const float r = params_.accuracy * e.radius;
@@ -131,7 +144,7 @@ void IrradianceCache::rebuild() {
     }
     aabbs_.upload(boxes.data(), boxes.size() * sizeof(VkAabbPositionsKHR));
     blas_.reset();
-    blas_ = build_aabb_blas(ctx_, aabbs_, allocated_);
+    blas_ = build_aabb_blas(ctx_, aabbs_, built_slots_);
     build_tlas_over_blas();
     built_count_ = count_;
     frames_since_rebuild_ = 0;
@@ -168,15 +181,16 @@ void IrradianceCache::after_frame(const RayTracingPipeline& hemisphere, const Co
     ++frames_since_rebuild_;
     if (prepare) ++prepared_frames_;
 
-    // The frame's creation requests, in a fixed order (the queue's is the threads').
-    uint32_t queued = 0;
-    queue_.download(&queued, sizeof(queued));
+    // The frame's creation requests, in a fixed order (the queue's is the threads'). The
+    // queue is cleared on the device when the next frame starts (record_frame_start).
+    uint32_t header[4] = {};
+    queue_.download(header, sizeof(header));
+    const uint32_t queued = header[0], uncovered = header[1];
     const uint32_t n = std::min(queued, kQueueCapacity);
     stats_.deferred += queued - n;
     std::vector<IcRequest> requests(n);
     if (n) queue_.download(requests.data(), n * sizeof(IcRequest), 16);
-    const uint32_t zero = 0;
-    queue_.upload(&zero, sizeof(zero));
+    if (prepare && uint64_t(uncovered) * 50 < paths) prepared_frames_ = params_.prepare_frames;  // 98% covered
     std::sort(requests.begin(), requests.end(), [](const IcRequest& a, const IcRequest& b) {
         return std::tie(a.pixel, a.sample_index, a.position.x, a.position.y, a.position.z) <
                std::tie(b.pixel, b.sample_index, b.position.x, b.position.y, b.position.z);
@@ -254,9 +268,11 @@ void IrradianceCache::after_frame(const RayTracingPipeline& hemisphere, const Co
     const bool prepared = prepare && prepared_frames_ == params_.prepare_frames;
     if (count_ != built_count_ && (frames_since_rebuild_ >= params_.rebuild_interval || prepared)) {
         rebuild();
+    } else if (created && count_ > built_slots_) {
+        rebuild();  // more new entries than the BLAS has room for
     } else if (created) {
         auto start = std::chrono::steady_clock::now();
-        refit_aabb_blas(ctx_, *blas_, aabbs_, allocated_);
+        refit_aabb_blas(ctx_, *blas_, aabbs_, built_slots_);
         build_tlas_over_blas();
         stats_.build_milliseconds += ms_since(start);
     } else {

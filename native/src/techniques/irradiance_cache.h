@@ -41,9 +41,12 @@ public:
     bool enabled() const { return params_.enabled != 0; }
     bool needs_prepare() const { return enabled() && prepared_frames_ < params_.prepare_frames; }
     uint32_t prepared_frames() const { return prepared_frames_; }
+    // Records the clearing of the request queue: at the start of each frame's first band.
+    void record_frame_start(VkCommandBuffer cmd) const;
     // After a frame of `paths` camera paths (a prepare frame when `prepare`): turns the queue
     // and the frame's refreshes into entries, then refits or rebuilds the acceleration
-    // structures (and binds the new TLAS into `set`).
+    // structures (and binds the new TLAS into `set`). Preparation ends after prepare_frames,
+    // or earlier once fewer than 2% of a prepare frame's paths found no entry.
     void after_frame(const RayTracingPipeline& hemisphere, const ComputePipeline& finish, DescriptorSet& set,
                      FrameParams frame, uint64_t paths, bool prepare);
     const IcStats& stats() const { return stats_; }
@@ -64,6 +67,7 @@ private:
     uint32_t prepared_frames_ = 0;
     uint32_t frames_since_rebuild_ = 0;
     uint32_t built_count_ = 0;     // used slots at the last rebuild
+    uint32_t built_slots_ = 0;     // primitives of the BLAS: the used slots and room for refits
     uint64_t frame_counter_ = 0;   // frames processed since the last reset (refresh RNG)
     IcStats stats_;
 };
