@@ -47,6 +47,16 @@ NB_MODULE(_native, m) {
 
     m.attr("METHODS") = nb::make_tuple("pt", "nee", "mis");
 
+    nb::dict limits;  // px::SceneLimits: what update() accepts (README "Limits")
+    limits["radiance"] = px::SceneLimits::radiance;
+    limits["albedo"] = px::SceneLimits::albedo;
+    limits["ior_min"] = px::SceneLimits::ior_min;
+    limits["ior_max"] = px::SceneLimits::ior_max;
+    limits["coordinate"] = px::SceneLimits::coordinate;
+    limits["precision"] = px::SceneLimits::precision;
+    limits["camera_scale"] = px::SceneLimits::camera_scale;
+    m.attr("LIMITS") = limits;
+
     // px::RenderParams field by field (parallax_core.RenderParams validates and fills it); the
     // irradiance cache's IcParams appear flat, under the setting names (ic_accuracy, ...).
     nb::class_<px::RenderParams>(m, "_RenderParams")

@@ -13,12 +13,12 @@ from __future__ import annotations
 import dataclasses
 import os
 
-from ._native import METHODS, devices
+from ._native import LIMITS, METHODS, devices
 from ._native import Session as _NativeSession
 from ._native import _RenderParams
 from .scene import PART_KEYS, PARTS, parts_set
 
-__all__ = ["Session", "RenderParams", "devices", "METHODS", "PASSES", "PARTS"]
+__all__ = ["Session", "RenderParams", "devices", "METHODS", "PASSES", "PARTS", "LIMITS"]
 
 PASSES = tuple(_NativeSession.pass_names())
 HEURISTICS = ("balance", "power")
