@@ -121,7 +121,11 @@ NB_MODULE(_native, m) {
              "those parts' arrays and the rest of the last update's scene is kept.")
         .def("_set_params", &px::Session::set_params, "params"_a, nb::call_guard<nb::gil_scoped_release>())
         .def("render", &px::Session::render, "frames"_a = 1, nb::call_guard<nb::gil_scoped_release>(),
-             "Render `frames` frames of samples_per_frame samples each (GIL released).")
+             "Render `frames` frames of samples_per_frame samples each (GIL released); returns the "
+             "frames completed (fewer when cancel() stopped it).")
+        .def("cancel", &px::Session::cancel,
+             "From any thread: stop the render()/render_rows() call in progress at its next dispatch "
+             "(within about a second on lavapipe), or the next call if none is in progress.")
         .def("read",
              [](px::Session& s, const std::string& pass) {
                  uint32_t channels = 0;
