@@ -174,6 +174,9 @@ class _Worker(threading.Thread):
                 session.set_params(**(params if session is self._full else {**params, "ic": False}))
                 if edited:
                     session.update(scene, parts=None if session_parts is None else sorted(session_parts))
+        with self._lock:  # a stop() before this returns here; one after it cancels these sessions
+            if self._stopped:
+                return False
         if edited and self._preview is not None:
             self._preview.render(1)
             self._publish(self._preview, self._preview_factor)
