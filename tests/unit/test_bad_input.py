@@ -230,13 +230,14 @@ def _heavy_session():
 
 
 def test_cancel_stops_a_render_in_progress():
-    """The issue's hang (~2e9 rays in one render(1)) stops at a dispatch boundary."""
+    """The issue's hang (~1e9 rays a frame) stops at a dispatch boundary; 1000 frames would
+    take hours on lavapipe and many minutes on a GPU."""
     s = _heavy_session()
     result, started = [], threading.Event()
 
     def work():
         started.set()
-        result.append(s.render(1))
+        result.append(s.render(1000))
 
     thread = threading.Thread(target=work, daemon=True)
     thread.start()
@@ -244,8 +245,8 @@ def test_cancel_stops_a_render_in_progress():
     time.sleep(0.5)  # most likely inside the first dispatch by now; before it works too
     s.cancel()
     thread.join(300)  # the whole frame would take tens of minutes on lavapipe
-    assert not thread.is_alive() and result == [0]
-    assert s.samples == 0 and np.isfinite(s.read("combined")).all()
+    assert not thread.is_alive() and result[0] < 1000
+    assert s.samples == result[0] * 4096 and np.isfinite(s.read("combined")).all()
     # The session goes on: lighter settings render a whole frame.
     s.set_params(samples_per_frame=1, max_depth=8, depth_leeway=4, rr_start_depth=3)
     assert s.render(1) == 1 and s.samples == 1
