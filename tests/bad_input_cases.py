@@ -25,7 +25,7 @@ import numpy as np
 
 import parallax_core as pc
 from parallax_core import cli, scenes
-from parallax_core.scene import Instance, Light, Material, Mesh, SceneData, Texture
+from parallax_core.scene import Light, Material, Mesh, SceneData, Texture
 
 W = H = 8  # every render is tiny: 8x8 pixels, 2 frames of 1 sample
 

@@ -14,7 +14,7 @@ from bad_input_cases import CASES, HEAVY_PARAMS, run
 import parallax_core as pc
 from parallax_core import scene as scene_module
 from parallax_core import scenes
-from parallax_core.scene import Light, Mesh, SceneData, Texture
+from parallax_core.scene import Light, Mesh, Texture
 
 
 @pytest.fixture(scope="module")
