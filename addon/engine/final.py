@@ -4,7 +4,8 @@ A worker thread drives the core (its calls release the GIL) and keeps the latest
 of the passes; Blender's thread copies snapshots into the render result about twice a second
 and polls ``test_break``, so a cancel returns within ``POLL_SECONDS`` with the last snapshot
 as the partial image. The worker traces each frame in row bands of about ``BAND_SECONDS``
-and stops between them, so no long dispatch keeps the CPU busy after a cancel.
+and stops between them; a cancel also calls ``Session.cancel()``, which stops the band in
+progress at its next dispatch, so no long dispatch keeps the CPU busy after a cancel.
 """
 import threading
 import time
@@ -84,6 +85,7 @@ class _Worker(threading.Thread):
 
     def stop(self):
         self._stop_event.set()
+        self.session.cancel()  # the band in progress stops at its next dispatch
 
     def run(self):
         try:

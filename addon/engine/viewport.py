@@ -108,12 +108,21 @@ class _Worker(threading.Thread):
             self.generation += 1
             self._submitted[self.generation] = (tuple(sorted(parts)), time.perf_counter())
             self.done = False
+            if (scene is not None and parts) or size is not None:
+                self._cancel()  # an edit does not wait for the band in progress
             self._lock.notify()
             return self.generation
+
+    def _cancel(self):
+        """Stops the worker's render call in progress at its next dispatch (as F12 does)."""
+        for session in (self._full, self._preview):
+            if session is not None:
+                session.cancel()
 
     def stop(self, wait=2.0):
         with self._lock:
             self._stopped = True
+            self._cancel()
             self._lock.notify()
         if self.is_alive() and threading.current_thread() is not self:
             self.join(wait)
@@ -165,6 +174,9 @@ class _Worker(threading.Thread):
                 session.set_params(**(params if session is self._full else {**params, "ic": False}))
                 if edited:
                     session.update(scene, parts=None if session_parts is None else sorted(session_parts))
+        with self._lock:  # a stop() before this returns here; one after it cancels these sessions
+            if self._stopped:
+                return False
         if edited and self._preview is not None:
             self._preview.render(1)
             self._publish(self._preview, self._preview_factor)

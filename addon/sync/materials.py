@@ -152,6 +152,18 @@ class _NodeReader:
     def warn(self, text):
         self.warnings.add(f"material '{self.name}': {text}")
 
+    def ior(self, node, default):
+        """The node's IOR clamped into the core's range (scene.IOR_RANGE; Blender allows 0, and
+        Cycles clamps it too), with a warning when it was outside."""
+        from ..core import load
+
+        ior = self.value(node, "IOR", default)
+        low, high = load().scene.IOR_RANGE
+        if not low <= ior <= high:
+            self.warn(f"'{node.name}': IOR {ior:g} clamped to {low:g}..{high:g}")
+            ior = min(max(ior, low), high)
+        return ior
+
     # -- sockets --
 
     def _source(self, socket):
@@ -263,7 +275,7 @@ class _NodeReader:
     def _bsdf_glass(self, node):
         color, texture = self.color(node, "Color", (1.0, 1.0, 1.0))
         roughness = self._distribution(node, self.value(node, "Roughness", 0.0))
-        ior = self.value(node, "IOR", 1.5)
+        ior = self.ior(node, 1.5)
         return [(1.0, _lobe("dielectric", color, roughness, ior, texture))], np.zeros(3)
 
     def _bsdf_principled(self, node):
@@ -274,7 +286,7 @@ class _NodeReader:
         metallic = min(max(self.value(node, "Metallic", 0.0), 0.0), 1.0)
         transmission = min(max(self.value(node, first("Transmission Weight", "Transmission"), 0.0), 0.0), 1.0)
         roughness = self._distribution(node, self.value(node, "Roughness", 0.5))
-        ior = self.value(node, "IOR", 1.45)
+        ior = self.ior(node, 1.45)
         for name in ("Coat Weight", "Clearcoat", "Sheen Weight", "Sheen", "Subsurface Weight", "Subsurface"):
             if name in node.inputs and self.value(node, name, 0.0) > 0.0:
                 self.warn(f"'{node.name}': {name} is ignored")

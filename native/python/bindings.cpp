@@ -47,6 +47,16 @@ NB_MODULE(_native, m) {
 
     m.attr("METHODS") = nb::make_tuple("pt", "nee", "mis");
 
+    nb::dict limits;  // px::SceneLimits: what update() accepts (README "Limits")
+    limits["radiance"] = px::SceneLimits::radiance;
+    limits["albedo"] = px::SceneLimits::albedo;
+    limits["ior_min"] = px::SceneLimits::ior_min;
+    limits["ior_max"] = px::SceneLimits::ior_max;
+    limits["coordinate"] = px::SceneLimits::coordinate;
+    limits["precision"] = px::SceneLimits::precision;
+    limits["camera_scale"] = px::SceneLimits::camera_scale;
+    m.attr("LIMITS") = limits;
+
     // px::RenderParams field by field (parallax_core.RenderParams validates and fills it); the
     // irradiance cache's IcParams appear flat, under the setting names (ic_accuracy, ...).
     nb::class_<px::RenderParams>(m, "_RenderParams")
@@ -111,7 +121,11 @@ NB_MODULE(_native, m) {
              "those parts' arrays and the rest of the last update's scene is kept.")
         .def("_set_params", &px::Session::set_params, "params"_a, nb::call_guard<nb::gil_scoped_release>())
         .def("render", &px::Session::render, "frames"_a = 1, nb::call_guard<nb::gil_scoped_release>(),
-             "Render `frames` frames of samples_per_frame samples each (GIL released).")
+             "Render `frames` frames of samples_per_frame samples each (GIL released); returns the "
+             "frames completed (fewer when cancel() stopped it).")
+        .def("cancel", &px::Session::cancel,
+             "From any thread: stop the render()/render_rows() call in progress at its next dispatch "
+             "(within about a second on lavapipe), or the next call if none is in progress.")
         .def("read",
              [](px::Session& s, const std::string& pass) {
                  uint32_t channels = 0;

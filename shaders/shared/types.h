@@ -187,7 +187,7 @@ struct FrameParams {
     uint height;
     uint frame;             // frame index since the last reset
     uint seed;
-    uint samples_per_frame;
+    uint samples_per_frame; // of the whole frame
     uint max_depth;         // path segments after the camera ray that count towards the limit
     uint depth_leeway;      // extra segments allowed after discrete (specular) bounces
     uint rr_start_depth;    // Russian roulette from this depth on (0: off)
@@ -199,6 +199,11 @@ struct FrameParams {
     vec4 test_params;
     uint mode;              // FRAME_RENDER or FRAME_IC_PREPARE
     uint ic_job_count;      // hemisphere / finish dispatches: jobs in BINDING_IC_JOBS
+    // A dispatch may trace part of a frame: columns from col_offset (and rows from
+    // row_offset), samples sample_offset .. sample_offset + sample_count - 1 of each pixel.
+    uint col_offset;
+    uint sample_offset;
+    uint sample_count;
 };
 
 // Sampling test routines (shaders/tests/sampling_test.comp).

@@ -35,6 +35,35 @@ def test_cancel_returns_within_a_second_with_a_partial_image(bpy, tmp_path, monk
     assert passes["Combined"][..., :3].mean() > 0.01  # the partial image, not black
 
 
+def test_f12_and_viewport_workers_stop_a_heavy_band_with_session_cancel(bpy):
+    """One band of these settings runs for minutes on lavapipe (the closed emitter box of albedo
+    1 without roulette): stopping either worker must not wait for it (Session.cancel)."""
+    import dataclasses
+
+    import parallax_core as pc
+    from addon.engine import viewport
+    from parallax_core import scenes
+
+    heavy = {**dataclasses.asdict(pc.RenderParams()), "samples_per_frame": 4096, "max_depth": 1024,
+             "depth_leeway": 1024, "rr_start_depth": 0}
+    box = scenes.closed_emitter_box(1.0, 1.0, 8, 8)
+    session = pc.Session(8, 8)
+    session.set_params(**heavy)
+    session.update(box)
+    worker = final._Worker(session, 1000, 0, {"combined"})
+    worker.start()
+    time.sleep(1.0)
+    worker.stop()
+    worker.join(300)
+    assert not worker.is_alive() and worker.error is None and session.samples < 1000 * 4096
+
+    view = viewport._Worker("auto", heavy, 0, 1)
+    view.submit(box, parts={"geometry"}, size=(8, 8))
+    time.sleep(1.0)
+    view.stop(wait=300)
+    assert not view.is_alive() and view.error is None
+
+
 def test_samples_end_the_render_and_time_limit_stops_early(bpy, tmp_path):
     scene = open_scene(bpy, "cornell_box", 32, 32)
     scene.parallax.samples, scene.parallax.samples_per_frame = 12, 4

@@ -132,6 +132,17 @@ def test_glossy_glass_and_multiscatter_warning(fresh, bpy):
         "material 'Glass': 'Glass BSDF': MULTI_GGX is rendered as single-scatter GGX"]
 
 
+def test_glass_ior_outside_the_core_range_is_clamped_with_a_warning(fresh, bpy):
+    """Blender allows IOR 0 (Cycles clamps it); the core takes 0.001..1000 and rejects the
+    rest, so the export clamps it into that range and says so."""
+    glass, _ = _material(bpy, "Zero", "ShaderNodeBsdfGlass", IOR=0.0)
+    _cube(bpy, fresh, "A", glass)
+    data, warnings = export_current(bpy)
+    assert data.materials[0].ior == pytest.approx(1e-3)
+    assert "material 'Zero': 'Glass BSDF': IOR 0 clamped to 0.001..1000" in warnings
+    data.validate()  # the core's range: no error
+
+
 def test_image_texture_into_base_color(fresh, bpy):
     image = bpy.data.images.new("Checker", 4, 2, alpha=True)
     pixels = np.zeros((2, 4, 4), np.float32)

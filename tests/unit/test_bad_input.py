@@ -1,10 +1,20 @@
-"""Bad input gets a clear exception and the process stays alive (DESIGN: Errors)."""
+"""Bad input gets a clear exception and the process stays alive (DESIGN: Errors).
+
+The corpus of issue 16 (tests/bad_input_cases.py) runs here case by case: each must end in
+its one expected outcome, a clean error naming the item or a finite render with a warning.
+"""
+import dataclasses
+import threading
+import time
+
 import numpy as np
 import pytest
+from bad_input_cases import CASES, HEAVY_PARAMS, run
 
 import parallax_core as pc
+from parallax_core import scene as scene_module
 from parallax_core import scenes
-from parallax_core.scene import Mesh, SceneData, Texture
+from parallax_core.scene import Light, Mesh, Texture
 
 
 @pytest.fixture(scope="module")
@@ -130,3 +140,136 @@ def test_no_lights_renders_black(session):
         session.set_params(method=method)
         session.render(1)
         assert session.read("combined")[..., :3].max() == 0.0
+
+
+# ---- the corpus (tests/bad_input_cases.py) ----------------------------------------------
+
+def test_corpus_covers_the_issue():
+    names = [c.name for c in CASES]
+    assert len(names) >= 60 and len(set(names)) == len(names)
+    kinds = {c.kind for c in CASES}
+    assert kinds == {"scene", "flat", "npz", "cli", "session", "params", "cancel"}
+    assert {c.expect for c in CASES} == {"error", "warn", "cancelled"}
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
+def test_corpus_case(case, session, tmp_path):
+    outcome = run(case, session, str(tmp_path))
+    assert outcome.kind == case.expect, outcome
+    assert outcome.matches(case), (case.match, outcome.message)
+    if case.expect == "error" and case.kind in ("scene", "flat", "npz"):
+        # The failed update left the session as it was: a good scene still renders.
+        session.set_params(**dataclasses.asdict(pc.RenderParams()))
+        session.update(scenes.cornell_box(8, 8))
+        session.render(1)
+        assert np.isfinite(session.read("combined")).all()
+
+
+def test_scene_data_and_core_share_the_ior_range():
+    assert scene_module.IOR_RANGE == (pc.LIMITS["ior_min"], pc.LIMITS["ior_max"])
+
+
+# ---- the light table ----------------------------------------------------------------------
+
+def _cornell_mean(session, scene, method, frames=2):
+    session.set_params(method=method, samples_per_frame=4, seed=3)
+    warnings = session.update(scene)
+    session.render(frames)
+    return session.read("combined")[..., :3], warnings
+
+
+@pytest.mark.parametrize("method", ["nee", "mis"])
+def test_a_skipped_light_leaves_the_other_lights_sampled(session, method):
+    """Lights that emit nothing are dropped with a warning; the table of the rest is the same,
+    so NEE samples the Cornell box's emitter exactly as without them."""
+    reference, _ = _cornell_mean(session, scenes.cornell_box(8, 8), method)
+    assert reference.mean() > 0.05
+    sc = scenes.cornell_box(8, 8)
+    sc.lights = [Light("point", power=0.0, position=(0, 0, 1)),
+                 Light("area", power=0.0, position=(0, 0, -50), size=1e17)]
+    image, warnings = _cornell_mean(session, sc, method)
+    assert warnings == ["lights 0, 1 emit no light (black or zero size): skipped"]
+    np.testing.assert_array_equal(image, reference)
+
+
+def test_a_huge_light_far_away_does_not_starve_the_others(session):
+    """An area light of 2e17 m (area 4e34 m^2, still within the limits) lighting nothing: its
+    selection weight is its power, finite, so NEE still finds the Cornell box's emitter (the
+    issue's NaN weight halved the image)."""
+    sc16 = lambda: scenes.cornell_box(16, 16)  # noqa: E731
+    s = pc.Session(16, 16)
+    reference, _ = _cornell_mean(s, sc16(), "nee", frames=16)
+    sc = sc16()
+    sc.lights = [Light("area", power=1.0, position=(0, 0, -100), direction=(0, 0, -1), size=2e17)]
+    image, warnings = _cornell_mean(s, sc, "nee", frames=16)
+    assert not any("light" in w for w in warnings)
+    assert image.mean() == pytest.approx(reference.mean(), rel=0.1)
+
+
+def test_zero_area_emitters_give_an_empty_light_table(session):
+    """Emissive triangles of zero area in raw arrays: every selection weight is 0, NEE samples
+    nothing (no 0/0 in the CDF) and the image stays finite."""
+    arrays = scenes.cornell_box(8, 8).flatten()
+    light_mesh = int(np.flatnonzero(arrays["material_emission"][:, 0] > 0)[0])
+    tris = np.flatnonzero(arrays["triangle_material"] == light_mesh)
+    arrays["positions"][arrays["indices"][tris].ravel()] = arrays["positions"][arrays["indices"][tris[0], 0]]
+    for method in pc.METHODS:
+        session.set_params(method=method, samples_per_frame=2)
+        session.update(arrays)
+        session.render(1)
+        assert np.isfinite(session.read("combined")).all()
+
+
+# ---- cancel and bounded dispatches --------------------------------------------------------
+
+def _heavy_session():
+    s = pc.Session(8, 8)
+    s.set_params(**HEAVY_PARAMS)
+    s.update(scenes.closed_emitter_box(1.0, 1.0, 8, 8))
+    return s
+
+
+def test_cancel_stops_a_render_in_progress():
+    """The issue's hang (~1e9 rays a frame) stops at a dispatch boundary; 1000 frames would
+    take hours on lavapipe and many minutes on a GPU."""
+    s = _heavy_session()
+    result, started = [], threading.Event()
+
+    def work():
+        started.set()
+        result.append(s.render(1000))
+
+    thread = threading.Thread(target=work, daemon=True)
+    thread.start()
+    started.wait(60)
+    time.sleep(0.5)  # most likely inside the first dispatch by now; before it works too
+    s.cancel()
+    thread.join(300)  # the whole frame would take tens of minutes on lavapipe
+    assert not thread.is_alive() and result[0] < 1000
+    assert s.samples == result[0] * 4096 and np.isfinite(s.read("combined")).all()
+    # The session goes on: lighter settings render a whole frame.
+    s.set_params(samples_per_frame=1, max_depth=8, depth_leeway=4, rr_start_depth=3)
+    assert s.render(1) == 1 and s.samples == 1
+
+
+def test_cancel_before_a_call_stops_that_call_only():
+    s = pc.Session(8, 8)
+    s.update(scenes.cornell_box(8, 8))
+    s.cancel()
+    assert s.render(3) == 0 and s.samples == 0
+    assert s.render_rows(8) is True and s.samples == 1  # the cancel was used up: this traced
+    assert s.render(2) == 2 and s.samples == 3
+
+
+def test_split_dispatches_converge_to_the_furnace_value():
+    """Heavy settings make the session split frames into tiles of rows, columns and samples
+    (on lavapipe); every pixel still gets all its samples: a closed box of albedo 0.5 and
+    emission 1 converges to 1 / (1 - 0.5) = 2 everywhere."""
+    for width, height, spp in ((8, 8, 256), (600, 8, 2)):
+        s = pc.Session(width, height)
+        s.set_params(samples_per_frame=spp, max_depth=1024, depth_leeway=1024, rr_start_depth=3)
+        s.update(scenes.closed_emitter_box(0.5, 1.0, width, height))
+        assert s.render(1) == 1
+        image = s.read("combined")
+        assert np.all(image[..., 3] == 1.0)  # each pixel normalised by its own full count
+        assert image[..., :3].mean() == pytest.approx(2.0, rel=0.05)

@@ -11,14 +11,15 @@
 from __future__ import annotations
 
 import dataclasses
+import operator
 import os
 
-from ._native import METHODS, devices
+from ._native import LIMITS, METHODS, devices
 from ._native import Session as _NativeSession
 from ._native import _RenderParams
 from .scene import PART_KEYS, PARTS, parts_set
 
-__all__ = ["Session", "RenderParams", "devices", "METHODS", "PASSES", "PARTS"]
+__all__ = ["Session", "RenderParams", "devices", "METHODS", "PASSES", "PARTS", "LIMITS"]
 
 PASSES = tuple(_NativeSession.pass_names())
 HEURISTICS = ("balance", "power")
@@ -88,8 +89,16 @@ class Session(_NativeSession):
     """A render session on one Vulkan device (see the module docstring)."""
 
     def __init__(self, width: int, height: int, device: str | None = None):
+        size = []
+        for name, value in (("width", width), ("height", height)):
+            try:
+                size.append(operator.index(value))
+            except TypeError:
+                size.append(None)
+            if isinstance(value, bool) or size[-1] is None or not 1 <= size[-1] <= 16384:
+                raise ValueError(f"image size: {name} must be an integer in 1..16384, got {value!r}")
         device = device or os.environ.get("PARALLAX_DEVICE", "auto")
-        super().__init__(int(width), int(height), str(device))
+        super().__init__(*size, str(device))
         self._params = RenderParams()
         self.warnings: list[str] = []
         self._part_warnings: dict[str, list[str]] = {}  # the scene's warnings by part

@@ -185,8 +185,6 @@ def cmd_render(args):
             raise ValueError("the scene has no resolution: give both --width and --height")
         scene = scene.with_resolution(width, height)
     width, height = scene.width or 512, scene.height or 512
-    for w in scene.validate():
-        print(f"parallax: warning: {w}", file=sys.stderr)
 
     spp = max(1, args.samples if args.samples is not None else args.spp)
     per_frame = max(1, min(overrides.get("samples_per_frame", args.spp_per_frame), spp))
@@ -204,7 +202,8 @@ def cmd_render(args):
             params[key] = getattr(args, key)
     params.update(overrides, samples_per_frame=per_frame)
     session.set_params(**params)
-    session.update(scene)
+    for w in session.update(scene):  # SceneData's warnings and the core's
+        print(f"parallax: warning: {w}", file=sys.stderr)
 
     start = time.perf_counter()
     try:

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import json
 import math
+import zipfile
+import zlib
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -108,6 +110,10 @@ MIX_CHAIN_MAX = 16
 
 _META_KEY = "__meta__"
 
+# The IOR range the core accepts (px::SceneLimits, parallax_core.LIMITS; a test checks that
+# they agree): outside it is an error in both, never a clamp in one.
+IOR_RANGE = (1e-3, 1e3)
+
 
 # ---- helpers ------------------------------------------------------------------------------
 
@@ -117,6 +123,38 @@ def _vec(v, n=3):
 
 def _finite(*values):
     return all(np.all(np.isfinite(np.asarray(v, dtype=np.float64))) for v in values)
+
+
+_F32_MAX = float(np.finfo(np.float32).max)
+
+
+def _floats(value, what, shape=None):
+    """``value`` as a float64 array; ValueError naming ``what`` if it is not numbers (of
+    ``shape``, when given)."""
+    try:
+        if value is None:  # numpy would read it as NaN
+            raise TypeError
+        v = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{what} must be numbers, got {value!r}") from None
+    if shape is not None and v.shape != shape:
+        raise ValueError(f"{what} has shape {v.shape}, expected {shape}")
+    return v
+
+
+def _index(value, what):
+    """``value`` as an int; ValueError naming ``what`` if it is not an integer."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise ValueError(f"{what} must be an integer index, got {value!r}")
+    return int(value)
+
+
+def _check_f32(value, what):
+    """ValueError naming ``what`` if the finite float64 ``value`` overflows float32 (the core's
+    type): a product such as colour x power can, although each factor fits."""
+    peak = float(np.max(np.abs(value), initial=0.0))
+    if peak > _F32_MAX:
+        raise ValueError(f"{what} = {peak:g} does not fit in float32 (at most {_F32_MAX:.3g})")
 
 
 def _normalized(v):
@@ -417,9 +455,9 @@ class SceneData:
         warnings = []
         M = len(self.meshes)
         for i, inst in enumerate(self.effective_instances()):
-            if not (0 <= int(inst.mesh) < M):
+            if not (0 <= _index(inst.mesh, f"instance {i}: mesh") < M):
                 raise ValueError(f"instance {i}: mesh {inst.mesh} out of range ({M} meshes)")
-            t = np.asarray(inst.transform, dtype=np.float64)
+            t = _floats(inst.transform, f"instance {i}: transform")
             if t.shape not in ((3, 4), (4, 4)):
                 raise ValueError(f"instance {i}: transform has shape {t.shape}, "
                                  "expected (3,4) or (4,4)")
@@ -428,7 +466,9 @@ class SceneData:
             if t.shape == (4, 4) and not np.allclose(t[3], (0, 0, 0, 1)):
                 raise ValueError(f"instance {i}: transform is projective "
                                  f"(last row {t[3].tolist()})")
-            if abs(np.linalg.det(t[:3, :3])) < 1e-30:
+            _check_f32(t, f"instance {i}: transform")
+            # Flat (the core skips it): |det| tiny next to the rows' lengths, as the core tests.
+            if not abs(np.linalg.det(t[:3, :3])) > 1e-12 * np.prod(np.linalg.norm(t[:3, :3], axis=1)):
                 warnings.append(f"instance {i}: transform is singular")
         return warnings
 
@@ -439,15 +479,21 @@ class SceneData:
             if mat.type not in MATERIAL_TYPES:
                 raise ValueError(f"{lbl}: unknown type '{mat.type}'")
             for attr in ("base_color", "roughness", "ior", "emission", "emission_strength"):
-                v = np.asarray(getattr(mat, attr), dtype=np.float64)
+                v = _floats(getattr(mat, attr), f"{lbl}: {attr}")
                 if v.shape != (() if attr in ("roughness", "ior", "emission_strength") else (3,)):
                     raise ValueError(f"{lbl}: {attr} has shape {v.shape}")
                 if not _finite(v):
                     raise ValueError(f"{lbl}: {attr} is NaN/Inf")
+                _check_f32(v, f"{lbl}: {attr}")
+            if not IOR_RANGE[0] <= float(mat.ior) <= IOR_RANGE[1]:
+                raise ValueError(f"{lbl}: ior must be positive, in {IOR_RANGE[0]:g}.."
+                                 f"{IOR_RANGE[1]:g} (got {float(mat.ior):g})")
+            _check_f32(_vec(mat.emission) * float(mat.emission_strength),
+                       f"{lbl}: emission x emission_strength")
             t = mat.base_color_texture
-            if t is not None and not (0 <= int(t) < X):
+            if t is not None and not (0 <= _index(t, f"{lbl}: base_color_texture") < X):
                 raise ValueError(f"{lbl}: base_color_texture {t} out of range ({X} textures)")
-            if np.ndim(mat.mix_weight) != 0 or not _finite(mat.mix_weight):
+            if np.ndim(_floats(mat.mix_weight, f"{lbl}: mix_weight")) != 0 or not _finite(mat.mix_weight):
                 raise ValueError(f"{lbl}: mix_weight is NaN/Inf or not a number")
             n = mat.mix_next
             if n is not None:
@@ -462,10 +508,14 @@ class SceneData:
 
     def _check_world(self):
         w = self.world
-        if not _finite(w.color, w.strength) or np.shape(w.color) != (3,):
+        if not isinstance(w, World):
+            raise ValueError(f"world: expected a World, got {w!r}")
+        color, strength = _floats(w.color, "world: color"), _floats(w.strength, "world: strength")
+        if not _finite(color, strength) or color.shape != (3,) or strength.shape != ():
             raise ValueError("world: color/strength must be finite, color 3 values")
+        _check_f32(color * strength, "world: color x strength")
         if w.map is not None:
-            m = np.asarray(w.map)
+            m = _floats(w.map, "world map")
             if m.ndim != 3 or m.shape[2] not in (3, 4):
                 raise ValueError(f"world map: shape {m.shape}, expected (H,W,3) or (H,W,4)")
             if m.shape[0] == 0 or m.shape[1] == 0:
@@ -474,6 +524,7 @@ class SceneData:
             if bad.any():
                 r, c = np.argwhere(bad)[0]
                 raise ValueError(f"world map: pixel (row {r}, column {c}) is NaN/Inf")
+            _check_f32(m[..., :3] * strength, "world map: pixel x strength")
 
     def _check_camera(self):
         cam = self.camera
@@ -481,14 +532,17 @@ class SceneData:
             raise ValueError("camera: scene has no camera")
         if cam.type not in CAMERA_TYPES:
             raise ValueError(f"camera: unknown type '{cam.type}'")
-        m = _transform_3x4(cam.camera_to_world)
+        m = _transform_3x4(_floats(cam.camera_to_world, "camera: camera_to_world"))
         if m is None or not _finite(m):
             raise ValueError("camera: camera_to_world must be a finite (3,4) or (4,4) matrix")
-        win = np.asarray(cam.window, dtype=np.float64)
+        _check_f32(m, "camera: camera_to_world")
+        win = _floats(cam.window, "camera: window")
         if win.shape != (4,) or not _finite(win) or win[0] >= win[1] or win[2] >= win[3]:
-            raise ValueError(f"camera: bad window {tuple(win.tolist())}, "
+            raise ValueError(f"camera: bad window {tuple(win.ravel().tolist())}, "
                              "expected left < right, bottom < top")
-        if not _finite(cam.clip_start, cam.clip_end) or not 0 <= cam.clip_start < cam.clip_end:
+        _check_f32(win, "camera: window")
+        clip = _floats((cam.clip_start, cam.clip_end), "camera: clip_start/clip_end", (2,))
+        if not _finite(clip) or not 0 <= clip[0] < clip[1]:
             raise ValueError(f"camera: bad clip range ({cam.clip_start}, {cam.clip_end})")
 
     # -- flat arrays --
@@ -584,7 +638,7 @@ class SceneData:
                                               np.float32).reshape(-1, 3)
         out["material_roughness"] = np.array(
             [min(max(float(m.roughness), 0.0), 1.0) for m in mats], np.float32)
-        out["material_ior"] = np.array([max(float(m.ior), 1e-5) for m in mats], np.float32)
+        out["material_ior"] = np.array([float(m.ior) for m in mats], np.float32)
         out["material_emission"] = np.array(
             [_vec(m.emission) * float(m.emission_strength) for m in mats],
             np.float32).reshape(-1, 3)
@@ -657,22 +711,36 @@ class SceneData:
 
     @classmethod
     def load(cls, path):
-        """Read a file written by ``save``."""
-        with np.load(path, allow_pickle=False) as f:
-            flat = {k: f[k] for k in f.files}
-        meta = json.loads(str(flat.pop(_META_KEY))) if _META_KEY in flat else {}
-        flat = _with_optional_defaults(flat)
-        missing = [k for k in FLAT_KEYS if k not in flat]
-        if missing:
-            raise ValueError(f"scene file {path}: missing arrays {missing}")
-        return cls.from_flat(flat, meta)
+        """Read a file written by ``save``. A file that is not a readable scene .npz (empty,
+        truncated, wrong arrays or metadata) raises ValueError naming the file and the item."""
+        try:
+            data = np.load(path, allow_pickle=False)
+            if not isinstance(data, np.lib.npyio.NpzFile):  # a plain .npy
+                raise ValueError("a single array, not an archive of arrays")
+            with data as f:
+                flat = {k: f[k] for k in f.files}
+        except (FileNotFoundError, IsADirectoryError, PermissionError):
+            raise
+        except (OSError, EOFError, ValueError, zipfile.BadZipFile, zlib.error) as e:
+            raise ValueError(f"scene file {path}: not a readable .npz ({type(e).__name__}: {e})") from None
+        try:
+            meta = {}
+            if _META_KEY in flat:
+                try:
+                    meta = json.loads(str(flat.pop(_META_KEY)))
+                except ValueError as e:
+                    raise ValueError(f"{_META_KEY} is not valid JSON ({e})") from None
+            return cls.from_flat(flat, meta)
+        except ValueError as e:
+            raise ValueError(f"scene file {path}: {e}") from None
 
     @classmethod
     def from_flat(cls, flat, meta=None):
-        """Rebuild a SceneData from flatten() output; flatten() of the result is identical."""
-        meta = meta or {}
-        flat = _with_optional_defaults(flat)
-        a = {k: np.asarray(flat[k]) for k in FLAT_KEYS}
+        """Rebuild a SceneData from flatten() output; flatten() of the result is identical.
+        Arrays it cannot read (missing, wrong shape, lengths that disagree, unknown type ids,
+        textures past the texels) or bad metadata raise ValueError naming the item."""
+        meta = {} if meta is None else meta
+        a = _check_flat(flat, meta)
         M = len(a["mesh_first_triangle"])
         first_vertex = meta.get("mesh_first_vertex")
         if first_vertex is None or len(first_vertex) != M:
@@ -739,6 +807,7 @@ def _check_mesh(mesh, i, K):
     bad = ~np.isfinite(p).all(axis=1)
     if bad.any():
         raise ValueError(f"{lbl}: vertex {int(np.argmax(bad))} is NaN/Inf")
+    _check_f32(p, f"{lbl}: positions")
     V = len(p)
     tri = np.asarray(mesh.indices)
     if tri.size == 0:
@@ -786,13 +855,97 @@ def _check_mesh(mesh, i, K):
     return keep, int(T - keep.sum())
 
 
+def _check_flat(flat, meta):
+    """The FLAT_KEYS arrays of ``flat`` (optional ones filled in) after checking what from_flat
+    relies on: every array present and numeric with its shape, the lengths of each group
+    equal, known type ids, textures inside texture_texels, and well-formed metadata."""
+    if not isinstance(flat, dict):
+        raise ValueError(f"scene arrays must be a dict, got {type(flat).__name__}")
+    if not isinstance(meta, dict):
+        raise ValueError(f"{_META_KEY} must be a JSON object, got {type(meta).__name__}")
+    a = {}
+    for k in FLAT_KEYS:
+        if k in flat:
+            v = np.asarray(flat[k])
+            if v.dtype.kind not in "biuf":
+                raise ValueError(f"array '{k}' must be numeric, got {v.dtype}")
+            a[k] = v
+    a = _with_optional_defaults(a)
+    missing = [k for k in FLAT_KEYS if k not in a]
+    if missing:
+        raise ValueError(f"missing arrays {missing}")
+    # Shapes: "(T,3,3) or (0,3,3)" -> trailing dimensions (3, 3); the rows are checked below.
+    for k, (_, shape) in FLAT_KEYS.items():
+        trailing = tuple(int(d) for d in shape.split(" or ")[0].strip("()").split(",")[1:] if d.strip().isdigit())
+        if k == "world_map":
+            trailing = (None, 3)
+        v = a[k]
+        ok = v.ndim == 1 + len(trailing) and all(t is None or d == t for d, t in zip(v.shape[1:], trailing))
+        if not ok:
+            raise ValueError(f"array '{k}' has shape {v.shape}, expected {shape}")
+        if v.dtype.kind == "f" and np.dtype(FLAT_KEYS[k][0]).kind in "iu":
+            raise ValueError(f"array '{k}' must hold integers, got {v.dtype}")
+    groups = {"T": ("indices", "triangle_material"), "M": [k for k in FLAT_KEYS if k.startswith("mesh_")],
+              "I": ("instance_transform", "instance_mesh"),
+              "K": [k for k in FLAT_KEYS if k.startswith("material_")],
+              "L": [k for k in FLAT_KEYS if k.startswith("light_")]}
+    for keys in groups.values():
+        lengths = {k: len(a[k]) for k in keys}
+        if len(set(lengths.values())) > 1:
+            raise ValueError(f"arrays of one kind differ in length: {lengths}")
+    T, M, V = len(a["indices"]), len(a["mesh_first_triangle"]), len(a["positions"])
+    for k in ("corner_normals", "corner_uvs"):
+        if len(a[k]) not in (0, T):
+            raise ValueError(f"array '{k}' has {len(a[k])} rows, expected 0 or {T}")
+    for k, n in (("world_color", 3), ("camera_to_world", 3), ("camera_type", 1), ("camera_window", 4),
+                 ("camera_clip", 2)):
+        if len(a[k]) != n:
+            raise ValueError(f"array '{k}' has shape {a[k].shape}, expected {n} rows")
+
+    def ids(key, known):
+        bad = [int(x) for x in a[key] if int(x) not in known]
+        if bad:
+            raise ValueError(f"array '{key}' holds unknown type id {bad[0]} (known: {sorted(known)})")
+
+    ids("material_type", set(MATERIAL_TYPES.values()))
+    ids("light_type", set(LIGHT_TYPES.values()) | set(AREA_SHAPES.values()))
+    ids("camera_type", set(CAMERA_TYPES.values()))
+    if np.any(a["indices"] < 0) or np.any(a["indices"] >= V):
+        raise ValueError(f"array 'indices' refers to vertices outside 0..{V - 1}")
+    first, count = a["mesh_first_triangle"].astype(np.int64), a["mesh_triangle_count"].astype(np.int64)
+    if np.any(first < 0) or np.any(count < 0) or np.any(first + count > T):
+        m = int(np.argmax((first < 0) | (count < 0) | (first + count > T)))
+        raise ValueError(f"mesh {m} covers triangles {first[m]}..{first[m] + count[m]}, but there are {T}")
+    N = len(a["texture_texels"])
+    for x, (o, w, h) in enumerate(a["texture_info"].astype(np.int64)):
+        if w <= 0 or h <= 0 or o < 0 or o + w * h > N:
+            raise ValueError(f"texture {x}: {w}x{h} texels at offset {o} do not fit in the {N} texels "
+                             "of 'texture_texels'")
+    for key in ("width", "height"):
+        value = meta.get(key)
+        if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < 1):
+            raise ValueError(f"{_META_KEY} {key} must be a positive integer, got {value!r}")
+    for key, n in (("mesh_names", M), ("material_names", len(a["material_type"])),
+                   ("texture_names", len(a["texture_info"])), ("light_names", len(a["light_type"]))):
+        names = meta.get(key)
+        if names is not None and (not isinstance(names, list) or len(names) != n
+                                  or not all(isinstance(x, str) for x in names)):
+            raise ValueError(f"{_META_KEY} {key} must be a list of {n} strings, got {names!r}")
+    fv = meta.get("mesh_first_vertex")
+    if fv is not None and (not isinstance(fv, list) or len(fv) != M or not all(
+            isinstance(x, int) and not isinstance(x, bool) and 0 <= x <= V for x in fv) or fv != sorted(fv)):
+        raise ValueError(f"{_META_KEY} mesh_first_vertex must be {M} increasing vertex indices "
+                         f"in 0..{V}, got {fv!r}")
+    return a
+
+
 def _with_optional_defaults(flat):
     """``flat`` with the keys newer than its file filled in (no mixes), as a new dict."""
     flat = dict(flat)
     for k, default in _OPTIONAL_KEY_DEFAULTS.items():
         if k not in flat:
             like = "light_type" if k.startswith("light_") else "material_type"
-            n = len(flat[like]) if like in flat else 0
+            n = len(flat[like]) if like in flat and np.ndim(flat[like]) == 1 else 0
             flat[k] = np.full(n, default, dtype=FLAT_KEYS[k][0])
     return flat
 
@@ -844,18 +997,22 @@ def _check_light(light, lbl):
     if light.type == "area" and light.shape not in AREA_SHAPES:
         raise ValueError(f"{lbl}: unknown area shape '{light.shape}'")
     for attr in ("color", "position", "direction"):
-        v = np.asarray(getattr(light, attr), dtype=np.float64)
+        v = _floats(getattr(light, attr), f"{lbl}: {attr}")
         if v.shape != (3,) or not _finite(v):
             raise ValueError(f"{lbl}: {attr} must be 3 finite numbers, got {getattr(light, attr)}")
+        _check_f32(v, f"{lbl}: {attr}")
     for attr in ("power", "radius", "spot_size", "spot_blend", "angle", "size", "size_y"):
-        if not _finite(getattr(light, attr)) or np.ndim(getattr(light, attr)) != 0:
+        v = _floats(getattr(light, attr), f"{lbl}: {attr}")
+        if not _finite(v) or v.ndim != 0:
             raise ValueError(f"{lbl}: {attr} is NaN/Inf or not a number")
+        _check_f32(v, f"{lbl}: {attr}")
+    _check_f32(_vec(light.color) * float(light.power), f"{lbl}: color x power")
     if _normalized(light.direction) is None:
         raise ValueError(f"{lbl}: direction has zero length")
     for attr in ("axis_u", "axis_v"):
         v = getattr(light, attr)
         if v is not None:
-            v = np.asarray(v, dtype=np.float64)
+            v = _floats(v, f"{lbl}: {attr}")
             if v.shape != (3,) or not _finite(v) or _normalized(v) is None:
                 raise ValueError(f"{lbl}: {attr} must be a finite non-zero 3-vector")
     if light.type == "area":
@@ -898,8 +1055,9 @@ def _light_from_row(a, j, name):
     kw = {}
     if t in (4, 5):
         su, sv = float(np.linalg.norm(u)), float(np.linalg.norm(v))
-        kw = dict(type="area", shape="rectangle" if t == 4 else "ellipse",
-                  size=su, size_y=sv, axis_u=tuple(u / su), axis_v=tuple(v / sv))
+        kw = dict(type="area", shape="rectangle" if t == 4 else "ellipse", size=su, size_y=sv,
+                  axis_u=tuple(u / su) if su > 0 else None,  # zero size: skipped, with a warning
+                  axis_v=tuple(v / sv) if sv > 0 else None)
     else:
         kw = dict(type={1: "point", 2: "spot", 3: "sun"}[t], axis_u=tuple(u), axis_v=tuple(v))
     return Light(color=tuple(a["light_color"][j].tolist()), power=1.0,

@@ -2,6 +2,7 @@
 
 #include "shaders_embedded.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cstring>
 #include <stdexcept>
@@ -53,7 +54,7 @@ void Session::upload_technique_params() {
 // Caller holds mutex_.
 void Session::reset_accumulation(bool keep_cache) {
     stats_ = {};
-    next_row_ = 0;
+    cursor_ = {};
     film_.fill_zero();
     ray_count_.fill_zero();
     if (scene_ && !keep_cache) ic_->configure(params_.ic, scene_->host().info);
@@ -182,6 +183,7 @@ FrameParams Session::frame_params(uint32_t frame) const {
     fp.frame = frame;
     fp.seed = params_.seed;
     fp.samples_per_frame = params_.samples_per_frame;
+    fp.sample_count = params_.samples_per_frame;
     fp.max_depth = params_.max_depth;
     fp.depth_leeway = params_.depth_leeway;
     fp.rr_start_depth = params_.rr_start_depth;
@@ -190,26 +192,53 @@ FrameParams Session::frame_params(uint32_t frame) const {
     return fp;
 }
 
-bool Session::record_bands(VkCommandBuffer cmd, RayTracingPipeline& pipe, uint32_t frame, uint32_t& rows) {
-    while (rows > 0) {
-        uint32_t band = std::min(height_ - next_row_, rows);
-        FrameParams fp = frame_params(frame);
-        fp.row_offset = next_row_;
-        pipe.trace(cmd, set_->set(), &fp, sizeof(fp), width_, band);
-        VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-        b.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
-        b.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_READ_BIT;
-        vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_RAY_TRACING_SHADER_BIT_KHR,
-                             VK_PIPELINE_STAGE_RAY_TRACING_SHADER_BIT_KHR | VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &b, 0,
-                             nullptr, 0, nullptr);
-        next_row_ += band;
-        if (rows != UINT32_MAX) rows -= band;
-        if (next_row_ == height_) {
-            next_row_ = 0;
-            return true;
-        }
+Session::DispatchPlan Session::dispatch_plan() const {
+    DispatchPlan plan{};
+    // Rays of one path at most: camera ray and bounces up to the depth limits, with the
+    // shadow rays of each vertex.
+    plan.cost = uint64_t(params_.max_depth + params_.depth_leeway + 2) * (1 + params_.light_samples);
+    plan.budget = ctx_->report().type == "cpu" ? (uint64_t(1) << 21) : (uint64_t(1) << 30);
+    const uint64_t spp = params_.samples_per_frame, row = uint64_t(width_) * plan.cost;
+    auto fit = [&](uint64_t unit, uint32_t most) { return uint32_t(std::clamp<uint64_t>(plan.budget / unit, 1, most)); };
+    // Whole rows with all samples if a row fits, else one row with some samples, else
+    // part of a row with one sample.
+    plan.rows = row * spp <= plan.budget ? fit(row * spp, height_) : 1;
+    plan.samples = row * spp <= plan.budget ? uint32_t(spp) : fit(row, uint32_t(spp));
+    plan.cols = row <= plan.budget ? width_ : fit(plan.cost, width_);
+    return plan;
+}
+
+uint64_t Session::record_dispatch(VkCommandBuffer cmd, RayTracingPipeline& pipe, const DispatchPlan& plan,
+                                  uint32_t frame, uint32_t& rows, bool& frame_done) {
+    Cursor& c = cursor_;
+    const uint32_t h = std::min({plan.rows, height_ - c.row, rows});
+    const uint32_t w = std::min(plan.cols, width_ - c.col);
+    const uint32_t n = std::min(plan.samples, params_.samples_per_frame - c.sample);
+    FrameParams fp = frame_params(frame);
+    fp.row_offset = c.row;
+    fp.col_offset = c.col;
+    fp.sample_offset = c.sample;
+    fp.sample_count = n;
+    pipe.trace(cmd, set_->set(), &fp, sizeof(fp), w, h);
+    VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    b.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
+    b.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_READ_BIT;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_RAY_TRACING_SHADER_BIT_KHR,
+                         VK_PIPELINE_STAGE_RAY_TRACING_SHADER_BIT_KHR | VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &b, 0,
+                         nullptr, 0, nullptr);
+    // Columns, then samples, then rows: a band of rows is complete when all its samples are.
+    frame_done = false;
+    if ((c.col += w) < width_) return plan.cost * w * h * n;
+    c.col = 0;
+    if ((c.sample += n) < params_.samples_per_frame) return plan.cost * w * h * n;
+    c.sample = 0;
+    c.row += h;
+    if (rows != UINT32_MAX) rows -= h;
+    if (c.row == height_) {
+        c.row = 0;
+        frame_done = true;
     }
-    return false;
+    return plan.cost * w * h * n;
 }
 
 // A prepare frame (thesis 4.4): camera paths to their first diffuse vertex only queue cache
@@ -218,7 +247,7 @@ void Session::prepare_frame() {
     RayTracingPipeline& camera = pipeline(PROGRAM_CAMERA);
     FrameParams fp = frame_params(0x80000000u | ic_->prepared_frames());
     fp.mode = FRAME_IC_PREPARE;
-    fp.samples_per_frame = 1;  // thesis 4.4: prepare frames at 1 spp
+    fp.samples_per_frame = fp.sample_count = 1;  // thesis 4.4: prepare frames at 1 spp
     ctx_->submit_and_wait([&](VkCommandBuffer cmd) {
         ic_->record_frame_start(cmd);
         camera.trace(cmd, set_->set(), &fp, sizeof(fp), width_, height_);
@@ -227,66 +256,66 @@ void Session::prepare_frame() {
                      true);
 }
 
-// Without the cache, all frames go in one submission. With it, each frame is a submission of
-// its own followed by the cache's host step (its creation jobs and BLAS refit), and a new
+// Frames go to the device in submissions of dispatches up to the plan's budget; cancel() is
+// checked between submissions. With the irradiance cache a submission ends with its frame,
+// which is followed by the cache's host step (its creation jobs and BLAS refit), and a new
 // frame is preceded by the cache's remaining prepare frames: all of them for render(), one
 // per call for render_rows() (so a caller can still stop between short calls).
-bool Session::trace(uint32_t frames, uint32_t rows) {
+uint32_t Session::trace(uint32_t frames, uint32_t rows) {
     if (!scene_) throw std::runtime_error("no scene: call update(scene) before render()");
+    if (cancel_.exchange(false)) return 0;
     auto start = std::chrono::steady_clock::now();
+    const DispatchPlan plan = dispatch_plan();
+    const uint64_t paths = uint64_t(width_) * height_ * params_.samples_per_frame;
+    RayTracingPipeline& pipe = pipeline(PROGRAM_CAMERA);
     uint32_t completed = 0;
-    if (!ic_->enabled()) {
-        RayTracingPipeline& pipe = pipeline(PROGRAM_CAMERA);
+    uint32_t rows_left = frames ? UINT32_MAX : rows;
+    bool stop = false;
+    while (!stop && (frames ? completed < frames : rows_left > 0)) {
+        if (ic_->enabled() && cursor_.at_frame_start() && ic_->needs_prepare()) {
+            prepare_frame();
+            stop = frames == 0 || cancel_.exchange(false);
+            continue;
+        }
+        bool frame_done = false, ic_step = false;
         ctx_->submit_and_wait([&](VkCommandBuffer cmd) {
-            uint32_t budget = frames ? UINT32_MAX : rows;
-            while (frames == 0 ? budget > 0 : completed < frames) {
-                if (!record_bands(cmd, pipe, stats_.frames + completed, budget)) break;
+            // With the cache a submission holds at most one frame: clear its request queue.
+            if (ic_->enabled() && cursor_.at_frame_start()) ic_->record_frame_start(cmd);
+            uint64_t work = 0;
+            while (work < plan.budget && (frames ? completed < frames : rows_left > 0)) {
+                work += record_dispatch(cmd, pipe, plan, stats_.frames + completed, rows_left, frame_done);
+                if (!frame_done) continue;
+                if (ic_->enabled()) {  // the cache's host step comes next
+                    ic_step = true;
+                    break;
+                }
                 ++completed;
                 if (frames == 0) break;  // render_rows: at most the rest of one frame
             }
         });
-    } else {
-        RayTracingPipeline& pipe = pipeline(PROGRAM_CAMERA);
-        const uint64_t paths = uint64_t(width_) * height_ * params_.samples_per_frame;
-        bool prepared_only = false;
-        while (next_row_ == 0 && ic_->needs_prepare()) {
-            prepare_frame();
-            if (frames == 0) {
-                prepared_only = true;
-                break;
-            }
+        if (ic_step) {
+            ic_->after_frame(pipeline(PROGRAM_IC_HEMISPHERE), ic_finish_pipeline(), *set_,
+                             frame_params(stats_.frames + completed), paths, false);
+            ++completed;
         }
-        while (!prepared_only && (frames == 0 || completed < frames)) {
-            uint32_t budget = frames ? UINT32_MAX : rows;
-            bool done = false;
-            const uint32_t frame = stats_.frames + completed;
-            ctx_->submit_and_wait([&](VkCommandBuffer cmd) {
-                if (next_row_ == 0) ic_->record_frame_start(cmd);
-                done = record_bands(cmd, pipe, frame, budget);
-            });
-            if (done) {
-                ic_->after_frame(pipeline(PROGRAM_IC_HEMISPHERE), ic_finish_pipeline(), *set_, frame_params(frame),
-                                 paths, false);
-                ++completed;
-            }
-            if (frames == 0) break;
-        }
+        if (frame_done && frames == 0) break;
+        stop = cancel_.exchange(false);
     }
     stats_.milliseconds += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     stats_.frames += completed;
     stats_.samples += uint64_t(completed) * params_.samples_per_frame;
-    return completed > 0;
+    return completed;
 }
 
-void Session::render(uint32_t frames) {
+uint32_t Session::render(uint32_t frames) {
     std::lock_guard<std::mutex> lock(mutex_);
-    trace(frames, 0);
+    return trace(frames, 0);
 }
 
 bool Session::render_rows(uint32_t rows) {
     if (rows == 0) throw std::invalid_argument("render_rows needs at least one row");
     std::lock_guard<std::mutex> lock(mutex_);
-    return trace(0, rows);
+    return trace(0, rows) > 0;
 }
 
 std::vector<float> Session::read(const std::string& pass, uint32_t& channels) {
@@ -300,15 +329,16 @@ std::vector<float> Session::read(const std::string& pass, uint32_t& channels) {
     }
     std::lock_guard<std::mutex> lock(mutex_);
     const size_t pixels = size_t(width_) * height_;
-    std::vector<vec4> sums(pixels);
+    std::vector<vec4> sums(pixels), counts(pixels);  // counts: the combined pass, w = samples
     film_.download(sums.data(), pixels * sizeof(vec4), size_t(info->index) * pixels * sizeof(vec4));
+    film_.download(counts.data(), pixels * sizeof(vec4), size_t(PASS_COMBINED) * pixels * sizeof(vec4));
     channels = info->channels;
     std::vector<float> out(pixels * channels, 0.0f);
-    const float inv = stats_.samples ? 1.0f / float(stats_.samples) : 0.0f;
     for (size_t i = 0; i < pixels; ++i) {
+        const float inv = counts[i].w > 0 ? 1.0f / counts[i].w : 0.0f;
         const float v[4] = {sums[i].x * inv, sums[i].y * inv, sums[i].z * inv, sums[i].w * inv};
         for (uint32_t c = 0; c < channels; ++c) out[i * channels + c] = v[c];
-        if (info->index == PASS_DEPTH && stats_.samples == 0) out[i] = 1e10f;
+        if (info->index == PASS_DEPTH && counts[i].w == 0) out[i] = 1e10f;
     }
     return out;
 }

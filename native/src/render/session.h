@@ -6,6 +6,7 @@
 #include "vk/pipeline.h"
 
 #include <array>
+#include <atomic>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -55,21 +56,27 @@ public:
     std::vector<std::string> update(const SceneArrays& arrays, bool spatial_order = true, uint32_t parts = PART_ALL);
     void set_params(const RenderParams& params);
     const RenderParams& params() const { return params_; }
-    // Adds `frames` whole frames (finishing a frame that render_rows began first).
-    void render(uint32_t frames);
+    // Adds `frames` whole frames (finishing a frame that render_rows began first); returns
+    // the frames completed, fewer than `frames` when cancel() stopped it.
+    uint32_t render(uint32_t frames);
     // Traces the next `rows` rows of the current frame (short dispatches, so a caller can
     // react between them); returns true when that completed the frame. With the irradiance
     // cache on, a call at a frame's start may instead run one cache prepare frame (false). Sample counts include
     // completed frames only, so read() is exact after a completed frame (in between, traced
     // rows hold one frame more). update, set_params and reset drop a partial frame.
     bool render_rows(uint32_t rows);
-    uint32_t next_row() const { return next_row_; }
+    // Thread-safe, from any thread: stops the render() or render_rows() call in progress at
+    // its next dispatch boundary (see dispatch_plan), or the next such call if none is in
+    // progress (which then returns at once). The stopped call keeps what it traced.
+    void cancel() { cancel_ = true; }
+    uint32_t next_row() const { return cursor_.row; }
     // Samples per pixel accumulated (completed frames); cheap, unlike stats().
     uint64_t samples() {
         std::lock_guard<std::mutex> lock(mutex_);
         return stats_.samples;
     }
-    // (height, width, channels) float32, row 0 = top.
+    // (height, width, channels) float32, row 0 = top; each pixel's sums divided by its own
+    // sample count (exact after a partial or cancelled frame too).
     std::vector<float> read(const std::string& pass, uint32_t& channels);
     void reset();
     SessionStats stats();
@@ -84,11 +91,28 @@ public:
     size_t triangle_count() const { return scene_ ? scene_->triangle_count() : 0; }
 
 private:
-    // Whole frames, or (frames == 0) rows of one; true if a frame was completed.
-    bool trace(uint32_t frames, uint32_t rows);
-    // Records row bands of the current frame from next_row_ (at most `rows` rows); returns
-    // whether the frame is complete.
-    bool record_bands(VkCommandBuffer cmd, RayTracingPipeline& pipe, uint32_t frame, uint32_t& rows);
+    // How a frame is split into dispatches: tiles of `rows` x `cols` pixels tracing `samples`
+    // of each pixel's samples. A dispatch's worst-case rays (every path its full depth with
+    // its shadow rays) stay within `budget`, so none runs for long on lavapipe; a submission
+    // holds dispatches up to the budget, and cancel() is checked between submissions.
+    struct DispatchPlan {
+        uint32_t rows, cols, samples;
+        uint64_t cost;    // worst-case rays of one pixel-sample
+        uint64_t budget;  // worst-case rays per dispatch and per submission
+    };
+    DispatchPlan dispatch_plan() const;
+    // Where the current frame stands: the next dispatch's first row, column and sample.
+    struct Cursor {
+        uint32_t row = 0, col = 0, sample = 0;
+        bool at_frame_start() const { return row == 0 && col == 0 && sample == 0; }
+    };
+    // Whole frames, or (frames == 0) rows of one; returns the frames completed.
+    uint32_t trace(uint32_t frames, uint32_t rows);
+    // Records the dispatch at cursor_ and advances it; `rows` counts the rows left to
+    // complete (UINT32_MAX: no limit). Returns the dispatch's worst-case rays and sets
+    // `frame_done` when it completed the frame.
+    uint64_t record_dispatch(VkCommandBuffer cmd, RayTracingPipeline& pipe, const DispatchPlan& plan, uint32_t frame,
+                             uint32_t& rows, bool& frame_done);
     void prepare_frame();           // one irradiance-cache prepare frame, then its entries
     // Film, stats and partial frame; the irradiance cache starts over unless `keep_cache`.
     void reset_accumulation(bool keep_cache = false);
@@ -108,7 +132,8 @@ private:
     std::unique_ptr<ComputePipeline> test_pipeline_;
     RenderParams params_;
     SessionStats stats_;
-    uint32_t next_row_ = 0;    // first row of the current frame that render_rows has not traced
+    Cursor cursor_;            // progress through the current frame
+    std::atomic<bool> cancel_{false};
     std::mutex mutex_;         // the scene, film and stats against concurrent render()/read()
     std::mutex update_mutex_;  // one update() at a time: each builds on the previous one
 };

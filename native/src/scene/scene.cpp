@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <numeric>
 #include <stdexcept>
 
@@ -53,6 +54,21 @@ Arr<T> get(const SceneArrays& a, const std::string& name, char kind, std::vector
 }
 
 bool finite3(const float* p) { return std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]); }
+double max_abs3(const float* p) { return std::max({std::fabs(double(p[0])), std::fabs(double(p[1])), std::fabs(double(p[2]))}); }
+double max3(const float* p) { return std::max({double(p[0]), double(p[1]), double(p[2])}); }
+std::string num(double v) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%g", v);
+    return b;
+}
+// Double-precision vectors for derived quantities that may leave float32's range.
+struct dvec3 {
+    double x, y, z;
+};
+dvec3 d3(const float* p) { return {p[0], p[1], p[2]}; }
+dvec3 dcross(dvec3 a, dvec3 b) { return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x}; }
+double ddot(dvec3 a, dvec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+double dlength(dvec3 a) { return std::sqrt(ddot(a, a)); }
 vec3 v3(const float* p) { return {p[0], p[1], p[2]}; }
 vec3 operator+(vec3 a, vec3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
 vec3 operator-(vec3 a, vec3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
@@ -87,50 +103,92 @@ uint32_t morton3(vec3 p) {
     return (spread(q(p.x)) << 2) | (spread(q(p.y)) << 1) | spread(q(p.z));
 }
 
-// Cycles' light units -> radiance (see DESIGN "Units match Cycles").
-Light analytic_light(uint type, vec3 pos, vec3 dir, vec3 axis_u, vec3 axis_v, float radius, vec3 power,
-                     float spot_size, float spot_blend, float sun_angle) {
+// Analytic light `i` of the light_* arrays in Cycles' units -> radiance (see DESIGN "Units
+// match Cycles"). Derived values are computed in double, so an overflow is an error naming
+// the light rather than an Inf in the light table. `weight` is its selection weight (emitted
+// power, luminance); 0 for a light that emits nothing.
+struct LightArrays {
+    Arr<uint32_t> type;
+    Arr<float> position, direction, axis_u, axis_v, radius, color, spot_size, spot_blend, sun_angle;
+};
+
+Light analytic_light(const LightArrays& a, size_t i, double scene_radius, double& weight) {
+    const std::string id = "light " + std::to_string(i);
+    const uint type = a.type.data[i];
+    if (type < LIGHT_SPHERE || type > LIGHT_DISK) bad(id + ": unknown type " + std::to_string(type));
+    const float *pos = a.position.data + 3 * i, *dir = a.direction.data + 3 * i, *u = a.axis_u.data + 3 * i,
+                *v = a.axis_v.data + 3 * i, *color = a.color.data + 3 * i;
+    const float radius = a.radius.data[i], spot_size = a.spot_size.data[i], spot_blend = a.spot_blend.data[i],
+                sun_angle = a.sun_angle.data[i];
+    if (!finite3(pos) || !finite3(dir) || !finite3(u) || !finite3(v) || !finite3(color) || !std::isfinite(radius) ||
+        !std::isfinite(spot_size) || !std::isfinite(spot_blend) || !std::isfinite(sun_angle))
+        bad(id + ": NaN or infinite value");
+    const double dir_length = dlength(d3(dir));
+    if (dir_length == 0) bad(id + ": zero direction");
+    if (std::max({max_abs3(pos), max_abs3(u), max_abs3(v), std::fabs(double(radius))}) > SceneLimits::coordinate)
+        bad(id + ": position or size beyond the coordinate limit of " + num(SceneLimits::coordinate) + " m");
+
     Light l{};
     l.type = type;
-    l.position = pos;
-    l.direction = type == LIGHT_SUN ? normalize(dir) * -1.0f : normalize(dir);  // sun: towards it
-    l.axis_u = axis_u;
-    l.axis_v = axis_v;
+    l.position = v3(pos);
+    const dvec3 d = d3(dir);
+    const double sign = type == LIGHT_SUN ? -1.0 : 1.0;  // sun: the direction towards it
+    l.direction = {float(sign * d.x / dir_length), float(sign * d.y / dir_length), float(sign * d.z / dir_length)};
+    l.axis_u = v3(u);
+    l.axis_v = v3(v);
     l.radius = std::max(radius, 0.0f);
+    const double r = l.radius;
+    double scale = 0;  // radiance = colour * scale
     switch (type) {
         case LIGHT_SPHERE:
-        case LIGHT_SPOT: {
-            // Power P spread over 4π sr: intensity I = P / (4π). A sphere of radius r
-            // with radiance L has I = L π r², so L = P / (4π · π r²).
-            float intensity_scale = 1.0f / (4.0f * kPi);
-            float s = l.radius > 0 ? intensity_scale / (kPi * l.radius * l.radius) : intensity_scale;
-            l.radiance = power * s;  // radius 0: the radiance field holds the intensity
-            l.area = kPi * l.radius * l.radius;
+        case LIGHT_SPOT:
+            // Power P spread over 4π sr: intensity I = P / (4π). A sphere of radius r with
+            // radiance L has I = L π r², so L = P / (4π · π r²). Radius 0: the radiance
+            // field holds the intensity.
+            scale = r > 0 ? 1.0 / (4 * kPi * kPi * r * r) : 1.0 / (4 * kPi);
+            l.area = float(kPi * r * r);
             if (type == LIGHT_SPOT) {
                 l.cos_half_angle = std::cos(std::min(std::max(spot_size, 0.0f), kPi) * 0.5f);
                 l.spot_smooth = (1.0f - l.cos_half_angle) * std::min(std::max(spot_blend, 0.0f), 1.0f);
             }
             break;
-        }
         case LIGHT_SUN: {
             // Strength S is the irradiance at normal incidence; a disc of half-angle h has
             // projected solid angle π sin²h, so its radiance is S / (π sin²h).
             float half = std::min(std::max(sun_angle, 0.0f), kPi) * 0.5f;
             l.cos_half_angle = std::cos(half);
-            float sin_h = std::sin(half);
-            l.radiance = sin_h > 1e-4f ? power * (1.0f / (kPi * sin_h * sin_h)) : power;
-            if (sin_h <= 1e-4f) l.cos_half_angle = 1.0f;  // delta
+            double sin_h = std::sin(half);
+            scale = sin_h > 1e-4 ? 1.0 / (kPi * sin_h * sin_h) : 1.0;
+            if (sin_h <= 1e-4) l.cos_half_angle = 1.0f;  // delta
             break;
         }
-        case LIGHT_RECT:
-        case LIGHT_DISK: {
-            float full_area = length(cross(axis_u, axis_v));
-            l.area = type == LIGHT_RECT ? full_area : full_area * kPi * 0.25f;
+        default: {  // LIGHT_RECT, LIGHT_DISK
+            const double full_area = dlength(dcross(d3(u), d3(v)));
+            const double area = type == LIGHT_RECT ? full_area : full_area * kPi * 0.25;
+            l.area = float(area);
             // One-sided Lambertian emitter of power P: L = P / (π A).
-            l.radiance = l.area > 0 ? power * (1.0f / (kPi * l.area)) : vec3{0, 0, 0};
-            break;
+            scale = l.area > 0 ? 1.0 / (kPi * area) : 0.0;
         }
-        default: bad("light type " + std::to_string(type) + " is not an analytic light");
+    }
+    const double c[3] = {std::max(double(color[0]), 0.0), std::max(double(color[1]), 0.0), std::max(double(color[2]), 0.0)};
+    const double radiance[3] = {c[0] * scale, c[1] * scale, c[2] * scale};
+    const double peak = std::max({radiance[0], radiance[1], radiance[2]});
+    if (peak > SceneLimits::radiance)
+        bad(id + ": emitted radiance " + num(peak) + " exceeds the limit of " + num(SceneLimits::radiance) +
+            " (colour x power " + num(std::max({c[0], c[1], c[2]})) + " is too strong for its size)");
+    l.radiance = {float(radiance[0]), float(radiance[1]), float(radiance[2])};
+    const double lum = 0.2126 * radiance[0] + 0.7152 * radiance[1] + 0.0722 * radiance[2];
+    switch (type) {
+        case LIGHT_SPHERE:
+        case LIGHT_SPOT:
+            weight = r > 0 ? lum * 4 * kPi * kPi * r * r : lum * 4 * kPi;
+            if (type == LIGHT_SPOT) weight *= std::max(0.05, 0.5 * (1.0 - l.cos_half_angle));
+            break;
+        case LIGHT_SUN:
+            weight = lum * (l.cos_half_angle < 1 ? kPi * (1.0 - double(l.cos_half_angle) * l.cos_half_angle) : 1.0) * kPi *
+                     scene_radius * scene_radius;
+            break;
+        default: weight = lum * kPi * l.area;
     }
     return l;
 }
@@ -200,8 +258,11 @@ std::shared_ptr<const SceneGeometry> prepare_geometry(const SceneArrays& a, bool
     if (uvs.rows != 0 && uvs.rows != T) bad("corner_uvs must have 0 or " + std::to_string(T) + " rows");
     if (mesh_count.rows != M || mesh_has_n.rows != M || mesh_has_uv.rows != M)
         bad("mesh_* arrays differ in length");
-    for (size_t i = 0; i < V; ++i)
+    for (size_t i = 0; i < V; ++i) {
         if (!finite3(positions.data + 3 * i)) bad("positions[" + std::to_string(i) + "] is NaN or infinite");
+        if (max_abs3(positions.data + 3 * i) > SceneLimits::coordinate)
+            bad("positions[" + std::to_string(i) + "] is beyond the coordinate limit of " + num(SceneLimits::coordinate) + " m");
+    }
     for (size_t t = 0; t < T; ++t) {
         for (int k = 0; k < 3; ++k)
             if (indices.data[3 * t + k] >= V)
@@ -313,7 +374,15 @@ std::shared_ptr<const SceneMaterials> prepare_materials(const SceneArrays& a, co
         if (!finite3(base_color.data + 3 * k) || !finite3(emission.data + 3 * k) || !std::isfinite(roughness.data[k]) ||
             !std::isfinite(ior.data[k]))
             bad(id + ": NaN or infinite value");
-        if (ior.data[k] <= 0) bad(id + ": ior must be positive");
+        if (!(ior.data[k] >= SceneLimits::ior_min && ior.data[k] <= SceneLimits::ior_max))
+            bad(id + ": ior must be positive, in " + num(SceneLimits::ior_min) + ".." + num(SceneLimits::ior_max) +
+                " (got " + num(ior.data[k]) + ")");
+        if (max3(base_color.data + 3 * k) > SceneLimits::albedo)
+            bad(id + ": base_color " + num(max3(base_color.data + 3 * k)) + " exceeds the limit of " +
+                num(SceneLimits::albedo));
+        if (max3(emission.data + 3 * k) > SceneLimits::radiance)
+            bad(id + ": emission " + num(max3(emission.data + 3 * k)) + " exceeds the radiance limit of " +
+                num(SceneLimits::radiance));
         if (texture.data[k] >= int32_t(s.textures.size()))
             bad(id + ": texture " + std::to_string(texture.data[k]) + " out of range (" + std::to_string(s.textures.size()) + " textures)");
         m.type = materials_type.data[k];
@@ -387,23 +456,40 @@ std::shared_ptr<const ScenePlacement> prepare_instances(const SceneArrays& a, bo
         for (int r = 0; r < 3; ++r) inst.object_to_world[r] = {x[4 * r], x[4 * r + 1], x[4 * r + 2], x[4 * r + 3]};
         // Normal matrix: inverse transpose of the 3x3 part A. With rows r0, r1, r2 of A, the
         // cofactors c0 = r1 x r2, c1 = r2 x r0, c2 = r0 x r1 are the rows of det(A) A^-T.
-        vec3 r0{x[0], x[1], x[2]}, r1{x[4], x[5], x[6]}, r2{x[8], x[9], x[10]};
-        vec3 c0 = cross(r1, r2), c1 = cross(r2, r0), c2 = cross(r0, r1);
-        float det = dot(r0, c0);
-        if (std::fabs(det) < 1e-20f) { ++skipped; continue; }  // flattened to nothing
-        float inv = 1.0f / det;
-        inst.normal_to_world[0] = {c0.x * inv, c0.y * inv, c0.z * inv, 0};
-        inst.normal_to_world[1] = {c1.x * inv, c1.y * inv, c1.z * inv, 0};
-        inst.normal_to_world[2] = {c2.x * inv, c2.y * inv, c2.z * inv, 0};
+        // Shaders normalise the normals, so the rows are scaled to a largest entry of 1 (not
+        // divided by det, which overflows or underflows float32 at large or small scales).
+        // Computed in double; singular (flat) means |det| is tiny next to the rows' lengths.
+        dvec3 r0 = d3(x), r1 = d3(x + 4), r2 = d3(x + 8);
+        dvec3 c0 = dcross(r1, r2), c1 = dcross(r2, r0), c2 = dcross(r0, r1);
+        double det = ddot(r0, c0);
+        if (!(std::fabs(det) > 1e-12 * dlength(r0) * dlength(r1) * dlength(r2))) { ++skipped; continue; }
+        double m = 0;
+        for (const dvec3& c : {c0, c1, c2}) m = std::max({m, std::fabs(c.x), std::fabs(c.y), std::fabs(c.z)});
+        const double inv = (det > 0 ? 1.0 : -1.0) / m;
+        inst.normal_to_world[0] = {float(c0.x * inv), float(c0.y * inv), float(c0.z * inv), 0};
+        inst.normal_to_world[1] = {float(c1.x * inv), float(c1.y * inv), float(c1.z * inv), 0};
+        inst.normal_to_world[2] = {float(c2.x * inv), float(c2.y * inv), float(c2.z * inv), 0};
         inst.mesh = mesh;
         inst.light_offset = NO_INDEX;
-        vec3 lo{INFINITY, INFINITY, INFINITY}, hi{-INFINITY, -INFINITY, -INFINITY};
+        // World bounds of the mesh's object bounds, in double (checked before float32 holds them).
+        double dlo[3] = {INFINITY, INFINITY, INFINITY}, dhi[3] = {-INFINITY, -INFINITY, -INFINITY};
         for (int c = 0; c < 8; ++c) {
-            vec3 corner{(c & 1) ? g.mesh_hi[mesh].x : g.mesh_lo[mesh].x, (c & 2) ? g.mesh_hi[mesh].y : g.mesh_lo[mesh].y,
-                        (c & 4) ? g.mesh_hi[mesh].z : g.mesh_lo[mesh].z};
-            vec3 w = transform_point(inst.object_to_world, corner);
-            lo = vmin(lo, w), hi = vmax(hi, w);
+            const float corner[3] = {(c & 1) ? g.mesh_hi[mesh].x : g.mesh_lo[mesh].x,
+                                     (c & 2) ? g.mesh_hi[mesh].y : g.mesh_lo[mesh].y,
+                                     (c & 4) ? g.mesh_hi[mesh].z : g.mesh_lo[mesh].z};
+            for (int r = 0; r < 3; ++r) {
+                double w = double(x[4 * r]) * corner[0] + double(x[4 * r + 1]) * corner[1] +
+                           double(x[4 * r + 2]) * corner[2] + x[4 * r + 3];
+                dlo[r] = std::min(dlo[r], w), dhi[r] = std::max(dhi[r], w);
+            }
         }
+        double reach = 0;
+        for (int r = 0; r < 3; ++r) reach = std::max({reach, std::fabs(dlo[r]), std::fabs(dhi[r])});
+        if (reach > SceneLimits::coordinate)
+            bad("instance_transform[" + std::to_string(i) + "] places mesh " + std::to_string(mesh) + " " + num(reach) +
+                " m from the origin, beyond the coordinate limit of " + num(SceneLimits::coordinate) + " m");
+        out->reach = std::max(out->reach, reach);
+        vec3 lo{float(dlo[0]), float(dlo[1]), float(dlo[2])}, hi{float(dhi[0]), float(dhi[1]), float(dhi[2])};
         scene_lo = vmin(scene_lo, lo), scene_hi = vmax(scene_hi, hi);
         centers.push_back((lo + hi) * 0.5f);
         instances.push_back(inst);
@@ -422,7 +508,8 @@ std::shared_ptr<const ScenePlacement> prepare_instances(const SceneArrays& a, bo
     return out;
 }
 
-// The world map's texels (negative and non-finite ones zeroed) and its sampling tables.
+// The world map's texels (negative ones zeroed, those above the radiance limit clamped to
+// it with a warning; a non-finite one is an error) and its sampling tables.
 std::shared_ptr<const SceneEnvironment> prepare_environment(const SceneArrays& a) {
     auto out = std::make_shared<SceneEnvironment>();
     SceneEnvironment& e = *out;
@@ -439,13 +526,18 @@ std::shared_ptr<const SceneEnvironment> prepare_environment(const SceneArrays& a
     e.marginal.assign(H + 1, 0.0f);
     double total = 0, lum_sum = 0, sin_sum = 0;
     std::vector<double> row_sum(H, 0.0);
+    size_t clamped = 0;
+    const float limit = float(SceneLimits::radiance);
     for (size_t r = 0; r < H; ++r) {
         float sin_theta = std::sin(kPi * (r + 0.5f) / H);
         float* cdf = &e.conditional[r * (W + 1)];
         double acc = 0;
         for (size_t c = 0; c < W; ++c) {
             const float* p = px_ + 3 * (r * W + c);
-            vec3 t = finite3(p) ? vmax(v3(p), {0, 0, 0}) : vec3{0, 0, 0};
+            if (!finite3(p))
+                bad("world_map pixel (row " + std::to_string(r) + ", column " + std::to_string(c) + ") is NaN or infinite");
+            if (max3(p) > limit) ++clamped;
+            vec3 t = vmin(vmax(v3(p), {0, 0, 0}), {limit, limit, limit});
             e.texels[r * W + c] = t;
             double w = luminance(t) * sin_theta;
             acc += w;
@@ -465,21 +557,25 @@ std::shared_ptr<const SceneEnvironment> prepare_environment(const SceneArrays& a
     e.height = uint(H);
     e.total = float(total);
     e.mean_luminance = total > 0 ? float(lum_sum / sin_sum) : 0.0f;
+    if (clamped)
+        e.warnings.push_back("world_map: " + std::to_string(clamped) + " texel(s) above the radiance limit of " +
+                             num(SceneLimits::radiance) + " clamped to it");
     return out;
 }
 
 // The light table: emissive triangles, analytic lights (Cycles units -> radiance), the
 // environment and the selection CDF by emitted power. Needs s.geometry, s.materials and
 // s.placement; sets s.lights, the light fields of s.info and (when `new_environment` or
-// there is none yet) s.environment.
+// there is none yet) s.environment. Weights are summed in double and are finite by the
+// limits checked, so no light can poison the CDF; a light that emits nothing is left out.
 void prepare_lights(const SceneArrays& a, bool new_environment, SceneHost& s) {
     const SceneGeometry& g = *s.geometry;
     const std::vector<Material>& materials = s.materials->materials;
     auto out = std::make_shared<SceneLights>();
     out->instances = s.placement->instances;
     std::vector<Light>& lights = out->lights;
-    const float radius = s.placement->radius;
-    std::vector<float> power;  // selection weight of each light
+    const double radius = s.placement->radius;
+    std::vector<double> power;  // selection weight of each light
     for (auto& inst : out->instances) {
         const MeshInfo& mesh = g.meshes[inst.mesh];
         bool emissive = false;
@@ -496,24 +592,20 @@ void prepare_lights(const SceneArrays& a, bool new_environment, SceneHost& s) {
             l.position = p0;
             l.axis_u = p1 - p0;
             l.axis_v = p2 - p0;
-            l.area = 0.5f * length(cross(l.axis_u, l.axis_v));
+            const double area = 0.5 * dlength(dcross(d3(&l.axis_u.x), d3(&l.axis_v.x)));
+            l.area = float(area);
             l.radiance = materials[g.triangle_material[t]].emission;
             l.direction = normalize(cross(l.axis_u, l.axis_v));
             lights.push_back(l);
-            power.push_back(luminance(l.radiance) * l.area * 2.0f * kPi);  // emits from both sides
+            power.push_back(double(luminance(l.radiance)) * area * 2.0 * kPi);  // emits from both sides
         }
     }
-    auto lt = get<uint32_t>(a, "light_type", 'u', {});
-    auto lpos = get<float>(a, "light_position", 'f', {3});
-    auto ldir = get<float>(a, "light_direction", 'f', {3});
-    auto lu = get<float>(a, "light_axis_u", 'f', {3});
-    auto lv = get<float>(a, "light_axis_v", 'f', {3});
-    auto lrad = get<float>(a, "light_radius", 'f', {});
-    auto lcol = get<float>(a, "light_color", 'f', {3});
-    auto lspot = get<float>(a, "light_spot_size", 'f', {});
-    auto lblend = get<float>(a, "light_spot_blend", 'f', {});
-    auto lsun = get<float>(a, "light_sun_angle", 'f', {});
-    const size_t L = lt.rows;
+    LightArrays la{get<uint32_t>(a, "light_type", 'u', {}),      get<float>(a, "light_position", 'f', {3}),
+                   get<float>(a, "light_direction", 'f', {3}),   get<float>(a, "light_axis_u", 'f', {3}),
+                   get<float>(a, "light_axis_v", 'f', {3}),      get<float>(a, "light_radius", 'f', {}),
+                   get<float>(a, "light_color", 'f', {3}),       get<float>(a, "light_spot_size", 'f', {}),
+                   get<float>(a, "light_spot_blend", 'f', {}),   get<float>(a, "light_sun_angle", 'f', {})};
+    const size_t L = la.type.rows;
     std::vector<uint32_t> camera_visible(L, 1u);  // optional: every light is visible by default
     if (a.count("light_camera_visible")) {
         auto lcam = get<uint32_t>(a, "light_camera_visible", 'u', {});
@@ -521,45 +613,42 @@ void prepare_lights(const SceneArrays& a, bool new_environment, SceneHost& s) {
         camera_visible.assign(lcam.data, lcam.data + L);
     }
     s.info.analytic_first = uint(lights.size());
-    for (size_t n : {lpos.rows, ldir.rows, lu.rows, lv.rows, lrad.rows, lcol.rows, lspot.rows, lblend.rows, lsun.rows})
+    for (size_t n : {la.position.rows, la.direction.rows, la.axis_u.rows, la.axis_v.rows, la.radius.rows, la.color.rows,
+                     la.spot_size.rows, la.spot_blend.rows, la.sun_angle.rows})
         if (n != L) bad("light_* arrays differ in length");
     // Two passes: lights visible to the camera first, so camera rays test only a prefix.
     s.info.analytic_camera_count = 0;
+    std::vector<size_t> dark;
     for (int pass = 0; pass < 2; ++pass)
     for (size_t i = 0; i < L; ++i) {
         if ((camera_visible[i] != 0) != (pass == 0)) continue;
-        std::string id = "light " + std::to_string(i);
-        uint type = lt.data[i];
-        if (type < LIGHT_SPHERE || type > LIGHT_DISK) bad(id + ": unknown type " + std::to_string(type));
-        if (!finite3(lpos.data + 3 * i) || !finite3(ldir.data + 3 * i) || !finite3(lu.data + 3 * i) ||
-            !finite3(lv.data + 3 * i) || !finite3(lcol.data + 3 * i) || !std::isfinite(lrad.data[i]) ||
-            !std::isfinite(lspot.data[i]) || !std::isfinite(lblend.data[i]) || !std::isfinite(lsun.data[i]))
-            bad(id + ": NaN or infinite value");
-        if (length(v3(ldir.data + 3 * i)) == 0) bad(id + ": zero direction");
-        Light l = analytic_light(type, v3(lpos.data + 3 * i), v3(ldir.data + 3 * i), v3(lu.data + 3 * i),
-                                 v3(lv.data + 3 * i), lrad.data[i], vmax(v3(lcol.data + 3 * i), {0, 0, 0}),
-                                 lspot.data[i], lblend.data[i], lsun.data[i]);
-        float lum = luminance(l.radiance), p = 0;
-        switch (type) {
-            case LIGHT_SPHERE:
-            case LIGHT_SPOT:
-                p = l.radius > 0 ? lum * 4 * kPi * kPi * l.radius * l.radius : lum * 4 * kPi;
-                if (type == LIGHT_SPOT) p *= std::max(0.05f, 0.5f * (1 - l.cos_half_angle));
-                break;
-            case LIGHT_SUN:
-                p = lum * (l.cos_half_angle < 1 ? kPi * (1 - l.cos_half_angle * l.cos_half_angle) : 1.0f) * kPi * radius * radius;
-                break;
-            default: p = lum * kPi * l.area;
+        double weight = 0;
+        Light l = analytic_light(la, i, radius, weight);
+        if (!(weight > 0)) {  // black, zero size or a dark spot: contributes nothing
+            dark.push_back(i);
+            continue;
         }
-        if (p <= 0) continue;  // a black light contributes nothing: leave it out
+        if (l.type != LIGHT_SUN) {
+            const double extent = std::max(max_abs3(la.axis_u.data + 3 * i), max_abs3(la.axis_v.data + 3 * i)) + l.radius;
+            out->reach = std::max(out->reach, max_abs3(la.position.data + 3 * i) + extent);
+        }
         lights.push_back(l);
-        power.push_back(p);
+        power.push_back(weight);
         if (pass == 0) ++s.info.analytic_camera_count;
+    }
+    if (!dark.empty()) {
+        std::sort(dark.begin(), dark.end());
+        std::string list;
+        for (size_t i : dark) list += (list.empty() ? "" : ", ") + std::to_string(i);
+        out->warnings.push_back((dark.size() > 1 ? "lights " + list + " emit" : "light " + list + " emits") +
+                                " no light (black or zero size): skipped");
     }
 
     s.info.analytic_count = uint(lights.size()) - s.info.analytic_first;
     auto world_color = get<float>(a, "world_color", 'f', {}, false);
     if (world_color.rows != 3 || !finite3(world_color.data)) bad("world_color must be 3 finite floats");
+    if (max3(world_color.data) > SceneLimits::radiance)
+        bad("world_color " + num(max3(world_color.data)) + " exceeds the radiance limit of " + num(SceneLimits::radiance));
     s.info.env_color = vmax(v3(world_color.data), {0, 0, 0});
     if (new_environment || !s.environment) s.environment = prepare_environment(a);
     const SceneEnvironment& env = *s.environment;
@@ -567,7 +656,7 @@ void prepare_lights(const SceneArrays& a, bool new_environment, SceneHost& s) {
     s.info.env_height = env.height;
     s.info.env_total = env.total;
     s.info.env_light = NO_INDEX;
-    const float env_lum = env.width ? env.mean_luminance : luminance(s.info.env_color);
+    const double env_lum = env.width ? env.mean_luminance : luminance(s.info.env_color);
     if (env_lum > 0) {
         Light l{};
         l.type = LIGHT_ENV;
@@ -575,18 +664,24 @@ void prepare_lights(const SceneArrays& a, bool new_environment, SceneHost& s) {
         lights.push_back(l);
         power.push_back(env_lum * kPi * 4 * kPi * radius * radius);
     }
-    double power_total = std::accumulate(power.begin(), power.end(), 0.0);
+    // Every weight is finite and >= 0; with a total of 0 (zero-area emitters only) every
+    // selection probability is 0, and NEE samples nothing.
+    const double power_total = std::accumulate(power.begin(), power.end(), 0.0);
     out->light_cdf.assign(power.size() + 1, 0.0f);
-    double acc = 0;
-    for (size_t i = 0; i < power.size(); ++i) {
-        acc += power[i];
-        out->light_cdf[i + 1] = float(acc / power_total);
+    if (power_total > 0) {
+        double acc = 0;
+        for (size_t i = 0; i < power.size(); ++i) {
+            acc += power[i];
+            out->light_cdf[i + 1] = float(acc / power_total);
+        }
+        out->light_cdf.back() = 1.0f;
     }
-    if (!power.empty()) out->light_cdf.back() = 1.0f;
     s.info.light_count = uint(lights.size());
     s.lights = std::move(out);
 }
 
+// The camera: a finite, non-singular basis of sensible scale, a window within
+// SceneLimits::camera_scale and a clip range 0 <= start < end.
 void prepare_camera(const SceneArrays& a, SceneInfo& info) {
     auto cam = get<float>(a, "camera_to_world", 'f', {4});
     auto cam_type = get<uint32_t>(a, "camera_type", 'u', {});
@@ -596,11 +691,31 @@ void prepare_camera(const SceneArrays& a, SceneInfo& info) {
     for (int k = 0; k < 12; ++k)
         if (!std::isfinite(cam.data[k])) bad("camera_to_world is NaN or infinite");
     if (cam_type.data[0] > CAMERA_ORTHOGRAPHIC) bad("unknown camera_type " + std::to_string(cam_type.data[0]));
+    // The columns of the 3x3 part are the camera's right, up and backward axes.
+    const float* m = cam.data;
+    dvec3 axes[3];
+    for (int c = 0; c < 3; ++c) axes[c] = {m[c], m[4 + c], m[8 + c]};
+    const double scale = SceneLimits::camera_scale;
+    for (const dvec3& axis : axes)
+        if (!(dlength(axis) >= 1 / scale && dlength(axis) <= scale))
+            bad("camera_to_world: an axis has length " + num(dlength(axis)) + ", outside " + num(1 / scale) + ".." +
+                num(scale) + " (a zero, degenerate or absurdly scaled camera)");
+    const double det = ddot(axes[0], dcross(axes[1], axes[2]));
+    if (!(std::fabs(det) > 1e-6 * dlength(axes[0]) * dlength(axes[1]) * dlength(axes[2])))
+        bad("camera_to_world is singular (its axes are parallel)");
+    if (std::max({std::fabs(double(m[3])), std::fabs(double(m[7])), std::fabs(double(m[11]))}) > SceneLimits::coordinate)
+        bad("camera position is beyond the coordinate limit of " + num(SceneLimits::coordinate) + " m");
+    for (int k = 0; k < 4; ++k)
+        if (!(std::fabs(window.data[k]) <= scale))
+            bad("camera_window (" + num(window.data[0]) + ", " + num(window.data[1]) + ", " + num(window.data[2]) + ", " +
+                num(window.data[3]) + ") must be finite and within +-" + num(scale));
     if (!(window.data[1] > window.data[0]) || !(window.data[3] > window.data[2])) bad("camera_window is empty or NaN");
-    for (int r = 0; r < 3; ++r) info.camera_to_world[r] = {cam.data[4 * r], cam.data[4 * r + 1], cam.data[4 * r + 2], cam.data[4 * r + 3]};
+    if (!(std::isfinite(clip.data[0]) && std::isfinite(clip.data[1]) && clip.data[0] >= 0 && clip.data[1] > clip.data[0]))
+        bad("camera_clip (" + num(clip.data[0]) + ", " + num(clip.data[1]) + ") must be finite with 0 <= start < end");
+    for (int r = 0; r < 3; ++r) info.camera_to_world[r] = {m[4 * r], m[4 * r + 1], m[4 * r + 2], m[4 * r + 3]};
     info.camera_type = cam_type.data[0];
     info.camera_window = {window.data[0], window.data[1], window.data[2], window.data[3]};
-    info.clip = {std::max(clip.data[0], 0.0f), clip.data[1] > clip.data[0] ? clip.data[1] : 1e30f};
+    info.clip = {clip.data[0], clip.data[1]};
 }
 
 }  // namespace
@@ -675,7 +790,18 @@ uint32_t scene_part_of_array(const std::string& name) {
 }
 
 std::vector<std::string> SceneHost::warnings() const {
-    return placement ? placement->warnings : std::vector<std::string>{};
+    std::vector<std::string> out;
+    for (const auto* part : {placement ? &placement->warnings : nullptr, lights ? &lights->warnings : nullptr,
+                             environment ? &environment->warnings : nullptr})
+        if (part) out.insert(out.end(), part->begin(), part->end());
+    // Float32 precision: the geometry's, the lights' and the camera's distance from the origin.
+    double reach = std::max(placement ? placement->reach : 0.0, lights ? lights->reach : 0.0);
+    for (int r = 0; r < 3; ++r) reach = std::max(reach, std::fabs(double(info.camera_to_world[r].w)));
+    if (reach > SceneLimits::precision)
+        out.push_back("the scene reaches " + num(reach) + " m from the origin; beyond " + num(SceneLimits::precision) +
+                      " m float32 precision fails (from about 2.5e7 m rays miss surfaces): move it to the origin "
+                      "or scale it down");
+    return out;
 }
 
 SceneHost update_scene(const SceneHost& previous, const SceneArrays& a, bool spatial_order, uint32_t parts) {

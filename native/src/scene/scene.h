@@ -14,6 +14,24 @@
 
 namespace px {
 
+// Limits on scene values (README "Limits"; parallax_core.LIMITS). Parallax computes in
+// float32: beyond these, products and sums in the shaders overflow or lose every digit.
+struct SceneLimits {
+    // Emission, world colour and a light's radiance (Cycles' units converted): above it is an
+    // error; world-map texels are clamped to it with a warning. A frame's film sums stay finite.
+    static constexpr double radiance = 1e20;
+    // Base colour: above it is an error (an Add shader may legitimately exceed 1).
+    static constexpr double albedo = 1e3;
+    static constexpr double ior_min = 1e-3, ior_max = 1e3;
+    // Object- and world-space coordinates: beyond it squared distances overflow (error).
+    static constexpr double coordinate = 1e18;
+    // World-space reach (geometry, lights, camera) beyond which float32 spacing exceeds
+    // 6 cm: a warning. From about 2.5e7 m on, rays miss metre-sized surfaces outright.
+    static constexpr double precision = 1e6;
+    // Camera: the window's coordinates and the lengths of its axes (1/camera_scale..camera_scale).
+    static constexpr double camera_scale = 1e6;
+};
+
 // A borrowed n-dimensional array from the binding layer (C-contiguous).
 struct ArrayView {
     const void* data = nullptr;
@@ -80,6 +98,7 @@ struct ScenePlacement {  // "instances": the TLAS contents
     std::vector<InstanceInfo> instances;  // in TLAS order; light_offset = NO_INDEX
     vec3 center{0, 0, 0};                 // bounding sphere of the placed geometry
     float radius = 1.0f;
+    double reach = 0;                     // largest |world coordinate| of the placed geometry
     std::vector<std::string> warnings;
 };
 struct SceneEnvironment {  // the world map's texels and sampling tables ("lights")
@@ -88,11 +107,14 @@ struct SceneEnvironment {  // the world map's texels and sampling tables ("light
     uint width = 0, height = 0;
     float total = 0;           // sum of luminance * sin(theta) weights
     float mean_luminance = 0;  // sin(theta)-weighted mean texel luminance (0 if total is 0)
+    std::vector<std::string> warnings;  // clamped texels
 };
 struct SceneLights {  // depends on geometry, instances, materials and lights
     std::vector<InstanceInfo> instances;  // the placement with light offsets: the INSTANCES buffer
     std::vector<Light> lights;
     std::vector<float> light_cdf;
+    double reach = 0;  // largest |world coordinate| of an analytic light
+    std::vector<std::string> warnings;  // skipped lights
 };
 
 struct SceneHost {
@@ -103,7 +125,7 @@ struct SceneHost {
     std::shared_ptr<const SceneLights> lights;
     SceneInfo info{};
     uint features = 0;  // FEATURE_* bits of what this scene uses
-    std::vector<std::string> warnings() const;  // skipped items
+    std::vector<std::string> warnings() const;  // skipped or clamped items, precision
 };
 
 // Validates and converts the arrays (see parallax_core.scene.SceneData.flatten for the
