@@ -21,7 +21,7 @@ import mathutils
 
 OUT, MODE = sys.argv[sys.argv.index("--") + 1:][:2]
 result = {"mode": MODE, "errors": [], "shots": {}}
-TIMEOUT = 240.0
+TIMEOUT = 900.0  # a generous bound: every step waits on an event, never on a rate
 start = time.perf_counter()
 
 
@@ -112,16 +112,16 @@ def viewport_steps():
     space = yield from rendered_camera_view()
     yield samples_at_least(2)
     screenshot("early")
-    yield samples_at_least(64)
+    yield samples_at_least(16)
     screenshot("converged")
     before = worker().generation
     bpy.data.objects["TallBox"].location.x += 0.6  # an object transform: instances only
-    yield samples_at_least(16, before)
+    yield samples_at_least(4, before)
     screenshot("moved")
     before = worker().generation
     space.region_3d.view_perspective = "PERSP"  # orbit: the camera only
     space.region_3d.view_rotation.rotate(mathutils.Euler((0.0, 0.0, math.radians(25))))
-    yield samples_at_least(16, before)
+    yield samples_at_least(4, before)
     screenshot("orbited")
     w = worker()
     result["latencies"] = w.latencies
