@@ -57,7 +57,8 @@ void Session::reset_accumulation(bool keep_cache) {
     cursor_ = {};
     film_.fill_zero();
     ray_count_.fill_zero();
-    if (scene_ && !keep_cache) ic_->configure(params_.ic, scene_->host().info);
+    if (scene_ && !keep_cache)
+        ic_->configure(params_.ic, scene_->host().info, uint64_t(width_) * height_ * params_.samples_per_frame);
     ic_->bind(*set_);
     upload_technique_params();
 }

@@ -16,10 +16,19 @@ namespace px {
 
 namespace {
 
-// Creation requests one frame can queue; the rest are deferred (their points stay uncovered
-// and ask again). Bounds one frame's hemisphere dispatch to IC_STRATA * 2 * this paths.
-constexpr uint32_t kQueueCapacity = 1024;
-constexpr uint32_t kMaxJobs = 2 * kQueueCapacity;  // creations + refreshes
+// Jobs per hemisphere dispatch (IC_STRATA paths each); a frame's jobs go in several.
+constexpr uint32_t kJobsPerDispatch = 2048;
+constexpr uint32_t kMaxRefreshes = 4096;       // per frame
+constexpr uint32_t kMaxQueue = 1u << 20;       // requests one frame may queue
+
+// Room for a frame's creation requests: the binomial count of `paths` trials with the creation
+// probability, plus six standard deviations, so the queue practically never overflows (which
+// requests an overflow keeps depends on the threads' order, and the cache would lose its
+// determinism). Requests past it are left for a later frame and counted as deferred.
+uint32_t queue_capacity(double create_prob, uint64_t paths) {
+    const double mean = create_prob * double(paths);
+    return uint32_t(std::min<double>(kMaxQueue, std::max(1024.0, std::ceil(mean + 6.0 * std::sqrt(mean) + 64.0))));
+}
 
 double ms_since(std::chrono::steady_clock::time_point start) {
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
@@ -60,12 +69,14 @@ void validate_ic_params(const IcParams& p) {
 }
 
 IrradianceCache::IrradianceCache(Context& ctx) : ctx_(ctx) {
-    configure(IcParams{}, SceneInfo{});
+    configure(IcParams{}, SceneInfo{}, 0);
 }
 
-void IrradianceCache::configure(const IcParams& params, const SceneInfo& scene) {
+void IrradianceCache::configure(const IcParams& params, const SceneInfo& scene, uint64_t paths_per_frame) {
     params_ = params;
-    params_.queue_capacity = kQueueCapacity;
+    params_.queue_capacity = enabled() ? queue_capacity(params.create_prob, paths_per_frame) : 1;
+    if (queue_.size() < 16 + size_t(params_.queue_capacity) * sizeof(IcRequest))
+        queue_ = Buffer(ctx_, 16 + size_t(params_.queue_capacity) * sizeof(IcRequest), kStorageUsage);
     scene_ = scene;
     // Disabled: one empty slot keeps every binding valid (the shaders never query it).
     const uint32_t slots = enabled() ? params_.capacity : 1;
@@ -85,10 +96,9 @@ void IrradianceCache::allocate() {
     entries_ = Buffer(ctx_, size_t(allocated_) * sizeof(IcEntry), kStorageUsage);
     aabbs_ = Buffer(ctx_, size_t(allocated_) * sizeof(VkAabbPositionsKHR),
                     kStorageUsage | VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR);
-    if (!queue_.valid()) {
-        queue_ = Buffer(ctx_, 16 + size_t(kQueueCapacity) * sizeof(IcRequest), kStorageUsage);
-        jobs_ = Buffer(ctx_, size_t(kMaxJobs) * sizeof(IcJob), kStorageUsage);
-        samples_ = Buffer(ctx_, size_t(kMaxJobs) * IC_STRATA * sizeof(IcSample), kStorageUsage);
+    if (!jobs_.valid()) {
+        jobs_ = Buffer(ctx_, size_t(kJobsPerDispatch) * sizeof(IcJob), kStorageUsage);
+        samples_ = Buffer(ctx_, size_t(kJobsPerDispatch) * IC_STRATA * sizeof(IcSample), kStorageUsage);
     }
 }
 
@@ -133,7 +143,7 @@ void IrradianceCache::rebuild() {
     const float far = 4.0f * scene_.scene_radius + 1.0f;
     const vec3 c = scene_.scene_center;
     const VkAabbPositionsKHR empty{c.x + far, c.y + far, c.z + far, c.x + far, c.y + far, c.z + far};
-    const uint32_t room = params_.rebuild_interval > 1 ? kQueueCapacity : 0;
+    const uint32_t room = params_.rebuild_interval > 1 ? std::min(params_.queue_capacity, 4096u) : 0;
     built_slots_ = std::max(1u, std::min(allocated_, count_ + room));
     std::vector<VkAabbPositionsKHR> boxes(built_slots_, empty);
     for (uint32_t i = 0; i < count_; ++i) {
@@ -186,7 +196,7 @@ void IrradianceCache::after_frame(const RayTracingPipeline& hemisphere, const Co
     uint32_t header[4] = {};
     queue_.download(header, sizeof(header));
     const uint32_t queued = header[0], uncovered = header[1];
-    const uint32_t n = std::min(queued, kQueueCapacity);
+    const uint32_t n = std::min(queued, params_.queue_capacity);
     stats_.deferred += queued - n;
     std::vector<IcRequest> requests(n);
     if (n) queue_.download(requests.data(), n * sizeof(IcRequest), 16);
@@ -236,15 +246,15 @@ void IrradianceCache::after_frame(const RayTracingPipeline& hemisphere, const Co
     if (!prepare && existing && params_.update_prob > 0) {
         std::mt19937_64 rng((uint64_t(frame.seed) << 32) ^ (frame_counter_ * 0x9e3779b97f4a7c15ull));
         std::binomial_distribution<uint64_t> refreshes(paths, params_.update_prob);
-        const uint64_t k = std::min<uint64_t>(refreshes(rng), kMaxJobs - created);
+        const uint64_t k = std::min<uint64_t>(refreshes(rng), kMaxRefreshes);
         for (uint64_t i = 0; i < k; ++i)
             jobs.push_back({vec3{0, 0, 0}, update_cursor_++ % existing, vec3{0, 0, 1}, IC_JOB_UPDATE});
     }
 
-    if (!jobs.empty()) {
-        auto start = std::chrono::steady_clock::now();
-        jobs_.upload(jobs.data(), jobs.size() * sizeof(IcJob));
-        frame.ic_job_count = uint32_t(jobs.size());
+    auto start = std::chrono::steady_clock::now();
+    for (size_t first = 0; first < jobs.size(); first += kJobsPerDispatch) {
+        frame.ic_job_count = uint32_t(std::min<size_t>(kJobsPerDispatch, jobs.size() - first));
+        jobs_.upload(jobs.data() + first, frame.ic_job_count * sizeof(IcJob));
         ctx_.submit_and_wait([&](VkCommandBuffer cmd) {
             VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
             b.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_HOST_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
@@ -258,6 +268,8 @@ void IrradianceCache::after_frame(const RayTracingPipeline& hemisphere, const Co
             vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, 0, 1, &b,
                                  0, nullptr, 0, nullptr);
         });
+    }
+    if (!jobs.empty()) {
         stats_.job_milliseconds += ms_since(start);
         stats_.jobs += jobs.size();
     }

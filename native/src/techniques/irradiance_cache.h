@@ -32,8 +32,9 @@ struct IcStats {
 class IrradianceCache {
 public:
     explicit IrradianceCache(Context& ctx);
-    // New settings or scene (bounds): every entry is dropped; buffers follow the capacity.
-    void configure(const IcParams& params, const SceneInfo& scene);
+    // New settings or scene (bounds): every entry is dropped; buffers follow the capacity and
+    // the request queue the camera paths of one frame.
+    void configure(const IcParams& params, const SceneInfo& scene, uint64_t paths_per_frame);
     // Drops every entry; prepare frames run again.
     void reset();
     void bind(DescriptorSet& set) const;
