@@ -1,7 +1,7 @@
 """Equal-time convergence: every Parallax method and the peers on the blender_scenes.
 
-    .venv/bin/python -m bench.converge [--scenes cornell_box,veach_mis,...] [--seconds 120]
-        [--device auto] [--methods pt,nee,mis] [--peers cycles,cycles_guiding,mitsuba]
+    .venv/bin/python -m bench.converge [--scenes cornell_box,veach_mis,...,sun_room] [--seconds 120]
+        [--device auto] [--methods pt,nee,mis,ic] [--peers cycles,cycles_guiding,mitsuba]
         [--width 320] [--reference-seconds 1200] [--npz DIR] [--out bench/results/<device>]
 
 The thesis' evaluation (Scholl 2020, ch. 5): each renderer gets the same wall-clock time,
@@ -14,9 +14,11 @@ largest 0.1% of pixels dropped, the rest averaged.
   (the GPU machine has no Blender): `python -m bench.converge --export-only --npz DIR` writes
   them.
 - Parallax methods render progressively; the error is recorded along the way (convergence
-  plot). Cycles (CPU, through bpy; also with its Open PGL path guiding) renders the same
-  .blend at the same size with a time limit, once per checkpoint. Mitsuba 3 renders the same
-  SceneData (bench/mitsuba_peer.py), progressively.
+  plot). `ic` is MIS with the irradiance cache at its default settings (RenderParams'
+  defaults); its prepare frames run inside its time. Cycles (CPU, through bpy; also with
+  its Open PGL path guiding) renders the same .blend at the same size with a time limit,
+  once per checkpoint. Mitsuba 3 renders the same SceneData (bench/mitsuba_peer.py),
+  progressively.
 - The reference is a long Parallax MIS render, cached in bench/references/ (not committed)
   with a JSON note of how it was made, and reused.
 - Output in --out: NAME.md (table), NAME_convergence.png, NAME_images.png (final images and
@@ -36,6 +38,8 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
 SCENES = ("cornell_box", "veach_mis", "cornell_dielectric", "light_behind_glass", "atrium")
+EXTRA_SCENES = ("sun_room",)  # indirect light through a window: the irradiance cache's case
+METHODS = ("pt", "nee", "mis", "ic")  # ic: MIS + the irradiance cache (default settings)
 MAX_DEPTH = 8  # Cycles' Max Bounces in every scene; Parallax with no discrete leeway
 REFERENCE_SEED = 7919  # the compared runs use seed 0
 
@@ -97,42 +101,83 @@ def load_scene(name, width, npz_dir):
 
 # ---- renderers ---------------------------------------------------------------------------
 
+def method_params(method):
+    """RenderParams of a --methods name: pt, nee, mis, or ic (MIS + the irradiance cache with
+    its default settings)."""
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r} (methods: {', '.join(METHODS)})")
+    return dict(method="mis", ic=True) if method == "ic" else dict(method=method, ic=False)
+
+
 def render_parallax(scene, method, seconds, device, reference, label, seed=0):
     """Progressive Parallax render for `seconds` (start-up included); (image, spp, seconds,
-    [(t, relMSE)]). Two 1-spp frames (the first compiles) size the frames to ~0.2 s."""
+    [(t, relMSE)], info). Two 1-spp frames (the first compiles) size the frames to ~0.2 s.
+
+    For `ic` the sizing frames are rendered with the cache off (MIS, the same session): any
+    set_params resets the cache, so sizing with it on would run the prepare frames twice.
+    The cache is switched on with the sized samples per frame; its prepare frames then run
+    once, inside the measured time, one per render_rows() call so that the clock is checked
+    between them. `info` holds the session's stats at the end (the cache's entries, jobs,
+    ...) and, for ic, when the prepare phase ended (or that it did not)."""
     import parallax_core as pc
 
     bar = Progress(label, seconds)
     start = time.perf_counter()
     session = pc.Session(scene.width, scene.height, device)
-    params = dict(method=method, samples_per_frame=1, max_depth=MAX_DEPTH, depth_leeway=0, seed=seed)
-    session.set_params(**params)
+    params = dict(method_params(method), samples_per_frame=1, max_depth=MAX_DEPTH, depth_leeway=0, seed=seed)
+    sizing = dict(params, method="mis", ic=False) if params["ic"] else params
+    session.set_params(**sizing)
     session.update(scene)
     session.render(1)
     frame_start = time.perf_counter()
     session.render(1)
     per_frame = int(min(64, max(1, 0.2 / max(time.perf_counter() - frame_start, 1e-4))))
-    session.set_params(**{**params, "samples_per_frame": per_frame})  # restarts accumulation
-    marks, curve = checkpoints(seconds), []
-    while True:
-        frame_start = time.perf_counter()
-        session.render(1)
-        now = time.perf_counter()
-        elapsed = now - start
+    session.set_params(**{**params, "samples_per_frame": per_frame})  # restarts accumulation (and the cache)
+    marks, curve, info = checkpoints(seconds), [], {"samples_per_frame": per_frame}
+
+    def record(elapsed):
         if marks and elapsed >= marks[0] and reference is not None:
             curve.append((elapsed, rel_mse(session.read("combined"), reference)))
             while marks and elapsed >= marks[0]:
                 marks.pop(0)
-        bar.update(elapsed, f"{session.stats()['samples']} spp")
-        if elapsed + (now - frame_start) > seconds:
-            break
+
+    stop = False
+    if params["ic"]:
+        # The prepare frames one per render_rows(height) call, so that the clock is checked
+        # between them (render() would run all of them at once); the call after the last one
+        # renders the first frame. Out of time before that: no samples (a black image).
+        while True:
+            frame_start = time.perf_counter()
+            done = session.render_rows(scene.height)
+            now = time.perf_counter()
+            elapsed = now - start
+            bar.update(elapsed, f"{session.samples} spp" if done else "preparing")
+            if done:
+                info["prepare_done_at"] = round(elapsed - (now - frame_start), 3)
+                record(elapsed)
+                break
+            if elapsed + (now - frame_start) > seconds:
+                info["prepare_unfinished"] = True
+                break
+        stop = info.get("prepare_unfinished") or elapsed + (now - frame_start) > seconds
+    while not stop:
+        frame_start = time.perf_counter()
+        session.render(1)
+        now = time.perf_counter()
+        elapsed = now - start
+        record(elapsed)
+        bar.update(elapsed, f"{session.samples} spp")
+        stop = elapsed + (now - frame_start) > seconds
     image = session.read("combined")[..., :3]
-    spp = session.stats()["samples"]
+    stats = session.stats()
+    spp = stats["samples"]
     used = time.perf_counter() - start
     bar.close(f"{spp} spp")
     if reference is not None and (not curve or curve[-1][0] < used - 1e-3):
         curve.append((used, rel_mse(image, reference)))
-    return image, spp, used, curve
+    info.update({k: (round(v, 3) if isinstance(v, float) else v) for k, v in stats.items()
+                 if k.startswith("ic_") or k in ("frames", "rays")} if params["ic"] else {})
+    return image, spp, used, curve, info
 
 
 def render_cycles(name, width, seconds, guiding, reference, label):
@@ -207,6 +252,37 @@ def render_mitsuba(scene, seconds, variant, reference, label):
     return image, spp, used, curve
 
 
+def warm_pipelines(scene, methods, device):
+    """Compiles the pipelines every method needs on this scene (they are shared process-wide,
+    keyed by method, the scene's features and the techniques), so that no timed run pays for a
+    compile another run (or the reference) already paid for."""
+    import parallax_core as pc
+
+    session = pc.Session(scene.width, scene.height, device)
+    session.update(scene)
+    for method in methods:
+        session.set_params(**method_params(method), max_depth=MAX_DEPTH, depth_leeway=0, ic_prepare_frames=1)
+        session.render(1)  # with ic: one prepare frame (camera + hemisphere + finish pipelines) and a frame
+
+
+def core_identity():
+    """Which parallax_core build is loaded: the native module's file, size, mtime and SHA-1
+    prefix (read from disk: call it right after the import)."""
+    import glob
+    import hashlib
+
+    import parallax_core as pc
+
+    so = sorted(glob.glob(os.path.join(os.path.dirname(pc.__file__), "_native*")))
+    if not so:
+        return {}
+    with open(so[0], "rb") as f:
+        digest = hashlib.sha1(f.read()).hexdigest()[:12]
+    st = os.stat(so[0])
+    return {"native": os.path.basename(so[0]), "sha1": digest, "bytes": st.st_size,
+            "mtime": time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime(st.st_mtime))}
+
+
 # ---- reference ---------------------------------------------------------------------------
 
 def reference_image(name, scene, seconds, device, folder=os.path.join(HERE, "references")):
@@ -216,8 +292,8 @@ def reference_image(name, scene, seconds, device, folder=os.path.join(HERE, "ref
     if os.path.exists(stem + ".npy"):
         return np.load(stem + ".npy")
     # Its own seed: a reference sharing random numbers with the runs it judges would flatter them.
-    image, spp, used, _ = render_parallax(scene, "mis", seconds, device, None, f"{name}: reference",
-                                          seed=REFERENCE_SEED)
+    image, spp, used, _, _ = render_parallax(scene, "mis", seconds, device, None, f"{name}: reference",
+                                             seed=REFERENCE_SEED)
     np.save(stem + ".npy", image.astype(np.float32))
     with open(stem + ".json", "w") as f:
         json.dump({"renderer": "parallax", "method": "mis", "spp": spp, "seconds": round(used, 1),
@@ -232,6 +308,17 @@ def write_outputs(out, name, rows, reference):
     lines = [f"### {name}", "", "| renderer | relMSE | spp | time (s) |", "|---|---:|---:|---:|"]
     for row in sorted(rows, key=lambda r: r["rel_mse"]):
         lines.append(f"| {row['renderer']} | {row['rel_mse']:.4g} | {row['spp']} | {row['seconds']:.1f} |")
+    for row in rows:
+        ic = row.get("ic")
+        if ic:
+            lines += ["", f"{row['renderer']}: {ic.get('ic_entries', 0)} cache entries "
+                      f"({ic.get('ic_merged', 0)} requests merged, {ic.get('ic_dropped', 0)} dropped, "
+                      f"{ic.get('ic_deferred', 0)} deferred), "
+                      f"{ic.get('ic_jobs', 0)} hemisphere jobs in {ic.get('ic_job_milliseconds', 0) / 1e3:.2f} s, "
+                      f"BLAS/TLAS builds {ic.get('ic_build_milliseconds', 0) / 1e3:.2f} s; prepare phase "
+                      + ("unfinished in the time" if ic.get("prepare_unfinished") else
+                         f"done at {ic.get('prepare_done_at', 0):.1f} s") + ", "
+                      f"{ic.get('samples_per_frame', 0)} spp per frame"]
     with open(os.path.join(out, f"{name}.md"), "w") as f:
         f.write("\n".join(lines) + "\n")
 
@@ -284,11 +371,12 @@ def _slug(label):
 
 def run(scenes=SCENES, seconds=120.0, device="auto", methods=("pt", "nee", "mis"),
         peers=("cycles", "cycles_guiding", "mitsuba"), width=320, reference_seconds=None,
-        npz_dir=None, out=None, reference_dir=os.path.join(HERE, "references"), append=False):
+        npz_dir=None, out=None, reference_dir=os.path.join(HERE, "references"), append=False, warm=False):
     """Runs the comparison; returns {scene: [row, ...]} (rows without images). With `append`,
     rows of renderers not run now are kept from the earlier results.json in `out` (their
     images from out/raw/)."""
     kind, device_name = device_kind(device)
+    core = core_identity()  # now: the module file may be rebuilt while this runs
     out = out or os.path.join(HERE, "results", kind)
     os.makedirs(out, exist_ok=True)
     variant = None
@@ -310,10 +398,13 @@ def run(scenes=SCENES, seconds=120.0, device="auto", methods=("pt", "nee", "mis"
         scene = load_scene(name, width, npz_dir)
         reference = reference_image(name, scene, reference_seconds or 10 * seconds, device, reference_dir)
         rows = []
+        if warm:
+            warm_pipelines(scene, methods, device)
         for method in methods:
-            image, spp, used, curve = render_parallax(scene, method, seconds, device, reference,
-                                                      f"{name}: parallax {method}")
-            rows.append(dict(renderer=f"Parallax {method}", image=image, spp=spp, seconds=used, curve=curve))
+            image, spp, used, curve, info = render_parallax(scene, method, seconds, device, reference,
+                                                            f"{name}: parallax {method}")
+            rows.append(dict(renderer=f"Parallax {method}", image=image, spp=spp, seconds=used, curve=curve,
+                             **({"ic": info} if method == "ic" else {})))
         for peer in peers:
             if peer.startswith("cycles"):
                 if npz_dir:
@@ -340,7 +431,7 @@ def run(scenes=SCENES, seconds=120.0, device="auto", methods=("pt", "nee", "mis"
         results[name] = [{k: v for k, v in r.items() if k != "image"} for r in rows]
         with open(os.path.join(out, "results.json"), "w") as f:
             json.dump({"device": device_name, "kind": kind, "seconds": seconds, "width": width,
-                       "scenes": results}, f, indent=1)
+                       "warm_pipelines": warm, "core": core, "scenes": results}, f, indent=1)
     return results
 
 
@@ -357,16 +448,25 @@ def main(argv=None):
     p.add_argument("--export-only", action="store_true")
     p.add_argument("--append", action="store_true", help="keep earlier rows of renderers not run now")
     p.add_argument("--out", help="default: bench/results/cpu or bench/results/gpu")
+    p.add_argument("--warm", action="store_true",
+                   help="compile every method's pipelines before the timed runs (start-up then excludes compiling)")
     a = p.parse_args(argv)
     scenes = [s for s in a.scenes.split(",") if s]
+    methods = [m for m in a.methods.split(",") if m]
+    for m in methods:
+        if m not in METHODS:
+            p.error(f"unknown method {m!r} (methods: {', '.join(METHODS)})")
+    for name in scenes:
+        if name not in SCENES + EXTRA_SCENES:
+            p.error(f"unknown scene {name!r} (scenes: {', '.join(SCENES + EXTRA_SCENES)})")
     if a.export_only:
         os.makedirs(a.npz, exist_ok=True)
         for name in scenes:
             export_scene(name, a.width).save(os.path.join(a.npz, name + ".npz"))
             print(f"{name} -> {os.path.join(a.npz, name + '.npz')}")
         return 0
-    results = run(scenes, a.seconds, a.device, a.methods.split(","), [x for x in a.peers.split(",") if x],
-                  a.width, a.reference_seconds, a.npz, a.out, append=a.append)
+    results = run(scenes, a.seconds, a.device, methods, [x for x in a.peers.split(",") if x],
+                  a.width, a.reference_seconds, a.npz, a.out, append=a.append, warm=a.warm)
     for name, rows in results.items():
         print(f"\n{name}")
         for row in sorted(rows, key=lambda r: r["rel_mse"]):
