@@ -57,9 +57,9 @@ void Session::reset_accumulation(bool keep_cache) {
     cursor_ = {};
     film_.fill_zero();
     ray_count_.fill_zero();
-    if (scene_ && !keep_cache)
-        ic_->configure(params_.ic, scene_->host().info, uint64_t(width_) * height_ * params_.samples_per_frame);
-    ic_->bind(*set_);
+    if (!scene_ || keep_cache) return;  // the cache, its buffers and settings stay as they are
+    ic_->configure(params_.ic, scene_->host().info, uint64_t(width_) * height_ * params_.samples_per_frame);
+    ic_->bind(*set_);  // configure may have made new buffers and a new TLAS
     upload_technique_params();
 }
 
