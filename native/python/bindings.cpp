@@ -84,7 +84,19 @@ NB_MODULE(_native, m) {
         PX_IC_FIELD("ic_prepare_frames", prepare_frames)
         PX_IC_FIELD("ic_capacity", capacity)
         PX_IC_FIELD("ic_rebuild_interval", rebuild_interval)
-        PX_IC_FIELD("ic_highlight", highlight);
+        PX_IC_FIELD("ic_highlight", highlight)
+#define PX_ADRRS_FIELD(NAME, MEMBER)                                                                  \
+    .def_prop_rw(NAME, [](const px::RenderParams& p) { return p.adrrs.MEMBER; },                     \
+                 [](px::RenderParams& p, decltype(px::AdrrsParams::MEMBER) v) { p.adrrs.MEMBER = v; })
+        PX_ADRRS_FIELD("adrrs", enabled)
+        PX_ADRRS_FIELD("adrrs_splitting", splitting)
+        PX_ADRRS_FIELD("adrrs_window", window)
+        PX_ADRRS_FIELD("adrrs_rr_min", rr_min)
+        PX_ADRRS_FIELD("adrrs_max_splits", max_splits)
+        PX_ADRRS_FIELD("adrrs_estimate_spp", estimate_spp)
+        PX_ADRRS_FIELD("adrrs_estimate", estimate)
+        PX_ADRRS_FIELD("adrrs_ic_glossy", ic_glossy);
+#undef PX_ADRRS_FIELD
 #undef PX_IC_FIELD
 
     nb::class_<px::Session>(m, "Session")
@@ -165,6 +177,8 @@ NB_MODULE(_native, m) {
                  d["ic_jobs"] = st.ic.jobs;
                  d["ic_job_milliseconds"] = st.ic.job_milliseconds;
                  d["ic_build_milliseconds"] = st.ic.build_milliseconds;
+                 d["adrrs_estimate_frames"] = st.adrrs_estimate_frames;
+                 d["adrrs_image_refreshes"] = st.adrrs_image_refreshes;
                  d["device"] = s.device().name;
                  return d;
              })

@@ -5,6 +5,7 @@
 layout(constant_id = 0) const uint METHOD = METHOD_MIS;
 
 #include "../techniques/irradiance_cache.glsl"
+#include "../techniques/adrrs.glsl"
 
 layout(set = 0, binding = BINDING_TLAS) uniform accelerationStructureEXT tlas;
 layout(location = 0) rayPayloadEXT HitPayload hit;
@@ -18,10 +19,48 @@ struct PathOptions {
     bool from_camera;     // the first segment is a camera ray (sees only camera-visible lights)
     bool skip_first_emission;  // cache hemisphere rays: the entry's direct light is NEE's
     bool ic_use;          // shade diffuse vertices from the irradiance cache where it has entries
+    bool ic_glossy;       // ... and glossy ones (ADRRS' estimate, thesis 4.4 "IC on glossy")
     bool ic_create;       // queue cache creation requests at uncovered diffuse vertices
     bool ic_prepare;      // prepare frame: stop at the first diffuse vertex after the query
+    bool first_vertex_only;  // end after the first non-delta vertex's emission, NEE and cache
+    bool adrrs;           // roulette and split by the adjoint (needs a pixel estimate)
+    float adrrs_estimate; // luminance of the pixel estimate I~
+    uint adrrs_local;     // the pixel's slot in this dispatch's split queue
+    uint adrrs_pixels;    // pixels of this dispatch
     uint pixel;           // for creation requests (their order on the host)
+    // Where the path starts: a camera or hemisphere ray (throughput 1, no bounces), or a split
+    // copy (resume): the ray to a vertex whose emission and NEE the path that split counted.
+    vec3 throughput;
+    uint bounces;
+    uint discrete;
+    bool resume;
 };
+
+// Options for a plain path from the frame's settings; callers change what differs.
+PathOptions path_options() {
+    PathOptions opt;
+    opt.max_depth = params.max_depth;
+    opt.depth_leeway = params.depth_leeway;
+    opt.rr_start_depth = params.rr_start_depth;
+    opt.light_samples = max(params.light_samples, 1u);
+    opt.from_camera = false;
+    opt.skip_first_emission = false;
+    opt.ic_use = false;
+    opt.ic_glossy = false;
+    opt.ic_create = false;
+    opt.ic_prepare = false;
+    opt.first_vertex_only = false;
+    opt.adrrs = false;
+    opt.adrrs_estimate = 0.0;
+    opt.adrrs_local = 0u;
+    opt.adrrs_pixels = 0u;
+    opt.pixel = 0u;
+    opt.throughput = vec3(1.0);
+    opt.bounces = 0u;
+    opt.discrete = 0u;
+    opt.resume = false;
+    return opt;
+}
 
 struct PathResult {
     vec3 radiance;
@@ -30,6 +69,7 @@ struct PathResult {
     vec3 albedo;        // at the first non-delta vertex, through delta vertices
     uint segments;      // ray segments traced (camera ray included)
     uint rays;          // all rays traced (shadow rays included)
+    uint splits;        // ADRRS copies this path queued
     vec3 ic_irradiance; // cache value at the first diffuse vertex (0: no entry there)
     vec2 ic_gradients;  // its entries' mean |g_t|, |g_r|
 };
@@ -78,15 +118,16 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
     res.albedo = vec3(0.0);
     res.segments = 0u;
     res.rays = 0u;
+    res.splits = 0u;
     res.ic_irradiance = vec3(0.0);
     res.ic_gradients = vec2(0.0);
     bool ic_recorded = false;
-    vec3 throughput = vec3(1.0);
+    vec3 throughput = opt.throughput;
     vec3 albedo_throughput = vec3(1.0);
     bool albedo_done = false;
     bool prev_delta = true;  // the camera ray counts as delta: nothing to weigh it against
     float prev_pdf = 0.0;
-    uint bounces = 0u, discrete = 0u;
+    uint bounces = opt.bounces, discrete = opt.discrete;
 
     for (;;) {
         traceRayEXT(tlas, gl_RayFlagsOpaqueEXT, 0xff, 0, 0, MISS_SCENE, origin, t_min, dir, t_max, 0);
@@ -94,7 +135,9 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         res.segments++;
         float t_surface = hit.t < 0.0 ? t_max : hit.t;
         bool camera_ray = opt.from_camera && res.segments == 1u;
-        float emission_scale = (opt.skip_first_emission && res.segments == 1u) ? 0.0 : 1.0;
+        // A split copy re-traces the ray to its vertex, whose emission and NEE are counted.
+        bool resumed = opt.resume && res.segments == 1u;
+        float emission_scale = ((opt.skip_first_emission || opt.resume) && res.segments == 1u) ? 0.0 : 1.0;
 
         // Analytic lights are not in the TLAS: test them against this segment.
         float t_light, light_pdf;
@@ -154,30 +197,34 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
 
         // Irradiance cache at diffuse vertices (thesis 4.4): where entries cover this point the
         // path ends here with NEE + albedo/pi * E; elsewhere it may queue a new entry and goes on.
-        bool ic_vertex = false;
-        if (USES(TECH_IC) && surf.type == MATERIAL_DIFFUSE && (opt.ic_use || opt.ic_prepare)) {
-            vec3 irradiance;
+        // With ADRRS the cache is read at every non-delta vertex: E is its adjoint.
+        bool ic_vertex = false, ic_found = false;
+        vec3 irradiance = vec3(0.0);
+        bool ic_surface = surf.type == MATERIAL_DIFFUSE || ((USES(TECH_ADRRS) || opt.ic_glossy) && !delta);
+        if (USES(TECH_IC) && ic_surface && !resumed && (opt.ic_use || opt.ic_prepare || opt.adrrs)) {
             vec2 gradients;
-            ic_vertex = ic_lookup(sh.p, ns, irradiance, gradients);
+            ic_found = ic_lookup(sh.p, ns, irradiance, gradients);
             if (!ic_recorded) {
                 res.ic_irradiance = irradiance;
                 res.ic_gradients = gradients;
                 ic_recorded = true;
             }
-            if (ic_vertex) {
+            if (ic_found && opt.ic_use && (surf.type == MATERIAL_DIFFUSE || opt.ic_glossy)) {
                 res.radiance += throughput * surf.albedo * INV_PI * irradiance;
-            } else if (opt.ic_create && rnd(rng) < tech.ic.create_prob) {
+                ic_vertex = true;
+            } else if (!ic_found && opt.ic_create && rnd(rng) < tech.ic.create_prob) {
                 ic_request(sh.p, ns, opt.pixel, res.segments);
             }
             if (opt.ic_prepare) {
-                if (!ic_vertex) atomicAdd(ic_queue_uncovered, 1u);
+                if (!ic_found) atomicAdd(ic_queue_uncovered, 1u);
                 break;
             }
         }
 
-        // Next event estimation (Veach 1997 eq. 9.8 / 9.13 weights for MIS). A cache vertex
-        // takes its direct light from NEE alone (no BSDF sample follows to share it with).
-        if ((METHOD != METHOD_PT || ic_vertex) && !delta) {
+        // Next event estimation (Veach 1997 eq. 9.8 / 9.13 weights for MIS). A vertex where the
+        // path ends takes its direct light from NEE alone (no BSDF sample follows to share it).
+        bool last_vertex = ic_vertex || (opt.first_vertex_only && !delta);
+        if ((METHOD != METHOD_PT || last_vertex) && !delta && !resumed) {
             for (uint k = 0u; k < opt.light_samples; ++k) {
                 LightSample ls;
                 vec3 u = vec3(rnd(rng), rnd(rng), rnd(rng));
@@ -199,11 +246,37 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
                 }
                 res.rays++;
                 if (!trace_shadow(shadow_origin, shadow_dir, shadow_t)) continue;
-                float w = (METHOD == METHOD_MIS && !ls.delta && !ic_vertex) ? mis_weight(float(opt.light_samples) * ls.pdf, bsdf_pdf) : 1.0;
+                float w = (METHOD == METHOD_MIS && !ls.delta && !last_vertex) ? mis_weight(float(opt.light_samples) * ls.pdf, bsdf_pdf) : 1.0;
                 res.radiance += throughput * f * ls.radiance * (w / (ls.pdf * float(opt.light_samples)));
             }
         }
-        if (ic_vertex) break;
+        if (last_vertex) break;
+
+        // ADRRS (techniques/adrrs.glsl) on the continuation: roulette or split by the adjoint.
+        bool adrrs_decided = false;
+        if (USES(TECH_ADRRS) && opt.adrrs && ic_found && !delta) {
+            float q = adrrs_factor(throughput, surf.albedo, irradiance, opt.adrrs_estimate);
+            if (q < 1.0) {
+                if (rnd(rng) >= q) break;
+                throughput /= q;
+            } else if (q > 1.0) {
+                // At most max_splits copies per pixel sample: q is capped before the
+                // expected-value split, so every copy's weight 1/q stays exact.
+                uint queued = adrrs_copies_queued(opt.adrrs_local);
+                q = min(q, 1.0 + float(tech.adrrs.max_splits - min(queued, tech.adrrs.max_splits)));
+                uint copies = adrrs_split_copies(q, rnd(rng));
+                throughput /= q;
+                if (copies > 1u) {
+                    uint flags = (opt.from_camera && res.segments == 1u) ? ADRRS_SPLIT_CAMERA_RAY : 0u;
+                    uint seed = uint(rnd(rng) * 4294967040.0) ^ (res.segments << 24);
+                    adrrs_queue(opt.adrrs_local, opt.adrrs_pixels,
+                                AdrrsSplit(origin, t_min, dir, t_max, throughput, seed,
+                                           bounces | (discrete << 16), copies - 1u, flags, res.segments));
+                    res.splits += copies - 1u;
+                }
+            }
+            adrrs_decided = true;
+        }
 
         // Continue the path by sampling the BSDF.
         BsdfSample bs;
@@ -224,7 +297,7 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         t_max = INFINITY_F;
         if (max3(throughput) <= 0.0) break;
         // Russian roulette on the throughput (survival probability max(throughput), at most 1).
-        if (opt.rr_start_depth > 0u && bounces >= opt.rr_start_depth) {
+        if (opt.rr_start_depth > 0u && bounces >= opt.rr_start_depth && !adrrs_decided) {
             float survive = min(1.0, max3(throughput));
             if (rnd(rng) >= survive) break;
             throughput /= survive;

@@ -11,7 +11,8 @@
 #endif
 
 // Technique bits: specialization constant TECHNIQUES (constant_id 3), part of the pipeline key.
-PX_CONST uint TECH_IC = 1u << 0;
+PX_CONST uint TECH_IC = 1u << 0;     // the irradiance cache exists (built for shading or for ADRRS)
+PX_CONST uint TECH_ADRRS = 1u << 1;  // adjoint-driven Russian roulette and splitting
 
 // Programs: which ray-generation shader a ray-tracing pipeline starts (part of its key).
 PX_CONST uint PROGRAM_CAMERA = 0;         // raygen.rgen: camera paths into the film
@@ -20,6 +21,8 @@ PX_CONST uint PROGRAM_IC_HEMISPHERE = 1;  // techniques/ic_hemisphere.rgen: cach
 // FrameParams.mode
 PX_CONST uint FRAME_RENDER = 0;      // camera paths accumulate into the film
 PX_CONST uint FRAME_IC_PREPARE = 1;  // camera paths only queue cache entries (thesis 4.4)
+PX_CONST uint FRAME_ADRRS_ESTIMATE = 2;  // camera paths to the first non-delta vertex build ADRRS' pixel estimate
+PX_CONST uint FRAME_ADRRS_SPLITS = 3;    // one invocation per queued pixel traces its split paths
 
 // ---- irradiance cache (thesis 3.2.3, 4.4; Ward et al. 1988; Ward & Heckbert 1992) ----------
 // Stratified hemisphere of one entry: IC_THETA x IC_PHI cosine-weighted rays (thesis eq. 3.20).
@@ -44,11 +47,48 @@ struct IcParams {
     uint rebuild_interval PX_DEFAULT(1);    // frames between BLAS rebuilds (refits in between)
     uint highlight PX_DEFAULT(0);           // IC Irradiance pass: colour only (thesis fig. 4.13)
     uint queue_capacity PX_DEFAULT(0);      // derived by the host: requests one frame may queue
+    uint shade PX_DEFAULT(0);               // derived by the host: paths are shaded from the cache
+                                            // (ic on); ADRRS alone builds it for its adjoint only
 };
+
+// ---- ADRRS (thesis 3.2.4, 4.5; Vorba & Krivanek 2016) -------------------------------------
+PX_CONST uint ADRRS_ESTIMATE_IC = 0;     // N spp to the first non-delta vertex: NEE + cache
+PX_CONST uint ADRRS_ESTIMATE_IMAGE = 1;  // the running accumulated image, blurred
+
+struct AdrrsParams {
+    uint enabled PX_DEFAULT(0);          // adrrs
+    uint splitting PX_DEFAULT(1);        // adrrs_splitting: split above the window (else RR only)
+    float window PX_DEFAULT(5.0f);       // adrrs_window: s, delta+ = s delta-
+    float rr_min PX_DEFAULT(0.1f);       // adrrs_rr_min: lowest survival probability
+    uint max_splits PX_DEFAULT(10);      // adrrs_max_splits: extra paths per pixel sample
+    uint estimate_spp PX_DEFAULT(4);     // adrrs_estimate_spp: estimate frames (ic), or the
+                                         // samples before the first image estimate (image)
+    uint estimate PX_DEFAULT(0);         // adrrs_estimate: ADRRS_ESTIMATE_IC or _IMAGE
+    uint ic_glossy PX_DEFAULT(1);        // adrrs_ic_glossy: the ic estimate reads the cache at
+                                         // glossy vertices too (thesis 4.4 "IC on glossy")
+};
+
+// A split path (BINDING_ADRRS_QUEUE): the ray that reached the vertex where it was split,
+// traced again by each copy, which then samples its own continuation there. The vertex's
+// emission and NEE were counted once, by the path that split.
+struct AdrrsSplit {
+    vec3 origin;
+    float t_min;
+    vec3 direction;
+    float t_max;
+    vec3 throughput;  // of each copy: the path's throughput / q
+    uint rng;         // seeds the copies' streams
+    uint bounces;     // bounces | discrete << 16
+    uint copies;      // paths to trace from this entry
+    uint flags;       // ADRRS_SPLIT_CAMERA_RAY: the ray was the camera ray
+    uint segments;    // segments the path had traced up to the vertex
+};
+PX_CONST uint ADRRS_SPLIT_CAMERA_RAY = 1u;
 
 // Every technique's settings, one buffer (BINDING_TECH_PARAMS).
 struct TechniqueParams {
     IcParams ic;
+    AdrrsParams adrrs;
 };
 
 // One cache entry. The influence sphere (centre position, radius accuracy * radius) is also

@@ -46,7 +46,11 @@ PX_CONST uint BINDING_IC_AABBS = 23;       // float[6] per entry (VkAabbPosition
 PX_CONST uint BINDING_IC_QUEUE = 24;       // uint count, 3 pad, IcRequest[]
 PX_CONST uint BINDING_IC_JOBS = 25;        // IcJob[], written by the host
 PX_CONST uint BINDING_IC_SAMPLES = 26;     // IcSample[jobs * IC_STRATA]
-PX_CONST uint BINDING_COUNT = 27;
+PX_CONST uint BINDING_ADRRS_ESTIMATE = 27; // vec4 per pixel: ADRRS' pixel estimate (rgb, a > 0: valid)
+PX_CONST uint BINDING_ADRRS_QUEUE = 28;    // uint active count, 3 pad; uvec4 per pixel of a dispatch
+                                           // (entries, copies, active list, 0)
+PX_CONST uint BINDING_ADRRS_SPLITS = 29;   // AdrrsSplit[pixel of a dispatch][max_splits]
+PX_CONST uint BINDING_COUNT = 30;
 
 // ---- shader binding table: miss shaders and hit groups (RayTracingPipeline group order) -
 PX_CONST uint MISS_SCENE = 0;         // miss.rmiss: the world
@@ -63,7 +67,9 @@ PX_CONST uint PASS_ALBEDO = 3;     // rgb = albedo at the first non-specular ver
 PX_CONST uint PASS_RAY_DEPTH = 4;  // x = number of path segments traced
 PX_CONST uint PASS_IC_IRRADIANCE = 5;  // rgb = cached irradiance at the first diffuse vertex
 PX_CONST uint PASS_IC_GRADIENTS = 6;   // r = |translational|, g = |rotational| / ic.gradient_max
-PX_CONST uint PASS_COUNT = 7;
+PX_CONST uint PASS_ADRRS_ESTIMATE = 7;  // rgb = ADRRS' pixel estimate
+PX_CONST uint PASS_ADRRS_SPLITS = 8;    // x = extra paths split off per pixel sample
+PX_CONST uint PASS_COUNT = 9;
 
 // ---- enums ------------------------------------------------------------------------------
 PX_CONST uint METHOD_PT = 0;   // BSDF sampling only
@@ -212,6 +218,7 @@ PX_CONST uint TEST_CONDUCTOR = 1;
 PX_CONST uint TEST_DIELECTRIC = 2;
 PX_CONST uint TEST_LIGHT = 3;   // light sampling from a shading point (all lights)
 PX_CONST uint TEST_IC_HEMISPHERE = 4;  // the cache's stratified cosine hemisphere (one ray per stratum)
+PX_CONST uint TEST_ADRRS = 5;          // ADRRS' weight window and expected-value split
 
 #include "techniques.h"
 

@@ -12,6 +12,8 @@
 #include "../lib/sampling.glsl"
 #include "../lib/bsdf.glsl"
 #include "../lib/lights.glsl"
+#define PX_ADRRS_MATH_ONLY
+#include "../techniques/adrrs.glsl"
 
 layout(local_size_x = 64) in;
 layout(set = 0, binding = BINDING_TEST_IO, scalar) buffer TestIo { vec4 io[]; };
@@ -75,6 +77,16 @@ void main() {
         return;
     }
 
+    if (routine == TEST_ADRRS) {  // test_params = (r = v/C, s, rr_min, splitting)
+        vec4 t = params.test_params;
+        float q = adrrs_window_factor(t.x, t.y, t.z, t.w != 0.0);
+        float u = rnd(rng);
+        // Copies that go on: below the window 1 if the path survives roulette, else 0.
+        float copies = q < 1.0 ? (u < q ? 1.0 : 0.0) : float(adrrs_split_copies(q, u));
+        io[2u * i] = vec4(q, copies, copies / q, 0.0);
+        io[2u * i + 1u] = vec4(0.0);
+        return;
+    }
     if (routine == TEST_IC_HEMISPHERE) {  // sample i uses stratum i mod IC_STRATA
         uint stratum = i % IC_STRATA;
         vec3 wi = stratified_cosine_hemisphere(stratum / IC_PHI, stratum % IC_PHI, IC_THETA, IC_PHI, rnd2(rng));

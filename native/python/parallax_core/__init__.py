@@ -23,6 +23,7 @@ __all__ = ["Session", "RenderParams", "devices", "METHODS", "PASSES", "PARTS", "
 
 PASSES = tuple(_NativeSession.pass_names())
 HEURISTICS = ("balance", "power")
+ADRRS_ESTIMATES = ("ic", "image")  # px::ADRRS_ESTIMATE_IC, ADRRS_ESTIMATE_IMAGE
 
 
 @dataclasses.dataclass
@@ -52,12 +53,24 @@ class RenderParams:
     ic_capacity: int = 65536        # entries
     ic_rebuild_interval: int = 1    # frames between BLAS rebuilds (refits in between)
     ic_highlight: bool = False      # IC Irradiance pass shows the colour only (fig. 4.13)
+    # Adjoint-driven Russian roulette and splitting (thesis 3.2.4, 4.5; px::AdrrsParams). It
+    # builds the irradiance cache for its adjoint, with or without ic.
+    adrrs: bool = False             # on/off
+    adrrs_splitting: bool = True    # split paths above the weight window (else roulette only)
+    adrrs_window: float = 5.0       # s: delta+ = s * delta-, delta- = 2C / (1 + s)
+    adrrs_rr_min: float = 0.1       # lowest survival probability below the window
+    adrrs_max_splits: int = 10      # extra paths per pixel sample
+    adrrs_estimate_spp: int = 4     # ic: estimate frames; image: samples before the first estimate
+    adrrs_estimate: str = "ic"      # pixel estimate: ic (NEE + cache at the first hit) | image (blurred)
+    adrrs_ic_glossy: bool = True    # the ic estimate reads the cache at glossy vertices too
 
     def validate(self) -> None:
         if self.method not in METHODS:
             raise ValueError(f"unknown method {self.method!r} (choose from {', '.join(METHODS)})")
         if self.mis_heuristic not in HEURISTICS:
             raise ValueError(f"unknown MIS heuristic {self.mis_heuristic!r} (balance or power)")
+        if self.adrrs_estimate not in ADRRS_ESTIMATES:
+            raise ValueError(f"unknown adrrs_estimate {self.adrrs_estimate!r} (ic or image)")
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
             if f.type in ("int", "bool"):
@@ -77,6 +90,8 @@ class RenderParams:
                 value = METHODS.index(value)
             elif f.name == "mis_heuristic":
                 value = HEURISTICS.index(value)
+            elif f.name == "adrrs_estimate":
+                value = ADRRS_ESTIMATES.index(value)
             elif f.type == "bool":
                 value = int(bool(value))
             elif f.type == "float":

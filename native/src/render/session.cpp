@@ -12,7 +12,8 @@ namespace px {
 bool RenderParams::operator==(const RenderParams& o) const {
     return method == o.method && mis_heuristic == o.mis_heuristic && samples_per_frame == o.samples_per_frame &&
            max_depth == o.max_depth && depth_leeway == o.depth_leeway && rr_start_depth == o.rr_start_depth &&
-           light_samples == o.light_samples && seed == o.seed && std::memcmp(&ic, &o.ic, sizeof(ic)) == 0;
+           light_samples == o.light_samples && seed == o.seed && std::memcmp(&ic, &o.ic, sizeof(ic)) == 0 &&
+           std::memcmp(&adrrs, &o.adrrs, sizeof(adrrs)) == 0;
 }
 
 const std::vector<PassInfo>& pass_table() {
@@ -20,6 +21,7 @@ const std::vector<PassInfo>& pass_table() {
         {"combined", PASS_COMBINED, 4}, {"depth", PASS_DEPTH, 1},        {"normal", PASS_NORMAL, 3},
         {"albedo", PASS_ALBEDO, 3},     {"ray_depth", PASS_RAY_DEPTH, 1},
         {"ic_irradiance", PASS_IC_IRRADIANCE, 3}, {"ic_gradients", PASS_IC_GRADIENTS, 3},
+        {"adrrs_estimate", PASS_ADRRS_ESTIMATE, 3}, {"adrrs_splits", PASS_ADRRS_SPLITS, 1},
     };
     return table;
 }
@@ -41,6 +43,8 @@ Session::Session(uint32_t width, uint32_t height, const std::string& device) : w
     set_->bind_buffer(BINDING_TECH_PARAMS, technique_params_);
     ic_ = std::make_unique<IrradianceCache>(*ctx_);
     ic_->bind(*set_);
+    adrrs_ = std::make_unique<Adrrs>(*ctx_);
+    adrrs_->bind(*set_);
     upload_technique_params();
     reset();
 }
@@ -48,6 +52,7 @@ Session::Session(uint32_t width, uint32_t height, const std::string& device) : w
 void Session::upload_technique_params() {
     TechniqueParams t{};
     t.ic = ic_->params();
+    t.adrrs = adrrs_->params();
     technique_params_.upload(&t, sizeof(t));
 }
 
@@ -57,9 +62,20 @@ void Session::reset_accumulation(bool keep_cache) {
     cursor_ = {};
     film_.fill_zero();
     ray_count_.fill_zero();
-    if (!scene_ || keep_cache) return;  // the cache, its buffers and settings stay as they are
-    ic_->configure(params_.ic, scene_->host().info, uint64_t(width_) * height_ * params_.samples_per_frame);
+    if (!scene_) return;
+    if (keep_cache) {  // the cache, its buffers and settings stay; the pixel estimate is remade
+        adrrs_->reset();
+        return;
+    }
+    // ADRRS reads the cache as its adjoint: it builds the cache even where paths are not
+    // shaded from it (ic off).
+    IcParams cache = params_.ic;
+    cache.enabled = params_.ic.enabled || params_.adrrs.enabled;
+    cache.shade = params_.ic.enabled;
+    ic_->configure(cache, scene_->host().info, uint64_t(width_) * height_ * params_.samples_per_frame);
     ic_->bind(*set_);  // configure may have made new buffers and a new TLAS
+    adrrs_->configure(params_.adrrs, width_, height_);
+    adrrs_->bind(*set_);
     upload_technique_params();
 }
 
@@ -114,6 +130,7 @@ void Session::set_params(const RenderParams& p) {
     if (p.light_samples < 1 || p.light_samples > 64) throw std::invalid_argument("light_samples must be in 1..64");
     if (p.max_depth > 1024 || p.depth_leeway > 1024) throw std::invalid_argument("max_depth/depth_leeway must be <= 1024");
     validate_ic_params(p.ic);
+    validate_adrrs_params(p.adrrs);
     std::lock_guard<std::mutex> lock(mutex_);
     if (p == params_) return;
     params_ = p;
@@ -133,7 +150,7 @@ RayTracingPipeline& Session::pipeline(uint32_t program) {
     static std::mutex mutex;
     static auto& pipelines =
         *new std::map<std::pair<Context*, std::array<uint32_t, 5>>, std::unique_ptr<RayTracingPipeline>>();
-    const uint32_t techniques = params_.ic.enabled ? TECH_IC : 0u;
+    const uint32_t techniques = (ic_->enabled() ? TECH_IC : 0u) | (adrrs_->enabled() ? TECH_ADRRS : 0u);
     // Specialisation constants 0-3 (integrator.glsl, mis.glsl, common.glsl, irradiance_cache.glsl).
     const std::array<uint32_t, 5> key = {params_.method, params_.mis_heuristic, scene_->host().features, techniques,
                                          program};
@@ -199,7 +216,15 @@ Session::DispatchPlan Session::dispatch_plan() const {
     // shadow rays of each vertex.
     plan.cost = uint64_t(params_.max_depth + params_.depth_leeway + 2) * (1 + params_.light_samples);
     plan.budget = ctx_->report().type == "cpu" ? (uint64_t(1) << 21) : (uint64_t(1) << 30);
-    const uint64_t spp = params_.samples_per_frame, row = uint64_t(width_) * plan.cost;
+    uint64_t spp = params_.samples_per_frame;
+    if (adrrs_->enabled()) {
+        // One sample per pixel and dispatch (the split queue is per pixel sample), which
+        // may trace its max_splits copies too, and no more pixels than the queue has slots for.
+        plan.cost *= 1 + params_.adrrs.max_splits;
+        plan.budget = std::min<uint64_t>(plan.budget, uint64_t(adrrs_->dispatch_pixels()) * plan.cost);
+        spp = 1;
+    }
+    const uint64_t row = uint64_t(width_) * plan.cost;
     auto fit = [&](uint64_t unit, uint32_t most) { return uint32_t(std::clamp<uint64_t>(plan.budget / unit, 1, most)); };
     // Whole rows with all samples if a row fits, else one row with some samples, else
     // part of a row with one sample.
@@ -220,13 +245,23 @@ uint64_t Session::record_dispatch(VkCommandBuffer cmd, RayTracingPipeline& pipe,
     fp.col_offset = c.col;
     fp.sample_offset = c.sample;
     fp.sample_count = n;
-    pipe.trace(cmd, set_->set(), &fp, sizeof(fp), w, h);
     VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
     b.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
-    b.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_READ_BIT;
-    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_RAY_TRACING_SHADER_BIT_KHR,
-                         VK_PIPELINE_STAGE_RAY_TRACING_SHADER_BIT_KHR | VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &b, 0,
-                         nullptr, 0, nullptr);
+    b.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_READ_BIT |
+                      VK_ACCESS_TRANSFER_WRITE_BIT;
+    auto barrier = [&] {
+        vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_RAY_TRACING_SHADER_BIT_KHR,
+                             VK_PIPELINE_STAGE_RAY_TRACING_SHADER_BIT_KHR | VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &b,
+                             0, nullptr, 0, nullptr);
+    };
+    if (adrrs_->enabled()) adrrs_->record_queue_clear(cmd);
+    pipe.trace(cmd, set_->set(), &fp, sizeof(fp), w, h);
+    barrier();
+    if (adrrs_->enabled()) {  // the copies the camera paths split off, in the same frame
+        fp.mode = FRAME_ADRRS_SPLITS;
+        pipe.trace(cmd, set_->set(), &fp, sizeof(fp), w, h);
+        barrier();
+    }
     // Columns, then samples, then rows: a band of rows is complete when all its samples are.
     frame_done = false;
     if ((c.col += w) < width_) return plan.cost * w * h * n;
@@ -257,6 +292,17 @@ void Session::prepare_frame() {
                      true);
 }
 
+// An ADRRS estimate frame (thesis 4.5): 1 spp to the first non-delta vertex, shaded with
+// NEE and the cache, added to the pixel estimate; nothing reaches the film.
+void Session::estimate_frame() {
+    RayTracingPipeline& camera = pipeline(PROGRAM_CAMERA);
+    FrameParams fp = frame_params(0x40000000u | adrrs_->estimate_frames());
+    fp.mode = FRAME_ADRRS_ESTIMATE;
+    fp.samples_per_frame = fp.sample_count = 1;
+    ctx_->submit_and_wait([&](VkCommandBuffer cmd) { camera.trace(cmd, set_->set(), &fp, sizeof(fp), width_, height_); });
+    adrrs_->estimate_frame_done();
+}
+
 // Frames go to the device in submissions of dispatches up to the plan's budget; cancel() is
 // checked between submissions. With the irradiance cache a submission ends with its frame,
 // which is followed by the cache's host step (its creation jobs and BLAS refit), and a new
@@ -278,6 +324,11 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
             stop = frames == 0 || cancel_.exchange(false);
             continue;
         }
+        if (cursor_.at_frame_start() && adrrs_->needs_estimate_frame()) {
+            estimate_frame();
+            stop = frames == 0 || cancel_.exchange(false);
+            continue;
+        }
         bool frame_done = false, ic_step = false;
         ctx_->submit_and_wait([&](VkCommandBuffer cmd) {
             // With the cache a submission holds at most one frame: clear its request queue.
@@ -294,10 +345,11 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
                 if (frames == 0) break;  // render_rows: at most the rest of one frame
             }
         });
-        if (ic_step) {
+        if (ic_step) {  // (ADRRS builds the cache: its frames end here too)
             ic_->after_frame(pipeline(PROGRAM_IC_HEMISPHERE), ic_finish_pipeline(), *set_,
                              frame_params(stats_.frames + completed), paths, false);
             ++completed;
+            adrrs_->after_frame(film_, stats_.samples + uint64_t(completed) * params_.samples_per_frame);
         }
         if (frame_done && frames == 0) break;
         stop = cancel_.exchange(false);
@@ -355,6 +407,8 @@ SessionStats Session::stats() {
     SessionStats out = stats_;
     out.blas_builds = blas_builds_;
     out.ic = ic_->stats();
+    out.adrrs_estimate_frames = adrrs_->estimate_frames();
+    out.adrrs_image_refreshes = adrrs_->image_refreshes();
     return out;
 }
 

@@ -2,6 +2,7 @@
 // samples_per_frame samples per pixel to the running sums; read() divides by the count.
 #pragma once
 #include "scene/scene.h"
+#include "techniques/adrrs.h"
 #include "techniques/irradiance_cache.h"
 #include "vk/pipeline.h"
 
@@ -23,6 +24,7 @@ struct RenderParams {
     uint32_t light_samples = 1;
     uint32_t seed = 0;
     IcParams ic;  // irradiance cache (techniques/irradiance_cache.h)
+    AdrrsParams adrrs;  // adjoint-driven Russian roulette and splitting (techniques/adrrs.h)
     bool operator==(const RenderParams& o) const;
 };
 
@@ -33,6 +35,8 @@ struct SessionStats {
     uint32_t frames = 0;
     uint64_t blas_builds = 0;  // BLASes built by this session's updates (never reset; debugging)
     IcStats ic;
+    uint32_t adrrs_estimate_frames = 0;  // estimate frames run (ADRRS_ESTIMATE_IC)
+    uint32_t adrrs_image_refreshes = 0;  // image estimates made (ADRRS_ESTIMATE_IMAGE)
 };
 
 struct PassInfo {
@@ -114,6 +118,7 @@ private:
     uint64_t record_dispatch(VkCommandBuffer cmd, RayTracingPipeline& pipe, const DispatchPlan& plan, uint32_t frame,
                              uint32_t& rows, bool& frame_done);
     void prepare_frame();           // one irradiance-cache prepare frame, then its entries
+    void estimate_frame();          // one ADRRS estimate frame (1 spp into the estimate)
     // Film, stats and partial frame; the irradiance cache starts over unless `keep_cache`.
     void reset_accumulation(bool keep_cache = false);
     void upload_technique_params();
@@ -128,6 +133,7 @@ private:
     uint64_t blas_builds_ = 0;
     Buffer film_, ray_count_, test_io_, technique_params_;
     std::unique_ptr<IrradianceCache> ic_;
+    std::unique_ptr<Adrrs> adrrs_;
     // One pipeline per (method, heuristic, scene features) combination, built on first use.
     std::unique_ptr<ComputePipeline> test_pipeline_;
     RenderParams params_;

@@ -1,5 +1,7 @@
 #include "techniques/irradiance_cache.h"
 
+#include "techniques/validate.h"
+
 #include <algorithm>
 #include <cassert>
 #include <chrono>
@@ -32,22 +34,6 @@ uint32_t queue_capacity(double create_prob, uint64_t paths) {
 
 double ms_since(std::chrono::steady_clock::time_point start) {
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-}
-
-std::string number(double v) {
-    char text[32];
-    std::snprintf(text, sizeof(text), "%g", v);
-    return text;
-}
-
-void check_range(const char* name, double value, double lo, double hi, bool lo_open = false) {
-    if (!std::isfinite(value) || value > hi || (lo_open ? value <= lo : value < lo))
-        throw std::invalid_argument(std::string(name) + " must be in " + (lo_open ? "(" : "[") + number(lo) + ", " +
-                                    number(hi) + "], got " + number(value));
-}
-
-void check_flag(const char* name, uint32_t value) {
-    if (value > 1) throw std::invalid_argument(std::string(name) + " must be 0 or 1");
 }
 
 }  // namespace

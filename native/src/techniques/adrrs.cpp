@@ -1,0 +1,116 @@
+#include "techniques/adrrs.h"
+
+#include "techniques/validate.h"
+
+#include <algorithm>
+#include <vector>
+
+namespace px {
+
+namespace {
+
+constexpr uint32_t kMaxQueuedSplits = 1u << 20;  // split slots of one dispatch (64 MiB)
+constexpr int kBlurRadius = 3;                   // image estimate: two box passes of 7 pixels
+
+// One box-filter pass along rows (dx = 1) or columns of an rgb image; the edges average
+// the pixels inside the image only.
+void box_pass(std::vector<vec3>& image, uint32_t width, uint32_t height, bool along_rows) {
+    std::vector<vec3> out(image.size());
+    const uint32_t lines = along_rows ? height : width, length = along_rows ? width : height;
+    for (uint32_t line = 0; line < lines; ++line) {
+        auto at = [&](uint32_t i) -> vec3& { return image[along_rows ? size_t(line) * width + i : size_t(i) * width + line]; };
+        for (uint32_t i = 0; i < length; ++i) {
+            const uint32_t lo = i >= uint32_t(kBlurRadius) ? i - kBlurRadius : 0, hi = std::min(length - 1, i + kBlurRadius);
+            vec3 sum{0, 0, 0};
+            for (uint32_t j = lo; j <= hi; ++j) {
+                sum.x += at(j).x;
+                sum.y += at(j).y;
+                sum.z += at(j).z;
+            }
+            const float inv = 1.0f / float(hi - lo + 1);
+            out[along_rows ? size_t(line) * width + i : size_t(i) * width + line] = {sum.x * inv, sum.y * inv, sum.z * inv};
+        }
+    }
+    image.swap(out);
+}
+
+}  // namespace
+
+void validate_adrrs_params(const AdrrsParams& p) {
+    check_flag("adrrs", p.enabled);
+    check_flag("adrrs_splitting", p.splitting);
+    check_flag("adrrs_ic_glossy", p.ic_glossy);
+    check_range("adrrs_window", p.window, 1.0, 1e6);
+    check_range("adrrs_rr_min", p.rr_min, 0.0, 1.0, true);
+    check_range("adrrs_max_splits", p.max_splits, 0, 64);
+    check_range("adrrs_estimate_spp", p.estimate_spp, 1, 65536);
+    if (p.estimate != ADRRS_ESTIMATE_IC && p.estimate != ADRRS_ESTIMATE_IMAGE)
+        throw std::invalid_argument("adrrs_estimate must be 'ic' or 'image'");
+}
+
+Adrrs::Adrrs(Context& ctx) : ctx_(ctx) {
+    configure(AdrrsParams{}, 1, 1);
+}
+
+void Adrrs::configure(const AdrrsParams& params, uint32_t width, uint32_t height) {
+    params_ = params;
+    width_ = width;
+    height_ = height;
+    // Off: one-element buffers keep every binding valid (the shaders never touch them).
+    const uint64_t pixels = enabled() ? uint64_t(width) * height : 1;
+    dispatch_pixels_ = uint32_t(std::min<uint64_t>(pixels, kMaxQueuedSplits / std::max(params_.max_splits, 1u)));
+    const size_t estimate_bytes = size_t(pixels) * sizeof(vec4);
+    const size_t queue_bytes = 16 + size_t(dispatch_pixels_) * 3 * sizeof(uint32_t);
+    const size_t split_bytes = std::max<size_t>(1, size_t(dispatch_pixels_) * params_.max_splits) * sizeof(AdrrsSplit);
+    if (estimate_.size() != estimate_bytes) estimate_ = Buffer(ctx_, estimate_bytes, kStorageUsage);
+    if (queue_.size() != queue_bytes) queue_ = Buffer(ctx_, queue_bytes, kStorageUsage);
+    if (splits_.size() != split_bytes) splits_ = Buffer(ctx_, split_bytes, kStorageUsage);
+    reset();
+}
+
+void Adrrs::reset() {
+    estimate_.fill_zero();
+    queue_.fill_zero();
+    estimate_frames_ = 0;
+    image_refreshes_ = 0;
+    next_refresh_ = params_.estimate_spp;
+}
+
+void Adrrs::bind(DescriptorSet& set) const {
+    set.bind_buffer(BINDING_ADRRS_ESTIMATE, estimate_);
+    set.bind_buffer(BINDING_ADRRS_QUEUE, queue_);
+    set.bind_buffer(BINDING_ADRRS_SPLITS, splits_);
+}
+
+void Adrrs::record_queue_clear(VkCommandBuffer cmd) const {
+    vkCmdFillBuffer(cmd, queue_.handle(), 0, 16, 0);
+    VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    b.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    b.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_RAY_TRACING_SHADER_BIT_KHR, 0, 1, &b, 0,
+                         nullptr, 0, nullptr);
+}
+
+void Adrrs::after_frame(const Buffer& film, uint64_t samples) {
+    if (!enabled() || params_.estimate != ADRRS_ESTIMATE_IMAGE || samples < next_refresh_) return;
+    while (next_refresh_ <= samples) next_refresh_ *= 2;
+    const size_t pixels = size_t(width_) * height_;
+    std::vector<vec4> sums(pixels);
+    film.download(sums.data(), pixels * sizeof(vec4), size_t(PASS_COMBINED) * pixels * sizeof(vec4));
+    std::vector<vec3> image(pixels);
+    for (size_t i = 0; i < pixels; ++i) {
+        const float inv = sums[i].w > 0 ? 1.0f / sums[i].w : 0.0f;
+        image[i] = {sums[i].x * inv, sums[i].y * inv, sums[i].z * inv};
+    }
+    // Two box passes each way: close to a Gaussian of sigma ~2.8 pixels.
+    for (int pass = 0; pass < 2; ++pass) {
+        box_pass(image, width_, height_, true);
+        box_pass(image, width_, height_, false);
+    }
+    std::vector<vec4> estimate(pixels);
+    for (size_t i = 0; i < pixels; ++i) estimate[i] = {image[i].x, image[i].y, image[i].z, 1.0f};
+    estimate_.upload(estimate.data(), pixels * sizeof(vec4));
+    ++image_refreshes_;
+}
+
+}  // namespace px

@@ -1,0 +1,69 @@
+// Adjoint-driven Russian roulette and splitting (thesis 3.2.4, 4.5; Vorba & Krivanek 2016).
+//
+// At a non-delta vertex x, after its emission and NEE are counted, the rest of the path (its
+// BSDF-sampled continuation) is expected to bring v * L_r,ind(x): the path throughput v times
+// the indirect light reflected at x, approximated with the cache as rho(x)/pi * E_IC(x)
+// (rho: the lobe's directional albedo, the "directionally uniform" f_BSDF of thesis eq. 4.1;
+// the reference dropped it). Zero variance would have every path bring the pixel value I, so
+// the window is centred on C = I~ / (rho/pi E_IC) (eq. 4.1), bounded by delta- = 2C/(1+s) and
+// delta+ = s delta- (eqs. 4.2, 4.3). Per colour channel the comparison of v with C is made on
+// the luminance of v * rho/pi * E against that of I~, so a zero channel never makes C infinite.
+// Below the window the continuation survives with q = max(v/delta-, rr_min) and is weighted
+// 1/q; above it the path is split into q = v/delta+ expected copies (an expected-value split:
+// floor(q) or floor(q)+1 with mean q), each weighted 1/q, at most max_splits per pixel sample.
+// Copies beyond the first go to a per-pixel queue that a later dispatch of the same frame
+// traces (FRAME_ADRRS_SPLITS); their own splits join the same queue.
+
+// The weight-window factor for r = v / C: q < 1 roulette (survival probability), q > 1
+// split (expected copies), 1 inside the window [delta-, delta+] = [2/(1+s), 2s/(1+s)] C.
+float adrrs_window_factor(float r, float window, float rr_min, bool splitting) {
+    float lower = 2.0 / (1.0 + window), upper = window * lower;
+    if (r < lower) return max(r / lower, rr_min);
+    if (r > upper && splitting) return r / upper;
+    return 1.0;  // inside the window (or NaN: leave the path alone)
+}
+
+// Expected-value split (Vorba & Krivanek 2016): floor(q) copies with probability
+// 1 - frac(q), else floor(q) + 1, so the expected count is q; u uniform in [0, 1).
+uint adrrs_split_copies(float q, float u) {
+    uint copies = uint(q);
+    return u < q - float(copies) ? copies + 1u : copies;
+}
+
+#ifndef PX_ADRRS_MATH_ONLY
+layout(set = 0, binding = BINDING_ADRRS_ESTIMATE, scalar) buffer AdrrsEstimateBuffer { vec4 adrrs_estimates[]; };
+layout(set = 0, binding = BINDING_ADRRS_QUEUE, scalar) buffer AdrrsQueueBuffer {
+    uint adrrs_active_count;  // pixels of this dispatch with queued splits
+    uint adrrs_pad0, adrrs_pad1, adrrs_pad2;
+    // [2 local]: entries, [2 local + 1]: copies queued so far; [2 P + i]: the i-th active pixel
+    uint adrrs_words[];
+};
+layout(set = 0, binding = BINDING_ADRRS_SPLITS, scalar) buffer AdrrsSplitBuffer { AdrrsSplit adrrs_splits[]; };
+
+// The pixel estimate I~ (rgb) and whether there is one yet.
+bool adrrs_pixel_estimate(uint pixel_index, out vec3 estimate) {
+    vec4 e = adrrs_estimates[pixel_index];
+    estimate = e.w > 0.0 ? e.rgb / e.w : vec3(0.0);
+    float l = luminance(estimate);
+    return e.w > 0.0 && l > 1e-8 && !isinf(l);
+}
+
+// q for a path of throughput v at a vertex of directional albedo rho and cached irradiance E,
+// in a pixel of estimate luminance I~: < 1 roulette, > 1 split, 1 inside the window.
+float adrrs_factor(vec3 throughput, vec3 albedo, vec3 irradiance, float estimate) {
+    float r = luminance(throughput * albedo * irradiance) * INV_PI / estimate;  // v / C
+    return adrrs_window_factor(r, tech.adrrs.window, tech.adrrs.rr_min, tech.adrrs.splitting != 0u);
+}
+
+uint adrrs_copies_queued(uint local) { return adrrs_words[2u * local + 1u]; }
+
+// Queues `split` for pixel `local` of this dispatch (P pixels). The caller keeps the copies
+// within max_splits, so the pixel's slots never overflow.
+void adrrs_queue(uint local, uint P, AdrrsSplit split) {
+    uint entries = adrrs_words[2u * local];
+    adrrs_splits[local * tech.adrrs.max_splits + entries] = split;
+    adrrs_words[2u * local] = entries + 1u;
+    adrrs_words[2u * local + 1u] += split.copies;
+    if (entries == 0u) adrrs_words[2u * P + atomicAdd(adrrs_active_count, 1u)] = local;
+}
+#endif
