@@ -18,6 +18,10 @@ PASSES = (
          lambda scene, layer: scene.parallax.ic and layer.parallax.use_pass_ic_irradiance),
     Pass("IC Gradients", 3, "RGB", "COLOR", "ic_gradients",
          lambda scene, layer: scene.parallax.ic and layer.parallax.use_pass_ic_gradients),
+    Pass("ADRRS Estimate", 3, "RGB", "COLOR", "adrrs_estimate",
+         lambda scene, layer: scene.parallax.adrrs and layer.parallax.use_pass_adrrs_estimate),
+    Pass("ADRRS Splits", 1, "X", "VALUE", "adrrs_splits",
+         lambda scene, layer: scene.parallax.adrrs and layer.parallax.use_pass_adrrs_splits),
 )
 BY_NAME = {p.name: p for p in PASSES}
 

@@ -27,6 +27,14 @@ DEVICE_ITEMS = (
 IC_SETTINGS = ("ic", "ic_accuracy", "ic_min_radius", "ic_create_prob", "ic_update_prob",
                "ic_nee_samples", "ic_gradients", "ic_gradient_max", "ic_visibility_check",
                "ic_prepare_frames", "ic_capacity", "ic_rebuild_interval", "ic_highlight")
+ADRRS_SETTINGS = ("adrrs", "adrrs_splitting", "adrrs_window", "adrrs_rr_min", "adrrs_max_splits",
+                  "adrrs_estimate_spp", "adrrs_estimate", "adrrs_ic_glossy")
+ADRRS_ESTIMATE_ITEMS = (
+    ("ic", "Irradiance Cache", "Estimate frames after the cache's prepare frames: paths to the "
+                               "first non-specular hit, lit by NEE and the cache (thesis 4.5)"),
+    ("image", "Image", "The image rendered so far, blurred; refreshed each time the samples "
+                       "double (the alternative the thesis names in 4.5)"),
+)
 
 
 class ParallaxRenderSettings(bpy.types.PropertyGroup):
@@ -128,6 +136,35 @@ class ParallaxRenderSettings(bpy.types.PropertyGroup):
     ic_highlight: BoolProperty(
         name="Colour Highlight", description="The IC Irradiance pass shows only the colour "
         "(the thesis' colour-highlight mode, fig. 4.13)", default=False)
+    # Adjoint-driven Russian roulette and splitting (thesis 3.2.4, 4.5; Vorba & Krivanek 2016)
+    adrrs: BoolProperty(
+        name="ADRRS", description="Adjoint-driven Russian roulette and splitting: end paths whose "
+        "continuation matters little and split those that matter much, judged by the irradiance "
+        "cache and a pixel estimate (Vorba & Krivanek 2016; thesis, sec. 4.5). Unbiased; builds "
+        "the irradiance cache for its estimates even with the cache off",
+        default=False, update=lambda self, ctx: _update_scene_passes(self))
+    adrrs_splitting: BoolProperty(
+        name="Splitting", description="Split paths whose weight lies above the window (else "
+        "only roulette below it)", default=True)
+    adrrs_window: FloatProperty(
+        name="Window Width", description="s: the weight window spans 2C/(1+s) to 2sC/(1+s) "
+        "around the ideal weight C (Vorba & Krivanek recommend 5)", default=5.0, min=1.0,
+        soft_max=20.0, max=1e6)
+    adrrs_rr_min: FloatProperty(
+        name="Min Survival", description="Lowest survival probability of Russian roulette below "
+        "the window (against fireflies)", default=0.1, min=0.001, max=1.0, subtype="FACTOR")
+    adrrs_max_splits: IntProperty(
+        name="Max Splits", description="Most extra paths split off per pixel sample",
+        default=10, min=0, max=64)
+    adrrs_estimate: EnumProperty(
+        name="Estimate", description="Where the pixel estimate comes from", items=ADRRS_ESTIMATE_ITEMS,
+        default="ic")
+    adrrs_estimate_spp: IntProperty(
+        name="Estimate Samples", description="Irradiance Cache: estimate frames (1 sample per "
+        "pixel each); Image: samples before the first estimate", default=4, min=1, max=65536)
+    adrrs_ic_glossy: BoolProperty(
+        name="Cache on Glossy", description="The Irradiance Cache estimate reads the cache at "
+        "glossy surfaces too (thesis, sec. 4.4)", default=True)
     # Device
     device: EnumProperty(
         name="Device", description="Vulkan device to render on", items=DEVICE_ITEMS, default="auto")
@@ -140,7 +177,7 @@ class ParallaxRenderSettings(bpy.types.PropertyGroup):
             depth_leeway=self.depth_leeway,
             rr_start_depth=self.rr_start_depth if self.use_russian_roulette else 0,
             light_samples=self.light_samples, seed=self.seed,
-            **{name: getattr(self, name) for name in IC_SETTINGS})
+            **{name: getattr(self, name) for name in IC_SETTINGS + ADRRS_SETTINGS})
 
 
 class ParallaxViewLayerSettings(bpy.types.PropertyGroup):
@@ -158,6 +195,12 @@ class ParallaxViewLayerSettings(bpy.types.PropertyGroup):
         name="IC Gradients", description="Irradiance cache: R = length of the translational "
         "gradient, G = of the rotational gradient (with the Irradiance Cache on)",
         default=True, update=lambda self, ctx: _update_passes(ctx))
+    use_pass_adrrs_estimate: BoolProperty(
+        name="ADRRS Estimate", description="ADRRS: the pixel estimate its weight window is "
+        "centred on (with ADRRS on)", default=True, update=lambda self, ctx: _update_passes(ctx))
+    use_pass_adrrs_splits: BoolProperty(
+        name="ADRRS Splits", description="ADRRS: extra paths split off per pixel sample (with "
+        "ADRRS on)", default=True, update=lambda self, ctx: _update_passes(ctx))
 
 
 def _update_scene_passes(settings):

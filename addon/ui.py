@@ -107,6 +107,20 @@ class PARALLAX_PT_ic_visualisation(_IrradianceCacheSubPanel, bpy.types.Panel):
     properties = ("ic_highlight",)
 
 
+class PARALLAX_PT_adrrs(_RenderPanel, bpy.types.Panel):
+    bl_label = "ADRRS"
+    bl_options = {"DEFAULT_CLOSED"}
+    properties = ("adrrs_window", "adrrs_rr_min", "adrrs_splitting", "adrrs_max_splits",
+                  "adrrs_estimate", "adrrs_estimate_spp", "adrrs_ic_glossy")
+
+    def draw_header(self, context):
+        self.layout.prop(context.scene.parallax, "adrrs", text="")
+
+    def draw(self, context):
+        self.layout.active = context.scene.parallax.adrrs
+        super().draw(context)
+
+
 class PARALLAX_PT_device(_RenderPanel, bpy.types.Panel):
     bl_label = "Device"
     properties = ("device",)
@@ -136,6 +150,10 @@ class PARALLAX_PT_passes(_ParallaxPanel, bpy.types.Panel):
         col.active = context.scene.parallax.ic
         col.prop(view_layer.parallax, "use_pass_ic_irradiance", text="Irradiance")
         col.prop(view_layer.parallax, "use_pass_ic_gradients", text="Gradients")
+        col = layout.column(heading="ADRRS")
+        col.active = context.scene.parallax.adrrs
+        col.prop(view_layer.parallax, "use_pass_adrrs_estimate", text="Estimate")
+        col.prop(view_layer.parallax, "use_pass_adrrs_splits", text="Splits")
 
 
 _device_lines = None
@@ -157,7 +175,7 @@ def detected_devices():
 
 classes = (PARALLAX_PT_sampling, PARALLAX_PT_light_paths, PARALLAX_PT_lights,
            PARALLAX_PT_irradiance_cache, PARALLAX_PT_ic_accuracy, PARALLAX_PT_ic_creation,
-           PARALLAX_PT_ic_gradients, PARALLAX_PT_ic_visualisation, PARALLAX_PT_device,
+           PARALLAX_PT_ic_gradients, PARALLAX_PT_ic_visualisation, PARALLAX_PT_adrrs, PARALLAX_PT_device,
            PARALLAX_PT_passes)
 
 # Built-in panels that make sense for Parallax: output, format, colour management, and

@@ -193,7 +193,7 @@ def render(engine, depsgraph):
             engine.update_result(result)
             samples, seconds, rate, _, stats = snapshot
             line = f"Sample {samples}/{total} | {rate / 1e6:.1f} M rays/s | {seconds:.1f} s"
-            if settings.ic:
+            if settings.ic or settings.adrrs:  # ADRRS builds the cache too
                 line += f" | {ic_status(stats)}"
             engine.update_stats("", line)
             if progress_stream is not None:

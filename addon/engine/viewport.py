@@ -169,9 +169,9 @@ class _Worker(threading.Thread):
             self._preview_factor, preview_parts = factor, None
         for session, session_parts in ((self._full, parts), (self._preview, preview_parts)):
             if session is not None:
-                # The quick preview frame skips the irradiance cache: its prepare frames
-                # (cache creation) would cost many frames; the full-size session shows it.
-                session.set_params(**(params if session is self._full else {**params, "ic": False}))
+                # The quick preview frame skips the irradiance cache and ADRRS: their prepare
+                # and estimate frames would cost many frames; the full-size session shows them.
+                session.set_params(**(params if session is self._full else {**params, "ic": False, "adrrs": False}))
                 if edited:
                     session.update(scene, parts=None if session_parts is None else sorted(session_parts))
         with self._lock:  # a stop() before this returns here; one after it cancels these sessions

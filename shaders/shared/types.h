@@ -218,7 +218,7 @@ PX_CONST uint TEST_CONDUCTOR = 1;
 PX_CONST uint TEST_DIELECTRIC = 2;
 PX_CONST uint TEST_LIGHT = 3;   // light sampling from a shading point (all lights)
 PX_CONST uint TEST_IC_HEMISPHERE = 4;  // the cache's stratified cosine hemisphere (one ray per stratum)
-PX_CONST uint TEST_ADRRS = 5;          // ADRRS' weight window and expected-value split
+PX_CONST uint TEST_ADRRS = 8;          // ADRRS' weight window and expected-value split
 
 #include "techniques.h"
 

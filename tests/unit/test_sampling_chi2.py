@@ -732,3 +732,35 @@ def test_mixed_lights(session):
     assert float(r[delta, 0, 3][0]) == pytest.approx(delta.mean(), abs=4 * math.sqrt(delta.mean() / N))
     check_fit("mixed lights (non-delta)", SphereGrid.sphere(16, 32), r[~delta, 0, :3], N,
               light_pdf(session, P0))
+
+
+# ---- ADRRS' weight window and expected-value split (shaders/techniques/adrrs.glsl) -------
+
+TEST_ADRRS = 8
+
+
+@pytest.mark.parametrize("ratio", [0.01, 0.2, 0.5, 1.0, 2.0, 3.7, 12.25, 40.0])
+def test_adrrs_copies_have_mean_q_and_unit_weight(session, ratio):
+    """r = v/C against the window [2/(1+s), 2s/(1+s)] (s = 5): below it the path survives with
+    q = max(r/delta-, 0.1), above it splits into floor(q) or floor(q)+1 copies with mean
+    q = r/delta+; inside, q = 1. The counts follow the two-point law (chi^2 over the two
+    outcomes) and copies/q has mean 1: the estimator stays unbiased."""
+    s, rr_min, n = 5.0, 0.1, 200_000
+    lower, upper = 2.0 / (1.0 + s), 2.0 * s / (1.0 + s)
+    expected_q = max(ratio / lower, rr_min) if ratio < lower else ratio / upper if ratio > upper else 1.0
+    r = session.test_sampling(TEST_ADRRS, [ratio, s, rr_min, 1.0, 0.0], n, seed=7)
+    q, copies, weight = r[:, 0, 0], r[:, 0, 1], r[:, 0, 2]
+    assert np.allclose(q, expected_q, rtol=1e-5)
+    low = math.floor(expected_q) if expected_q >= 1.0 else 0.0
+    p_high = expected_q - low if expected_q >= 1.0 else expected_q  # P(low + 1 copies)
+    assert set(np.unique(copies)) <= {low, low + 1.0}
+    if 0.0 < p_high < 1.0:
+        observed = np.array([(copies == low).sum(), (copies == low + 1).sum()], np.float64)
+        expected = n * np.array([1.0 - p_high, p_high])
+        assert chi2_sf(float(((observed - expected) ** 2 / expected).sum()), 1) > 1e-4
+    assert abs(weight.mean() - 1.0) < 5.0 * weight.std() / math.sqrt(n) + 1e-6
+
+
+def test_adrrs_without_splitting_leaves_heavy_paths_alone(session):
+    r = session.test_sampling(TEST_ADRRS, [10.0, 5.0, 0.1, 0.0, 0.0], 1000, seed=1)
+    assert np.all(r[:, 0, 0] == 1.0) and np.all(r[:, 0, 1] == 1.0)

@@ -216,9 +216,10 @@ def cmd_render(args):
     finally:
         sys.stderr.write("\n")
 
-    ic = params.get("ic", False)
+    ic, adrrs = params.get("ic", False), params.get("adrrs", False)
+    # A technique's passes only with the technique on.
     passes = {name: session.read(name) for name in session.pass_names()
-              if ic or not name.startswith("ic_")}  # the cache's passes only with the cache on
+              if (ic or not name.startswith("ic_")) and (adrrs or not name.startswith("adrrs_"))}
     write_exr(args.output, passes)
     if args.png:
         write_png(args.png, passes["combined"])
@@ -229,7 +230,7 @@ def cmd_render(args):
     print(f"{stats.get('samples', frames * per_frame)} spp, {rays / 1e6:.1f} Mrays in "
           f"{seconds:.2f} s{rate} on {stats.get('device', '?')} -> {args.output}"
           + (f", {args.png}" if args.png else ""))
-    if ic:
+    if ic or adrrs:
         print(ic_status(stats))
     return 0
 
