@@ -39,7 +39,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
 SCENES = ("cornell_box", "veach_mis", "cornell_dielectric", "light_behind_glass", "atrium")
 EXTRA_SCENES = ("sun_room",)  # indirect light through a window: the irradiance cache's case
-METHODS = ("pt", "nee", "mis", "ic")  # ic: MIS + the irradiance cache (default settings)
+METHODS = ("pt", "nee", "mis", "ic", "adrrs")  # ic: MIS + the irradiance cache; adrrs: MIS + ADRRS (defaults)
 MAX_DEPTH = 8  # Cycles' Max Bounces in every scene; Parallax with no discrete leeway
 REFERENCE_SEED = 7919  # the compared runs use seed 0
 
@@ -102,11 +102,14 @@ def load_scene(name, width, npz_dir):
 # ---- renderers ---------------------------------------------------------------------------
 
 def method_params(method):
-    """RenderParams of a --methods name: pt, nee, mis, or ic (MIS + the irradiance cache with
-    its default settings)."""
+    """RenderParams of a --methods name: pt, nee, mis, ic (MIS + the irradiance cache with
+    its default settings) or adrrs (MIS + ADRRS, whose cache and estimate are built in the
+    measured time; the throughput roulette stays where ADRRS has no adjoint)."""
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r} (methods: {', '.join(METHODS)})")
-    return dict(method="mis", ic=True) if method == "ic" else dict(method=method, ic=False)
+    if method == "adrrs":
+        return dict(method="mis", ic=False, adrrs=True)
+    return dict(method="mis", ic=True, adrrs=False) if method == "ic" else dict(method=method, ic=False, adrrs=False)
 
 
 def render_parallax(scene, method, seconds, device, reference, label, seed=0):
@@ -125,7 +128,8 @@ def render_parallax(scene, method, seconds, device, reference, label, seed=0):
     start = time.perf_counter()
     session = pc.Session(scene.width, scene.height, device)
     params = dict(method_params(method), samples_per_frame=1, max_depth=MAX_DEPTH, depth_leeway=0, seed=seed)
-    sizing = dict(params, method="mis", ic=False) if params["ic"] else params
+    prepares = params["ic"] or params["adrrs"]  # cache prepare (and ADRRS estimate) frames first
+    sizing = dict(params, method="mis", ic=False, adrrs=False) if prepares else params
     session.set_params(**sizing)
     session.update(scene)
     session.render(1)
@@ -142,7 +146,7 @@ def render_parallax(scene, method, seconds, device, reference, label, seed=0):
                 marks.pop(0)
 
     stop = False
-    if params["ic"]:
+    if prepares:
         # The prepare frames one per render_rows(height) call, so that the clock is checked
         # between them (render() would run all of them at once); the call after the last one
         # renders the first frame. Out of time before that: no samples (a black image).
@@ -176,7 +180,10 @@ def render_parallax(scene, method, seconds, device, reference, label, seed=0):
     if reference is not None and (not curve or curve[-1][0] < used - 1e-3):
         curve.append((used, rel_mse(image, reference)))
     info.update({k: (round(v, 3) if isinstance(v, float) else v) for k, v in stats.items()
-                 if k.startswith("ic_") or k in ("frames", "rays")} if params["ic"] else {})
+                 if k.startswith(("ic_", "adrrs_")) or k in ("frames", "rays")} if prepares else {})
+    if params["adrrs"]:
+        info["adrrs_splits_per_sample"] = round(float(session.read("adrrs_splits").mean()), 4)
+    info["ray_depth"] = round(float(session.read("ray_depth").mean()), 3)
     return image, spp, used, curve, info
 
 
@@ -319,6 +326,11 @@ def write_outputs(out, name, rows, reference):
                       + ("unfinished in the time" if ic.get("prepare_unfinished") else
                          f"done at {ic.get('prepare_done_at', 0):.1f} s") + ", "
                       f"{ic.get('samples_per_frame', 0)} spp per frame"]
+        info = row.get("info") or {}
+        if "ray_depth" in info:
+            lines += ["", f"{row['renderer']}: mean path length {info['ray_depth']} segments"
+                      + (f", {info['adrrs_splits_per_sample']} ADRRS splits per pixel sample"
+                         if "adrrs_splits_per_sample" in info else "")]
     with open(os.path.join(out, f"{name}.md"), "w") as f:
         f.write("\n".join(lines) + "\n")
 
@@ -404,7 +416,7 @@ def run(scenes=SCENES, seconds=120.0, device="auto", methods=("pt", "nee", "mis"
             image, spp, used, curve, info = render_parallax(scene, method, seconds, device, reference,
                                                             f"{name}: parallax {method}")
             rows.append(dict(renderer=f"Parallax {method}", image=image, spp=spp, seconds=used, curve=curve,
-                             **({"ic": info} if method == "ic" else {})))
+                             **({"ic": info} if method in ("ic", "adrrs") else {}), info=info))
         for peer in peers:
             if peer.startswith("cycles"):
                 if npz_dir:

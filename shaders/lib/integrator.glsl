@@ -27,6 +27,7 @@ struct PathOptions {
     float adrrs_estimate; // luminance of the pixel estimate I~
     uint adrrs_local;     // the pixel's slot in this dispatch's split queue
     uint adrrs_pixels;    // pixels of this dispatch
+    uint adrrs_samples;   // samples per pixel of this dispatch (the split budget's multiple)
     uint pixel;           // for creation requests (their order on the host)
     // Where the path starts: a camera or hemisphere ray (throughput 1, no bounces), or a split
     // copy (resume): the ray to a vertex whose emission and NEE the path that split counted.
@@ -54,6 +55,7 @@ PathOptions path_options() {
     opt.adrrs_estimate = 0.0;
     opt.adrrs_local = 0u;
     opt.adrrs_pixels = 0u;
+    opt.adrrs_samples = 1u;
     opt.pixel = 0u;
     opt.throughput = vec3(1.0);
     opt.bounces = 0u;
@@ -203,7 +205,7 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         bool ic_surface = surf.type == MATERIAL_DIFFUSE || ((USES(TECH_ADRRS) || opt.ic_glossy) && !delta);
         if (USES(TECH_IC) && ic_surface && !resumed && (opt.ic_use || opt.ic_prepare || opt.adrrs)) {
             vec2 gradients;
-            ic_found = ic_lookup(sh.p, ns, irradiance, gradients);
+            ic_found = ic_lookup(sh.p, ns, !(opt.ic_use || opt.ic_prepare), irradiance, gradients);
             if (!ic_recorded) {
                 res.ic_irradiance = irradiance;
                 res.ic_gradients = gradients;
@@ -260,10 +262,9 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
                 if (rnd(rng) >= q) break;
                 throughput /= q;
             } else if (q > 1.0) {
-                // At most max_splits copies per pixel sample: q is capped before the
-                // expected-value split, so every copy's weight 1/q stays exact.
-                uint queued = adrrs_copies_queued(opt.adrrs_local);
-                q = min(q, 1.0 + float(tech.adrrs.max_splits - min(queued, tech.adrrs.max_splits)));
+                // Within the pixel's split budget: q is capped before the expected-value
+                // split, so every copy's weight 1/q stays exact.
+                q = min(q, 1.0 + float(adrrs_copies_left(opt.adrrs_local, opt.adrrs_samples)));
                 uint copies = adrrs_split_copies(q, rnd(rng));
                 throughput /= q;
                 if (copies > 1u) {

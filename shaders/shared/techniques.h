@@ -66,6 +66,7 @@ struct AdrrsParams {
     uint estimate PX_DEFAULT(0);         // adrrs_estimate: ADRRS_ESTIMATE_IC or _IMAGE
     uint ic_glossy PX_DEFAULT(1);        // adrrs_ic_glossy: the ic estimate reads the cache at
                                          // glossy vertices too (thesis 4.4 "IC on glossy")
+    uint slots PX_DEFAULT(0);            // derived by the host: queue entries per pixel
 };
 
 // A split path (BINDING_ADRRS_QUEUE): the ray that reached the vertex where it was split,

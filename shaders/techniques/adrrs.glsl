@@ -10,9 +10,10 @@
 // the luminance of v * rho/pi * E against that of I~, so a zero channel never makes C infinite.
 // Below the window the continuation survives with q = max(v/delta-, rr_min) and is weighted
 // 1/q; above it the path is split into q = v/delta+ expected copies (an expected-value split:
-// floor(q) or floor(q)+1 with mean q), each weighted 1/q, at most max_splits per pixel sample.
-// Copies beyond the first go to a per-pixel queue that a later dispatch of the same frame
-// traces (FRAME_ADRRS_SPLITS); their own splits join the same queue.
+// floor(q) or floor(q)+1 with mean q), each weighted 1/q, at most max_splits per pixel sample
+// (a pixel's budget in a dispatch of n samples is n max_splits copies, in at most
+// adrrs.slots queue entries). Copies beyond the first go to a per-pixel queue that a later
+// dispatch of the same frame traces (FRAME_ADRRS_SPLITS); their own splits join the queue.
 
 // The weight-window factor for r = v / C: q < 1 roulette (survival probability), q > 1
 // split (expected copies), 1 inside the window [delta-, delta+] = [2/(1+s), 2s/(1+s)] C.
@@ -55,13 +56,20 @@ float adrrs_factor(vec3 throughput, vec3 albedo, vec3 irradiance, float estimate
     return adrrs_window_factor(r, tech.adrrs.window, tech.adrrs.rr_min, tech.adrrs.splitting != 0u);
 }
 
+// Copies pixel `local` may still queue in this dispatch of `samples` samples per pixel.
+uint adrrs_copies_left(uint local, uint samples) {
+    if (adrrs_words[2u * local] >= tech.adrrs.slots) return 0u;  // no queue entry left
+    uint budget = tech.adrrs.max_splits * samples, queued = adrrs_words[2u * local + 1u];
+    return budget - min(queued, budget);
+}
+
 uint adrrs_copies_queued(uint local) { return adrrs_words[2u * local + 1u]; }
 
-// Queues `split` for pixel `local` of this dispatch (P pixels). The caller keeps the copies
-// within max_splits, so the pixel's slots never overflow.
+// Queues `split` for pixel `local` of this dispatch (P pixels). The caller checked
+// adrrs_copies_left, so the pixel's slots never overflow.
 void adrrs_queue(uint local, uint P, AdrrsSplit split) {
     uint entries = adrrs_words[2u * local];
-    adrrs_splits[local * tech.adrrs.max_splits + entries] = split;
+    adrrs_splits[local * tech.adrrs.slots + entries] = split;
     adrrs_words[2u * local] = entries + 1u;
     adrrs_words[2u * local + 1u] += split.copies;
     if (entries == 0u) adrrs_words[2u * P + atomicAdd(adrrs_active_count, 1u)] = local;

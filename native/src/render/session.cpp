@@ -74,7 +74,7 @@ void Session::reset_accumulation(bool keep_cache) {
     cache.shade = params_.ic.enabled;
     ic_->configure(cache, scene_->host().info, uint64_t(width_) * height_ * params_.samples_per_frame);
     ic_->bind(*set_);  // configure may have made new buffers and a new TLAS
-    adrrs_->configure(params_.adrrs, width_, height_);
+    adrrs_->configure(params_.adrrs, width_, height_, params_.samples_per_frame);
     adrrs_->bind(*set_);
     upload_technique_params();
 }
@@ -216,14 +216,8 @@ Session::DispatchPlan Session::dispatch_plan() const {
     // shadow rays of each vertex.
     plan.cost = uint64_t(params_.max_depth + params_.depth_leeway + 2) * (1 + params_.light_samples);
     plan.budget = ctx_->report().type == "cpu" ? (uint64_t(1) << 21) : (uint64_t(1) << 30);
-    uint64_t spp = params_.samples_per_frame;
-    if (adrrs_->enabled()) {
-        // One sample per pixel and dispatch (the split queue is per pixel sample), which
-        // may trace its max_splits copies too, and no more pixels than the queue has slots for.
-        plan.cost *= 1 + params_.adrrs.max_splits;
-        plan.budget = std::min<uint64_t>(plan.budget, uint64_t(adrrs_->dispatch_pixels()) * plan.cost);
-        spp = 1;
-    }
+    const uint64_t spp = params_.samples_per_frame;
+    if (adrrs_->enabled()) plan.cost *= 1 + params_.adrrs.max_splits;  // a sample's split copies too
     const uint64_t row = uint64_t(width_) * plan.cost;
     auto fit = [&](uint64_t unit, uint32_t most) { return uint32_t(std::clamp<uint64_t>(plan.budget / unit, 1, most)); };
     // Whole rows with all samples if a row fits, else one row with some samples, else

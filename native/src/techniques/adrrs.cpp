@@ -9,7 +9,7 @@ namespace px {
 
 namespace {
 
-constexpr uint32_t kMaxQueuedSplits = 1u << 20;  // split slots of one dispatch (64 MiB)
+constexpr uint64_t kMaxQueuedSplits = 1u << 21;  // split entries of the whole image (128 MiB)
 constexpr int kBlurRadius = 3;                   // image estimate: two box passes of 7 pixels
 
 // One box-filter pass along rows (dx = 1) or columns of an rgb image; the edges average
@@ -49,19 +49,23 @@ void validate_adrrs_params(const AdrrsParams& p) {
 }
 
 Adrrs::Adrrs(Context& ctx) : ctx_(ctx) {
-    configure(AdrrsParams{}, 1, 1);
+    configure(AdrrsParams{}, 1, 1, 1);
 }
 
-void Adrrs::configure(const AdrrsParams& params, uint32_t width, uint32_t height) {
+void Adrrs::configure(const AdrrsParams& params, uint32_t width, uint32_t height, uint32_t samples_per_frame) {
     params_ = params;
     width_ = width;
     height_ = height;
     // Off: one-element buffers keep every binding valid (the shaders never touch them).
     const uint64_t pixels = enabled() ? uint64_t(width) * height : 1;
-    dispatch_pixels_ = uint32_t(std::min<uint64_t>(pixels, kMaxQueuedSplits / std::max(params_.max_splits, 1u)));
+    // Entries per pixel: a frame's budget of copies (each entry holds one or more), at most
+    // what kMaxQueuedSplits leaves per pixel (at least 2). Splits past a full queue are not
+    // made: the decision comes before the split, so the estimator stays unbiased.
+    const uint64_t wanted = uint64_t(params_.max_splits) * samples_per_frame;
+    params_.slots = uint32_t(std::min<uint64_t>(wanted, std::max<uint64_t>(2, kMaxQueuedSplits / pixels)));
     const size_t estimate_bytes = size_t(pixels) * sizeof(vec4);
-    const size_t queue_bytes = 16 + size_t(dispatch_pixels_) * 3 * sizeof(uint32_t);
-    const size_t split_bytes = std::max<size_t>(1, size_t(dispatch_pixels_) * params_.max_splits) * sizeof(AdrrsSplit);
+    const size_t queue_bytes = 16 + size_t(pixels) * 3 * sizeof(uint32_t);
+    const size_t split_bytes = std::max<size_t>(1, size_t(pixels) * params_.slots) * sizeof(AdrrsSplit);
     if (estimate_.size() != estimate_bytes) estimate_ = Buffer(ctx_, estimate_bytes, kStorageUsage);
     if (queue_.size() != queue_bytes) queue_ = Buffer(ctx_, queue_bytes, kStorageUsage);
     if (splits_.size() != split_bytes) splits_ = Buffer(ctx_, split_bytes, kStorageUsage);

@@ -5,8 +5,9 @@
 // (after the irradiance cache's prepare frames: paths to the first non-delta vertex, shaded
 // with NEE and the cache) or, with ADRRS_ESTIMATE_IMAGE, from the accumulated image itself,
 // blurred, refreshed each time the samples double. The queue holds, per pixel of one dispatch,
-// up to max_splits split copies; the session follows each camera dispatch with a split
-// dispatch over the same pixels (record_dispatch), so a dispatch traces one sample per pixel.
+// adrrs.slots split entries (max_splits per sample of a frame, fewer where the image is so large
+// that the queue would pass kMaxQueuedSplits); the session follows each camera dispatch with a
+// split dispatch over the same pixels (record_dispatch).
 #pragma once
 #include "scene/scene.h"
 #include "vk/pipeline.h"
@@ -20,17 +21,15 @@ class Adrrs {
 public:
     explicit Adrrs(Context& ctx);
     // New settings or image size: the estimate is dropped and made again.
-    void configure(const AdrrsParams& params, uint32_t width, uint32_t height);
+    void configure(const AdrrsParams& params, uint32_t width, uint32_t height, uint32_t samples_per_frame);
     void reset();  // the estimate is made again (the scene changed)
     void bind(DescriptorSet& set) const;
-    const AdrrsParams& params() const { return params_; }
+    const AdrrsParams& params() const { return params_; }  // with slots filled in
     bool enabled() const { return params_.enabled != 0; }
     // Estimate frames still to run (ADRRS_ESTIMATE_IC), after the cache's prepare frames.
     bool needs_estimate_frame() const { return enabled() && params_.estimate == ADRRS_ESTIMATE_IC && estimate_frames_ < params_.estimate_spp; }
     uint32_t estimate_frames() const { return estimate_frames_; }
     void estimate_frame_done() { ++estimate_frames_; }
-    // Most pixels one camera dispatch may cover: the queue has max_splits slots for each.
-    uint32_t dispatch_pixels() const { return dispatch_pixels_; }
     // Before a camera dispatch: its queue starts empty.
     void record_queue_clear(VkCommandBuffer cmd) const;
     // ADRRS_ESTIMATE_IMAGE: after a frame, with `samples` per pixel in `film`, the estimate
@@ -43,7 +42,6 @@ private:
     Context& ctx_;
     AdrrsParams params_{};
     uint32_t width_ = 0, height_ = 0;
-    uint32_t dispatch_pixels_ = 0;
     Buffer estimate_, queue_, splits_;
     uint32_t estimate_frames_ = 0;
     uint64_t next_refresh_ = 0;  // samples at which the image estimate is refreshed next
