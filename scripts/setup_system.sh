@@ -1,11 +1,14 @@
 #!/usr/bin/env bash
 # Installs the system packages Parallax needs on Debian 12 (bookworm):
-# Mesa lavapipe with ray tracing (bookworm-backports), the Vulkan headers/loader,
+# Mesa lavapipe with ray tracing (bookworm-backports), the Vulkan headers/loader and validation layers,
 # glslang, a C++ toolchain and Python's venv, and Debian's Blender 3.4 (the legacy add-on's
 # oldest supported Blender, and the GUI for viewport tests). Idempotent: quick when done.
 set -euo pipefail
 
 need_pkgs=(build-essential cmake python3-venv python3-dev libvulkan-dev libvulkan1 glslang-tools vulkan-tools)
+# Khronos validation (1.3.239, matching bookworm's headers and loader): the render tests run
+# under it (PARALLAX_VALIDATION=1, tests/render/conftest.py).
+need_pkgs+=(vulkan-validationlayers)
 blender_pkgs=(blender python3-numpy xvfb x11-apps xdotool)  # GUI tests: Xvfb, xwd, xdotool
 need_pkgs+=(libllvm19)  # Mitsuba 3's llvm_ad_rgb variant (bench/mitsuba_peer.py); drjit aborts on LLVM 15
 sudo_cmd=""

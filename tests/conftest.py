@@ -9,6 +9,28 @@ import pytest
 sys.path.insert(0, os.path.dirname(__file__))
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
+# Khronos validation (issue 9) for the whole run: the process's Vulkan instance is created
+# once, on first use, so the layer is asked for before any test runs (subprocesses inherit
+# it). PARALLAX_VALIDATION=0 turns it off (a machine without vulkan-validationlayers).
+os.environ.setdefault("PARALLAX_VALIDATION", "1")
+
+
+@pytest.fixture(autouse=True)
+def no_validation_messages():
+    """Fails a test during which the validation layer reported a warning or an error (in this
+    process: tests that render through parallax_core or in-process bpy)."""
+    if os.environ.get("PARALLAX_VALIDATION", "0") in ("", "0") or "parallax_core" not in sys.modules:
+        yield
+        return
+    import parallax_core as pc
+
+    pc.validation_messages(clear=True)
+    yield
+    messages = pc.validation_messages(clear=True)
+    if messages:
+        pytest.fail(f"{len(messages)} Vulkan validation message(s), the first:\n" + "\n".join(messages[:3]),
+                    pytrace=False)
+
 
 @pytest.fixture(scope="session")
 def core_wheel(tmp_path_factory):

@@ -166,7 +166,8 @@ def render(engine, depsgraph):
         session = parallax_core.Session(w, h, settings.device)
         session.set_params(**settings.render_params())
         warnings += [m for m in session.update(data) if m not in warnings]
-    except (ImportError, ValueError, RuntimeError, TypeError) as e:
+    except (ImportError, ValueError, RuntimeError, TypeError, MemoryError) as e:
+        # MemoryError: parallax_core.DeviceMemoryError, a scene past the device-memory budget.
         report.errors.append(str(e))
         engine.report({"ERROR"}, f"Parallax: {e}")
         return

@@ -255,7 +255,9 @@ class ViewportRender:
         scene = depsgraph.scene
         params, target, pixel_size, device = self._settings_of(scene)
         try:
-            if self.worker is None or device != self.worker.device:
+            # A worker stopped by an error (a scene past the memory budget) starts over on
+            # the next edit, which may have fixed it.
+            if self.worker is None or device != self.worker.device or self.worker.error is not None:
                 self.free()
                 width, height = _region_size(context)
                 camera = _context_camera(context)
@@ -272,7 +274,7 @@ class ViewportRender:
                 if parts or (params, target, pixel_size) != self._settings:
                     self.worker.submit(self.exporter.data, parts=parts, params=params,
                                        target=target, pixel_size=pixel_size)
-        except (ImportError, ValueError, RuntimeError) as e:
+        except (ImportError, ValueError, RuntimeError, MemoryError) as e:
             engine.update_stats("", f"Parallax: {e}")
             engine.report({"ERROR"}, f"Parallax: {e}")
             return
@@ -300,6 +302,9 @@ class ViewportRender:
             self._size, self._camera_key = size, key
         if worker.error is not None:
             engine.update_stats("", f"Parallax error: {worker.error}")
+            if f"error: {worker.error}" not in self._reported:  # once, not on every redraw
+                self._reported.add(f"error: {worker.error}")
+                engine.report({"ERROR"}, f"Parallax: {worker.error}")
             return
         frame = worker.frame
         if frame is not None:

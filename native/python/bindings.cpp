@@ -47,6 +47,42 @@ NB_MODULE(_native, m) {
 
     m.attr("METHODS") = nb::make_tuple("pt", "nee", "mis");
 
+    nb::exception<px::DeviceMemoryError>(m, "DeviceMemoryError", PyExc_MemoryError);
+
+    m.def("validation_enabled", &px::validation_enabled,
+          "Whether the process's Vulkan instance runs VK_LAYER_KHRONOS_validation (set "
+          "PARALLAX_VALIDATION=1 before the first session).");
+    m.def("validation_messages",
+          [](bool clear) {
+              auto messages = px::validation_messages();
+              if (clear) px::clear_validation_messages();
+              return messages;
+          },
+          "clear"_a = false,
+          "The validation layer's warnings and errors since the last clear (the first 1000).");
+    m.def("_validation_self_test",
+          [](const std::string& device) { px::validation_self_test(*px::Context::shared(device)); },
+          "device"_a = "auto", "Test use only: commits two errors the validation layer must report.");
+    m.def("memory",
+          [](const std::string& device) {
+              auto ctx = px::Context::shared(device);
+              nb::dict d;
+              d["allocated"] = uint64_t(ctx->memory_allocated());
+              d["budget"] = uint64_t(ctx->memory_budget());
+              d["heap"] = uint64_t(ctx->memory_heap());
+              d["device"] = ctx->report().name;
+              return d;
+          },
+          "device"_a = "auto",
+          "Device memory in bytes: what the core holds now (every buffer and acceleration structure "
+          "of every session on the device), its budget and the device-local heap.");
+    m.def("set_memory_budget",
+          [](uint64_t bytes, const std::string& device) { px::Context::shared(device)->set_memory_budget(bytes); },
+          "bytes"_a, "device"_a = "auto",
+          "Device memory the core may hold on the device, over all its sessions (0: the default, "
+          "PARALLAX_MEMORY_BUDGET or a share of the heap). Past it, allocations raise "
+          "DeviceMemoryError and the session keeps its previous scene.");
+
     nb::dict limits;  // px::SceneLimits: what update() accepts (README "Limits")
     limits["radiance"] = px::SceneLimits::radiance;
     limits["albedo"] = px::SceneLimits::albedo;

@@ -217,3 +217,28 @@ def test_compositor_denoise_node_uses_our_passes(bpy, tmp_path):
     roughness = lambda image: np.abs(np.diff(image, axis=1)).mean()  # noqa: E731
     assert roughness(clean) < 0.6 * roughness(noisy)
     assert clean.mean() == pytest.approx(noisy.mean(), rel=0.05)
+
+
+def test_scene_past_the_memory_budget_is_an_error_report(fresh, bpy, tmp_path):
+    """A texture past the device-memory budget: the render operator fails with the engine's
+    error report (no crash), and the next render, within the budget, works."""
+    import parallax_core
+
+    material = bpy.data.materials.new("Huge")
+    image = bpy.data.images.new("Huge", 2048, 2048)  # 16 MiB of texels on the device
+    tex = material.node_tree.nodes.new("ShaderNodeTexImage")
+    tex.image = image
+    bsdf = material.node_tree.nodes["Principled BSDF"]
+    material.node_tree.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
+    _add_mesh(bpy, fresh, "Quad", QUAD, [(0, 1, 2, 3)], material)
+    _add_light(bpy, fresh)
+    parallax_core.set_memory_budget(parallax_core.memory()["allocated"] + 8 * 2**20)
+    try:
+        with pytest.raises(RuntimeError, match="Parallax: the scene does not fit.*budget"):
+            bpy.ops.render.render()
+        assert len(final.last_report.errors) == 1 and "device memory budget" in final.last_report.errors[0]
+    finally:
+        parallax_core.set_memory_budget(0)
+    image.scale(64, 64)
+    render(bpy, tmp_path / "fits.exr")
+    assert not final.last_report.errors and final.last_report.samples == fresh.parallax.samples

@@ -14,12 +14,14 @@ import dataclasses
 import operator
 import os
 
-from ._native import LIMITS, METHODS, devices
+from ._native import (LIMITS, METHODS, DeviceMemoryError, devices, memory, set_memory_budget,
+                      validation_enabled, validation_messages)
 from ._native import Session as _NativeSession
 from ._native import _RenderParams
 from .scene import PART_KEYS, PARTS, parts_set
 
-__all__ = ["Session", "RenderParams", "devices", "METHODS", "PASSES", "PARTS", "LIMITS"]
+__all__ = ["Session", "RenderParams", "devices", "METHODS", "PASSES", "PARTS", "LIMITS", "DeviceMemoryError",
+           "memory", "set_memory_budget", "validation_enabled", "validation_messages"]
 
 PASSES = tuple(_NativeSession.pass_names())
 HEURISTICS = ("balance", "power")

@@ -110,7 +110,12 @@ std::vector<std::string> Session::update(const SceneArrays& arrays, bool spatial
     // Upload next to the old scene (sharing its buffers and BLASes where the host data is
     // the same): if this fails (out of memory, device lost), the session keeps rendering
     // what it had.
-    auto next = std::make_unique<Scene>(*ctx_, std::move(host), scene_.get());
+    std::unique_ptr<Scene> next;
+    try {
+        next = std::make_unique<Scene>(*ctx_, std::move(host), scene_.get());
+    } catch (const DeviceMemoryError& e) {
+        throw DeviceMemoryError(std::string("the scene does not fit (the session keeps its previous one): ") + e.what());
+    }
     std::lock_guard<std::mutex> lock(mutex_);
     blas_builds_ += next->blases_built();
     scene_ = std::move(next);

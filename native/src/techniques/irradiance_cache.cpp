@@ -70,6 +70,15 @@ void IrradianceCache::configure(const IcParams& params, const SceneInfo& scene, 
         allocated_ = slots;
         allocate();
     }
+    // The creation jobs' buffers (6 MiB) only while the cache is on; off, 16-byte
+    // placeholders keep the bindings valid (bind() follows configure()).
+    const size_t jobs = enabled() ? kJobsPerDispatch : 0;
+    if (!jobs_.valid() || jobs_.size() != std::max<size_t>(jobs * sizeof(IcJob), 16)) {
+        jobs_ = Buffer();
+        samples_ = Buffer();
+        jobs_ = Buffer(ctx_, jobs * sizeof(IcJob), kStorageUsage);
+        samples_ = Buffer(ctx_, jobs * IC_STRATA * sizeof(IcSample), kStorageUsage);
+    }
     reset();
 }
 
@@ -82,10 +91,6 @@ void IrradianceCache::allocate() {
     entries_ = Buffer(ctx_, size_t(allocated_) * sizeof(IcEntry), kStorageUsage);
     aabbs_ = Buffer(ctx_, size_t(allocated_) * sizeof(VkAabbPositionsKHR),
                     kStorageUsage | VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR);
-    if (!jobs_.valid()) {
-        jobs_ = Buffer(ctx_, size_t(kJobsPerDispatch) * sizeof(IcJob), kStorageUsage);
-        samples_ = Buffer(ctx_, size_t(kJobsPerDispatch) * IC_STRATA * sizeof(IcSample), kStorageUsage);
-    }
 }
 
 void IrradianceCache::record_frame_start(VkCommandBuffer cmd) const {

@@ -10,6 +10,7 @@ Buffer::Buffer(Context& ctx, VkDeviceSize size, VkBufferUsageFlags usage, bool h
     host_visible = host_visible || ctx.is_cpu();
     usage |= VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT |
              VK_BUFFER_USAGE_TRANSFER_SRC_BIT;
+    ctx.check_memory(size_);  // before the driver sees a size it may not be able to hold
     VkBufferCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
     info.size = size_;
     info.usage = usage;
@@ -24,11 +25,22 @@ Buffer::Buffer(Context& ctx, VkDeviceSize size, VkBufferUsageFlags usage, bool h
     alloc.memoryTypeIndex = ctx.memory_type(
         req.memoryTypeBits, host_visible ? VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT
                                          : VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
-    VkResult r = vkAllocateMemory(ctx.device(), &alloc, nullptr, &memory_);
-    if (r != VK_SUCCESS) {
+    try {
+        ctx.reserve_memory(req.size);  // throws DeviceMemoryError past the budget
+    } catch (...) {
         vkDestroyBuffer(ctx.device(), buffer_, nullptr);
         buffer_ = VK_NULL_HANDLE;
-        vk_check(r, ("vkAllocateMemory (" + std::to_string(size_ >> 20) + " MiB)").c_str());
+        throw;
+    }
+    reserved_ = req.size;
+    VkResult r = vkAllocateMemory(ctx.device(), &alloc, nullptr, &memory_);
+    if (r != VK_SUCCESS) {
+        release();
+        const std::string what = "vkAllocateMemory (" + std::to_string(req.size >> 20) + " MiB)";
+        if (r == VK_ERROR_OUT_OF_DEVICE_MEMORY || r == VK_ERROR_OUT_OF_HOST_MEMORY)
+            throw DeviceMemoryError("Vulkan: " + what + " failed: the device is out of memory (lower "
+                                    "parallax_core.set_memory_budget to stay below what it can hold)");
+        vk_check(r, what.c_str());
     }
     VK_CHECK(vkBindBufferMemory(ctx.device(), buffer_, memory_, 0));
     if (host_visible) VK_CHECK(vkMapMemory(ctx.device(), memory_, 0, VK_WHOLE_SIZE, 0, &mapped_));
@@ -44,11 +56,13 @@ Buffer& Buffer::operator=(Buffer&& o) noexcept {
         buffer_ = o.buffer_;
         memory_ = o.memory_;
         size_ = o.size_;
+        reserved_ = o.reserved_;
         address_ = o.address_;
         mapped_ = o.mapped_;
         o.buffer_ = VK_NULL_HANDLE;
         o.memory_ = VK_NULL_HANDLE;
         o.mapped_ = nullptr;
+        o.reserved_ = 0;
     }
     return *this;
 }
@@ -57,6 +71,8 @@ void Buffer::release() {
     if (!ctx_) return;
     if (buffer_) vkDestroyBuffer(ctx_->device(), buffer_, nullptr);
     if (memory_) vkFreeMemory(ctx_->device(), memory_, nullptr);
+    ctx_->release_memory(reserved_);
+    reserved_ = 0;
     buffer_ = VK_NULL_HANDLE;
     memory_ = VK_NULL_HANDLE;
     mapped_ = nullptr;

@@ -39,6 +39,7 @@ private:
     VkBuffer buffer_ = VK_NULL_HANDLE;
     VkDeviceMemory memory_ = VK_NULL_HANDLE;
     VkDeviceSize size_ = 0;
+    VkDeviceSize reserved_ = 0;  // counted against the context's memory budget
     VkDeviceAddress address_ = 0;
     void* mapped_ = nullptr;  // host-visible buffers stay mapped
 };

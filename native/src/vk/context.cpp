@@ -1,6 +1,7 @@
 #include "vk/context.h"
 
 #include <algorithm>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <map>
@@ -47,6 +48,58 @@ static void tune_lavapipe_threads() {
     });
 }
 
+// ---- Validation (issue 9) --------------------------------------------------------------
+
+static bool validation_requested() {
+    const char* v = std::getenv("PARALLAX_VALIDATION");
+    return v && *v && std::strcmp(v, "0") != 0;
+}
+
+namespace {
+struct ValidationLog {
+    std::mutex mutex;
+    std::vector<std::string> messages;
+    uint64_t total = 0;
+    bool enabled = false;
+};
+ValidationLog& validation_log() {
+    static auto* log = new ValidationLog();  // never destroyed: messages may arrive at exit
+    return *log;
+}
+}  // namespace
+
+static VKAPI_ATTR VkBool32 VKAPI_CALL on_validation_message(VkDebugUtilsMessageSeverityFlagBitsEXT severity,
+                                                            VkDebugUtilsMessageTypeFlagsEXT,
+                                                            const VkDebugUtilsMessengerCallbackDataEXT* data,
+                                                            void*) {
+    std::string text = std::string(severity & VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT ? "error" : "warning") +
+                       " [" + (data->pMessageIdName ? data->pMessageIdName : "?") + "] " +
+                       (data->pMessage ? data->pMessage : "");
+    std::fprintf(stderr, "parallax: Vulkan validation %s\n", text.c_str());
+    auto& log = validation_log();
+    std::lock_guard<std::mutex> lock(log.mutex);
+    if (log.messages.size() < 1000) log.messages.push_back(std::move(text));
+    ++log.total;
+    return VK_FALSE;  // never abort the call
+}
+
+static VkDebugUtilsMessengerCreateInfoEXT messenger_info() {
+    VkDebugUtilsMessengerCreateInfoEXT info{VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
+    info.messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
+    info.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
+                       VK_DEBUG_UTILS_MESSAGE_TYPE_PERFORMANCE_BIT_EXT;
+    info.pfnUserCallback = on_validation_message;
+    return info;
+}
+
+static bool has_instance_layer(const char* name) {
+    uint32_t n = 0;
+    vkEnumerateInstanceLayerProperties(&n, nullptr);
+    std::vector<VkLayerProperties> layers(n);
+    vkEnumerateInstanceLayerProperties(&n, layers.data());
+    return std::any_of(layers.begin(), layers.end(), [&](const VkLayerProperties& l) { return !strcmp(l.layerName, name); });
+}
+
 static VkInstance create_instance() {
     tune_lavapipe_threads();
     VkApplicationInfo app{VK_STRUCTURE_TYPE_APPLICATION_INFO};
@@ -54,6 +107,27 @@ static VkInstance create_instance() {
     app.apiVersion = VK_API_VERSION_1_2;
     VkInstanceCreateInfo info{VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
     info.pApplicationInfo = &app;
+
+    const bool validate = validation_requested();
+    const char* layer = "VK_LAYER_KHRONOS_validation";
+    const char* extensions[] = {VK_EXT_DEBUG_UTILS_EXTENSION_NAME, VK_EXT_VALIDATION_FEATURES_EXTENSION_NAME};
+    // Synchronization validation on top of the layer's default (core) checks.
+    VkValidationFeatureEnableEXT enables[] = {VK_VALIDATION_FEATURE_ENABLE_SYNCHRONIZATION_VALIDATION_EXT};
+    VkValidationFeaturesEXT features{VK_STRUCTURE_TYPE_VALIDATION_FEATURES_EXT};
+    features.enabledValidationFeatureCount = 1;
+    features.pEnabledValidationFeatures = enables;
+    VkDebugUtilsMessengerCreateInfoEXT messenger = messenger_info();  // also covers instance creation
+    if (validate) {
+        if (!has_instance_layer(layer))
+            throw VulkanError("PARALLAX_VALIDATION is set but VK_LAYER_KHRONOS_validation is not installed "
+                              "(Debian: apt install vulkan-validationlayers; `make setup` installs it)");
+        info.enabledLayerCount = 1;
+        info.ppEnabledLayerNames = &layer;
+        info.enabledExtensionCount = 2;
+        info.ppEnabledExtensionNames = extensions;
+        features.pNext = &messenger;
+        info.pNext = &features;
+    }
     VkInstance instance = VK_NULL_HANDLE;
     VkResult r = vkCreateInstance(&info, nullptr, &instance);
     if (r != VK_SUCCESS)
@@ -61,6 +135,15 @@ static VkInstance create_instance() {
             std::string("no Vulkan driver could be loaded (vkCreateInstance: ") + result_name(r) +
             "). Install Mesa's lavapipe (mesa-vulkan-drivers from bookworm-backports: run "
             "`make setup`) or an NVIDIA driver.");
+    if (validate) {
+        auto create = reinterpret_cast<PFN_vkCreateDebugUtilsMessengerEXT>(
+            vkGetInstanceProcAddr(instance, "vkCreateDebugUtilsMessengerEXT"));
+        VkDebugUtilsMessengerEXT handle = VK_NULL_HANDLE;  // lives as long as the instance
+        VkDebugUtilsMessengerCreateInfoEXT minfo = messenger_info();
+        if (!create || create(instance, &minfo, nullptr, &handle) != VK_SUCCESS)
+            throw VulkanError("PARALLAX_VALIDATION: could not create the VK_EXT_debug_utils messenger");
+        validation_log().enabled = true;
+    }
     return instance;
 }
 
@@ -201,6 +284,11 @@ Context::Context(const DeviceReport& report) : report_(report) {
     std::vector<VkPhysicalDevice> pds(n);
     vkEnumeratePhysicalDevices(instance_, &n, pds.data());
     physical_ = pds.at(report_.index);
+    vkGetPhysicalDeviceMemoryProperties(physical_, &memory_props_);
+    for (uint32_t i = 0; i < memory_props_.memoryHeapCount; ++i)
+        if (memory_props_.memoryHeaps[i].flags & VK_MEMORY_HEAP_DEVICE_LOCAL_BIT)
+            heap_ = std::max(heap_, memory_props_.memoryHeaps[i].size);
+    set_memory_budget(0);  // before the device exists: a bad PARALLAX_MEMORY_BUDGET leaks nothing
 
     uint32_t qn = 0;
     vkGetPhysicalDeviceQueueFamilyProperties(physical_, &qn, nullptr);
@@ -250,7 +338,6 @@ Context::Context(const DeviceReport& report) : report_(report) {
     VkPhysicalDeviceProperties2 p2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
     p2.pNext = &rt_props_;
     vkGetPhysicalDeviceProperties2(physical_, &p2);
-    vkGetPhysicalDeviceMemoryProperties(physical_, &memory_props_);
 
     VkCommandPoolCreateInfo pinfo{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
     pinfo.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
@@ -298,6 +385,95 @@ void Context::submit_and_wait(const std::function<void(VkCommandBuffer)>& record
     VK_CHECK(vkResetFences(device_, 1, &fence_));
     VK_CHECK(vkQueueSubmit(queue_, 1, &sinfo, fence_));
     VK_CHECK(vkWaitForFences(device_, 1, &fence_, VK_TRUE, UINT64_MAX));
+}
+
+// ---- Device memory budget (issue 9) -----------------------------------------------------
+
+static VkDeviceSize parse_bytes(const char* text) {
+    char* end = nullptr;
+    const double v = std::strtod(text, &end);
+    double scale = 1;
+    if (end && (*end == 'k' || *end == 'K')) scale = 1024.0;
+    if (end && (*end == 'm' || *end == 'M')) scale = 1024.0 * 1024;
+    if (end && (*end == 'g' || *end == 'G')) scale = 1024.0 * 1024 * 1024;
+    if (end == text || !(v > 0) || v * scale > 1e18)
+        throw std::invalid_argument(std::string("PARALLAX_MEMORY_BUDGET: '") + text +
+                                    "' is not a size (bytes, or a number with K, M or G)");
+    return VkDeviceSize(v * scale);
+}
+
+void Context::set_memory_budget(VkDeviceSize bytes) {
+    if (bytes == 0) {
+        const char* env = std::getenv("PARALLAX_MEMORY_BUDGET");
+        bytes = env && *env ? parse_bytes(env) : VkDeviceSize(double(heap_) * (is_cpu() ? 0.5 : 0.8));
+    }
+    budget_ = bytes;
+}
+
+static std::string mib(VkDeviceSize bytes) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.1f MiB", double(bytes) / (1024.0 * 1024.0));
+    return buf;
+}
+
+void Context::check_memory(VkDeviceSize bytes, VkDeviceSize held) const {
+    if (held + bytes > budget_)
+        throw DeviceMemoryError("device memory budget exceeded: " + mib(bytes) + " more on top of the " + mib(held) +
+                                " in use would pass the budget of " + mib(budget_) + " on " + report_.name +
+                                " (parallax_core.set_memory_budget or PARALLAX_MEMORY_BUDGET sets it; the heap is " +
+                                mib(heap_) + ")");
+}
+
+void Context::reserve_memory(VkDeviceSize bytes) {
+    VkDeviceSize held = allocated_.load();
+    do check_memory(bytes, held);
+    while (!allocated_.compare_exchange_weak(held, held + bytes));
+}
+
+bool validation_enabled() {
+    process_instance();
+    return validation_log().enabled;
+}
+
+std::vector<std::string> validation_messages(uint64_t* total) {
+    auto& log = validation_log();
+    std::lock_guard<std::mutex> lock(log.mutex);
+    if (total) *total = log.total;
+    return log.messages;
+}
+
+// Two mistakes the layer must report and the driver survives: a buffer created without a
+// usage bit (core validation) and two transfer writes to one buffer with no barrier between
+// them (synchronization validation: WRITE_AFTER_WRITE).
+void validation_self_test(Context& ctx) {
+    VkBufferCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
+    info.size = 256;
+    VkBuffer bad = VK_NULL_HANDLE;
+    if (vkCreateBuffer(ctx.device(), &info, nullptr, &bad) == VK_SUCCESS) vkDestroyBuffer(ctx.device(), bad, nullptr);
+    info.usage = VK_BUFFER_USAGE_TRANSFER_DST_BIT;
+    VkBuffer buffer = VK_NULL_HANDLE;
+    VK_CHECK(vkCreateBuffer(ctx.device(), &info, nullptr, &buffer));
+    VkMemoryRequirements req;
+    vkGetBufferMemoryRequirements(ctx.device(), buffer, &req);
+    VkMemoryAllocateInfo alloc{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
+    alloc.allocationSize = req.size;
+    alloc.memoryTypeIndex = ctx.memory_type(req.memoryTypeBits, 0);
+    VkDeviceMemory memory = VK_NULL_HANDLE;
+    VK_CHECK(vkAllocateMemory(ctx.device(), &alloc, nullptr, &memory));
+    VK_CHECK(vkBindBufferMemory(ctx.device(), buffer, memory, 0));
+    ctx.submit_and_wait([&](VkCommandBuffer cmd) {
+        vkCmdFillBuffer(cmd, buffer, 0, 256, 1);
+        vkCmdFillBuffer(cmd, buffer, 0, 256, 2);
+    });
+    vkDestroyBuffer(ctx.device(), buffer, nullptr);
+    vkFreeMemory(ctx.device(), memory, nullptr);
+}
+
+void clear_validation_messages() {
+    auto& log = validation_log();
+    std::lock_guard<std::mutex> lock(log.mutex);
+    log.messages.clear();
+    log.total = 0;
 }
 
 }  // namespace px

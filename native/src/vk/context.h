@@ -2,6 +2,7 @@
 #pragma once
 #include <vulkan/vulkan.h>
 
+#include <atomic>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -16,7 +17,23 @@ struct VulkanError : std::runtime_error {
     using std::runtime_error::runtime_error;
 };
 
+// Thrown when an allocation would pass the device-memory budget (or the driver is out of
+// memory); Python sees parallax_core.DeviceMemoryError, a MemoryError.
+struct DeviceMemoryError : VulkanError {
+    using VulkanError::VulkanError;
+};
+
 void vk_check(VkResult result, const char* what);
+
+// Khronos validation (issue 9): PARALLAX_VALIDATION=1 (read when the process's instance is
+// created) enables VK_LAYER_KHRONOS_validation with synchronization validation and a
+// VK_EXT_debug_utils messenger that records every warning and error.
+bool validation_enabled();  // creates the process instance if needed
+// The recorded messages (the first 1000 since the last clear) and how many there were.
+std::vector<std::string> validation_messages(uint64_t* total = nullptr);
+void clear_validation_messages();
+class Context;
+void validation_self_test(Context& ctx);  // makes the layer report two known mistakes
 #define VK_CHECK(call) ::px::vk_check((call), #call)
 
 struct DeviceReport {
@@ -66,6 +83,19 @@ public:
     bool is_cpu() const { return report_.type == "cpu"; }
 
     uint32_t memory_type(uint32_t type_bits, VkMemoryPropertyFlags flags) const;
+
+    // Device memory the core holds (every Buffer: scene data, acceleration structures and
+    // their scratch, film, staging) against a budget: reserve_memory() throws
+    // DeviceMemoryError instead of passing it. Default budget: PARALLAX_MEMORY_BUDGET
+    // (bytes, or with a K/M/G suffix), else 80% of the largest device-local heap on a GPU
+    // and 50% on a CPU device (lavapipe's heap is the machine's RAM, shared with the host).
+    void reserve_memory(VkDeviceSize bytes);
+    void check_memory(VkDeviceSize bytes) const { check_memory(bytes, allocated_); }  // throws, reserves nothing
+    void release_memory(VkDeviceSize bytes) { allocated_ -= bytes; }
+    VkDeviceSize memory_allocated() const { return allocated_; }
+    VkDeviceSize memory_budget() const { return budget_; }
+    VkDeviceSize memory_heap() const { return heap_; }
+    void set_memory_budget(VkDeviceSize bytes);  // 0: the default
     // Records with `record`, submits, and waits (device loss becomes an exception).
     // Thread-safe: submissions of all sessions on this device are serialised.
     void submit_and_wait(const std::function<void(VkCommandBuffer)>& record);
@@ -83,6 +113,9 @@ private:
     VkPhysicalDeviceRayTracingPipelinePropertiesKHR rt_props_{};
     VkPhysicalDeviceMemoryProperties memory_props_{};
     DeviceReport report_;
+    void check_memory(VkDeviceSize bytes, VkDeviceSize held) const;
+    std::atomic<VkDeviceSize> allocated_{0};
+    VkDeviceSize heap_ = 0, budget_ = 0;
 };
 
 }  // namespace px

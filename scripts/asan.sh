@@ -1,0 +1,41 @@
+#!/usr/bin/env bash
+# `make asan`: builds the core with AddressSanitizer + UndefinedBehaviorSanitizer (LeakSanitizer
+# included) into build-asan/, and runs the unit and render tiers against it. Python, numpy and
+# Mesa are not instrumented: libasan is preloaded, and scripts/asan_check.py reads the
+# sanitizers' logs, failing on any error and on any leak with a frame in the core.
+# Usage: scripts/asan.sh [PYTHON] [pytest args...]   (default: .venv/bin/python tests/unit tests/render)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PY=${1:-.venv/bin/python}
+shift || true
+TESTS=("$@")
+[ ${#TESTS[@]} -gt 0 ] || TESTS=(tests/unit tests/render)
+BUILD=build-asan
+start=$(date +%s)
+cmake -S . -B $BUILD -DPython_EXECUTABLE="$(cd "$(dirname "$PY")" && pwd)/$(basename "$PY")" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+      -DPARALLAX_SANITIZE=address,undefined >/dev/null
+cmake --build $BUILD -j"$(nproc)"
+# A site directory that shadows the installed packages: the package's .py files, the
+# instrumented module, and the add-on.
+SITE=$BUILD/site
+rm -rf $SITE && mkdir -p $SITE/parallax_core
+ln -s "$PWD"/native/python/parallax_core/*.py $SITE/parallax_core/
+ln -s "$PWD"/$BUILD/_native*.so $SITE/parallax_core/
+ln -s "$PWD"/addon $SITE/parallax_blender
+LOGS=$BUILD/logs
+rm -rf $LOGS && mkdir -p $LOGS
+built=$(date +%s)
+# detect_leaks: LeakSanitizer at each process's exit; exitcode=0 because Python always leaves
+# objects behind (tests that run subprocesses check their exit status): the logs decide.
+# Validation is off here (the normal suite runs under the layer).
+status=0
+# libstdc++ preloaded too: ASan's __cxa_throw interceptor needs it at start-up (python3 does
+# not link it), or the core's first C++ exception stops the process.
+LD_PRELOAD="$(gcc -print-file-name=libasan.so) $(gcc -print-file-name=libstdc++.so.6)" \
+ASAN_OPTIONS="detect_leaks=1:exitcode=0:log_path=$PWD/$LOGS/asan:strict_string_checks=1:check_initialization_order=1" \
+UBSAN_OPTIONS="print_stacktrace=1:log_path=$PWD/$LOGS/ubsan" \
+PARALLAX_VALIDATION=0 PYTHONPATH="$PWD/$SITE" \
+  "$PY" -m pytest -q -p no:cacheprovider "${TESTS[@]}" || status=$?
+"$PY" scripts/asan_check.py $LOGS || status=1
+echo "make asan: build $((built - start)) s, tests $(( $(date +%s) - built )) s, status $status"
+exit $status
