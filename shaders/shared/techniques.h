@@ -130,4 +130,6 @@ struct IcSample {
     float distance;  // to the first hit; INFINITY_F (1e30) for an escaped ray
 };
 
+#include "guiding.h"
+
 #endif

@@ -218,7 +218,12 @@ PX_CONST uint TEST_CONDUCTOR = 1;
 PX_CONST uint TEST_DIELECTRIC = 2;
 PX_CONST uint TEST_LIGHT = 3;   // light sampling from a shading point (all lights)
 PX_CONST uint TEST_IC_HEMISPHERE = 4;  // the cache's stratified cosine hemisphere (one ray per stratum)
-PX_CONST uint TEST_ADRRS = 5;          // ADRRS' weight window and expected-value split
+// Guiding (shaders/techniques/guiding.glsl); lobes (3 vec4 each) follow the samples in the
+// test buffer, test_params.xyz = query position, test_param0 = lobe count.
+PX_CONST uint TEST_GUIDING_VMF = 5;   // lobe 0 alone: vmf_sample / vmf_pdf
+PX_CONST uint TEST_GUIDING_VMM = 6;   // the mixture: guiding_vmm_sample / guiding_vmm_pdf
+PX_CONST uint TEST_GUIDING_PACK = 7;  // guiding_pack_direction / guiding_unpack_direction
+PX_CONST uint TEST_ADRRS = 8;         // ADRRS' weight window and expected-value split
 
 #include "techniques.h"
 

@@ -170,13 +170,18 @@ class Session(_NativeSession):
         """Every pass, by name."""
         return {name: self.read(name) for name in PASSES}
 
-    def test_sampling(self, routine: int, params, count: int, seed: int = 0, directions=None):
-        """Run shaders/tests/sampling_test.comp; returns float32 (count, 2, 4). Test use only."""
+    def test_sampling(self, routine: int, params, count: int, seed: int = 0, directions=None, constants=None):
+        """Run shaders/tests/sampling_test.comp; returns float32 (count, 2, 4). Test use only.
+        ``constants``: float32 values (a multiple of 4) the routine reads after the samples."""
         import numpy as np
 
         data = []
-        if directions is not None:
+        if directions is not None or constants is not None:
             d = np.zeros((count, 2, 4), np.float32)
-            d[:, 0, :3] = directions
-            data = d.ravel().tolist()
+            if directions is not None:
+                d[:, 0, :3] = directions
+            data = d.ravel()
+            if constants is not None:
+                data = np.concatenate([data, np.asarray(constants, np.float32).ravel()])
+            data = data.tolist()
         return self._test_sampling(routine, [float(x) for x in params], count, seed, data)

@@ -417,11 +417,13 @@ std::vector<float> Session::test_sampling(uint32_t routine, const std::vector<fl
     std::lock_guard<std::mutex> lock(mutex_);
     if (!scene_) throw std::runtime_error("no scene: call update(scene) before test_sampling()");
     if (params.size() != 5) throw std::invalid_argument("test_sampling needs 5 parameters");
-    if (!input.empty() && input.size() != size_t(count) * 8) throw std::invalid_argument("test input must be count*8 floats");
+    // count*8 floats (directions for eval mode), then whole vec4s of constants (guiding lobes)
+    if (!input.empty() && (input.size() < size_t(count) * 8 || (input.size() - size_t(count) * 8) % 4 != 0))
+        throw std::invalid_argument("test input must be count*8 floats followed by whole vec4s");
     if (!test_pipeline_)
         test_pipeline_ = std::make_unique<ComputePipeline>(*ctx_, set_->layout(), uint32_t(sizeof(FrameParams)),
                                                            shader_sampling_test());
-    Buffer io(*ctx_, size_t(count) * 8 * sizeof(float), kStorageUsage);
+    Buffer io(*ctx_, std::max(size_t(count) * 8, input.size()) * sizeof(float), kStorageUsage);
     if (!input.empty()) io.upload(input.data(), input.size() * sizeof(float));
     set_->bind_buffer(BINDING_TEST_IO, io);
     FrameParams fp{};
