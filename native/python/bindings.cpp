@@ -20,6 +20,8 @@ nb::ndarray<nb::numpy, float> to_numpy(std::vector<float>&& data, std::vector<si
 
 }  // namespace
 
+void bind_guiding(nb::module_& m);  // guiding_bindings.cpp
+
 NB_MODULE(_native, m) {
     m.doc() = "Parallax native core: Vulkan ray-tracing path tracer";
 
@@ -44,6 +46,8 @@ NB_MODULE(_native, m) {
         return out;
     }, "Every Vulkan device: name, type, whether it can ray-trace (and what it lacks), and "
        "which one device='auto' picks.");
+
+    bind_guiding(m);
 
     m.attr("METHODS") = nb::make_tuple("pt", "nee", "mis");
 
