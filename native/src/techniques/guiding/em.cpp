@@ -68,11 +68,27 @@ void initialise(Vmm& m, const FitOptions& o) {
 
 namespace {
 
+// The mixture's lobes prepared for many evaluations: log(pi_k C_k) once per E-step.
+struct Lobes {
+    uint32_t count = 0;
+    double log_wc[kMaxComponents], kappa[kMaxComponents];
+    Vec3 mu[kMaxComponents];
+    explicit Lobes(const Vmm& m) : count(m.count) {
+        for (uint32_t k = 0; k < count; ++k) {
+            const bool uniform = m.kappa[k] < kKappaMin;
+            log_wc[k] = m.weight[k] > 0.0 ? std::log(m.weight[k]) + vmf_log_norm(m.kappa[k]) : -HUGE_VAL;
+            kappa[k] = uniform ? 0.0 : m.kappa[k];
+            mu[k] = m.mu[k];
+        }
+    }
+};
+
 // Responsibilities of every lobe for direction w (log-sum-exp); returns log V(w).
-double responsibilities(const Vmm& m, const Vec3& w, double* g) {
+double responsibilities(const Lobes& m, const Vec3& w, double* g) {
     double mx = -HUGE_VAL;
     for (uint32_t k = 0; k < m.count; ++k) {
-        g[k] = m.weight[k] > 0.0 ? std::log(m.weight[k]) + vmf_log_pdf(m.mu[k], m.kappa[k], w) : -HUGE_VAL;
+        const Vec3 d = m.mu[k] - w;
+        g[k] = m.log_wc[k] - 0.5 * m.kappa[k] * dot(d, d);
         mx = std::max(mx, g[k]);
     }
     if (!std::isfinite(mx)) {
@@ -81,12 +97,14 @@ double responsibilities(const Vmm& m, const Vec3& w, double* g) {
     }
     double sum = 0.0;
     for (uint32_t k = 0; k < m.count; ++k) sum += (g[k] = std::exp(g[k] - mx));
-    for (uint32_t k = 0; k < m.count; ++k) g[k] /= sum;
+    const double inv = 1.0 / sum;
+    for (uint32_t k = 0; k < m.count; ++k) g[k] *= inv;
     return mx + std::log(sum);
 }
 
 // E-step: this batch's statistics under m; returns the weighted mean log-likelihood.
-double e_step(const Vmm& m, const Batch& b, Statistics& st) {
+double e_step(const Vmm& mix, const Batch& b, Statistics& st) {
+    const Lobes m(mix);
     double g[kMaxComponents];
     double ll = 0.0, wsum = 0.0;
     for (size_t i = 0; i < b.size(); ++i) {
@@ -166,8 +184,9 @@ std::vector<double> split_divergence(const Vmm& m, const Batch& b) {
     if (!(wsum > 0.0)) return d;
     const double mean_w = wsum / n_all;
     double g[kMaxComponents];
+    const Lobes lobes(m);
     for (size_t i = 0; i < b.size(); ++i) {
-        const double logv = responsibilities(m, b.direction[i], g);
+        const double logv = responsibilities(lobes, b.direction[i], g);
         const double q = b.pdf[i];
         const double f = b.weight[i] * q / mean_w;
         const double term = f * f / (std::exp(logv) * q) - 2.0 * f / q;
@@ -194,7 +213,7 @@ uint32_t split_components(VmmState& s, const Batch& b, const FitOptions& o, Stat
 
     uint32_t splits = 0;
     double g[kMaxComponents];
-    const Vmm before = m;  // responsibilities refer to the mixture before any split
+    const Lobes before(m);  // responsibilities refer to the mixture before any split
     for (uint32_t k : order) {
         if (m.count >= o.max_components) break;
         // PCA of lobe k's samples in the tangent plane of its mean: split along the main axis.
