@@ -31,7 +31,18 @@ struct GuidingParams {
     uint max_regions PX_DEFAULT(4096);       // adaptive refinement stops at this many regions
     int probe_x PX_DEFAULT(-1);              // guiding_probe_x: pixel of the Guiding Lobes pass (-1: centre)
     int probe_y PX_DEFAULT(-1);              // guiding_probe_y
+    uint record_stride PX_DEFAULT(1);        // derived by the host: pixel i records in frames f
+                                             // with i % stride == f % stride, into path slot i / stride
 };
+
+// Training samples: each recording path fills up to GUIDING_PATH_VERTICES slots (its first
+// guided vertices); at most GUIDING_MAX_RECORD_PATHS paths record per frame.
+PX_CONST uint GUIDING_PATH_VERTICES = 4;
+PX_CONST uint GUIDING_MAX_RECORD_PATHS = 1u << 18;
+// Guided (and recording) vertices: diffuse, or glossy with roughness above this (the
+// reference's 0.3; sharper lobes are left to the BSDF).
+PX_CONST float GUIDING_MIN_ROUGHNESS = 0.3;
+PX_CONST float GUIDING_QUERY_T = 1e-6;  // t_max of the zero-length region query ray
 
 // One vMF lobe as the sampling shader reads it (thesis eq. 3.27, Jakob 2012):
 // v(w) = norm * exp(kappa (dot(mu, w) - 1)), norm = kappa / (2 pi (1 - exp(-2 kappa))).

@@ -108,6 +108,13 @@ def ic_status(stats):
             f"{stats.get('ic_dropped', 0)} dropped")
 
 
+def guiding_status(stats):
+    """Path guiding's stats line (as F12 shows it)."""
+    return (f"Guiding {stats.get('guiding_trained_regions', 0)}/{stats.get('guiding_regions', 0)} regions trained, "
+            f"{stats.get('guiding_lobes', 0)} lobes, {stats.get('guiding_training_frames', 0)} training frames, "
+            f"fit {stats.get('guiding_fit_milliseconds', 0.0) / 1e3:.2f} s")
+
+
 def _device_arg(value):
     return int(value) if value.isdigit() else value
 
@@ -216,9 +223,9 @@ def cmd_render(args):
     finally:
         sys.stderr.write("\n")
 
-    ic = params.get("ic", False)
-    passes = {name: session.read(name) for name in session.pass_names()
-              if ic or not name.startswith("ic_")}  # the cache's passes only with the cache on
+    ic, guiding = params.get("ic", False), params.get("guiding", False)
+    passes = {name: session.read(name) for name in session.pass_names()  # a technique's passes only with it on
+              if (ic or not name.startswith("ic_")) and (guiding or not name.startswith("guiding_"))}
     write_exr(args.output, passes)
     if args.png:
         write_png(args.png, passes["combined"])
@@ -231,6 +238,8 @@ def cmd_render(args):
           + (f", {args.png}" if args.png else ""))
     if ic:
         print(ic_status(stats))
+    if guiding:
+        print(guiding_status(stats))
     return 0
 
 
