@@ -20,6 +20,8 @@ nb::ndarray<nb::numpy, float> to_numpy(std::vector<float>&& data, std::vector<si
 
 }  // namespace
 
+void bind_guiding(nb::module_& m);  // guiding_bindings.cpp
+
 NB_MODULE(_native, m) {
     m.doc() = "Parallax native core: Vulkan ray-tracing path tracer";
 
@@ -44,6 +46,8 @@ NB_MODULE(_native, m) {
         return out;
     }, "Every Vulkan device: name, type, whether it can ray-trace (and what it lacks), and "
        "which one device='auto' picks.");
+
+    bind_guiding(m);
 
     m.attr("METHODS") = nb::make_tuple("pt", "nee", "mis");
 
@@ -131,7 +135,23 @@ NB_MODULE(_native, m) {
         PX_ADRRS_FIELD("adrrs_max_splits", max_splits)
         PX_ADRRS_FIELD("adrrs_estimate_spp", estimate_spp)
         PX_ADRRS_FIELD("adrrs_estimate", estimate)
-        PX_ADRRS_FIELD("adrrs_ic_glossy", ic_glossy);
+        PX_ADRRS_FIELD("adrrs_ic_glossy", ic_glossy)
+#define PX_GUIDING_FIELD(NAME, MEMBER)                                                                \
+    .def_prop_rw(NAME, [](const px::RenderParams& p) { return p.guiding.MEMBER; },                   \
+                 [](px::RenderParams& p, decltype(px::GuidingParams::MEMBER) v) { p.guiding.MEMBER = v; })
+        PX_GUIDING_FIELD("guiding", enabled)
+        PX_GUIDING_FIELD("guiding_prob", prob)
+        PX_GUIDING_FIELD("guiding_parallax", parallax)
+        PX_GUIDING_FIELD("guiding_training_spp", training_spp)
+        PX_GUIDING_FIELD("guiding_min_samples", min_samples)
+        PX_GUIDING_FIELD("guiding_max_components", max_components)
+        PX_GUIDING_FIELD("guiding_split_merge", split_merge)
+        PX_GUIDING_FIELD("guiding_region_splits", region_splits)
+        PX_GUIDING_FIELD("guiding_region_threshold", region_threshold)
+        PX_GUIDING_FIELD("guiding_max_regions", max_regions)
+        PX_GUIDING_FIELD("guiding_probe_x", probe_x)
+        PX_GUIDING_FIELD("guiding_probe_y", probe_y);
+#undef PX_GUIDING_FIELD
 #undef PX_ADRRS_FIELD
 #undef PX_IC_FIELD
 
@@ -215,6 +235,21 @@ NB_MODULE(_native, m) {
                  d["ic_build_milliseconds"] = st.ic.build_milliseconds;
                  d["adrrs_estimate_frames"] = st.adrrs_estimate_frames;
                  d["adrrs_image_refreshes"] = st.adrrs_image_refreshes;
+                 const px::GuidingStats& g = st.guiding;
+                 d["guiding_training_frames"] = g.training_frames;
+                 d["guiding_regions"] = g.regions;
+                 d["guiding_trained_regions"] = g.trained_regions;
+                 d["guiding_lobes"] = g.lobes;
+                 d["guiding_samples"] = g.samples_added;
+                 d["guiding_samples_dropped"] = g.samples_dropped;
+                 d["guiding_region_fits"] = g.region_fits;
+                 d["guiding_refinements"] = g.refinements;
+                 d["guiding_frame_milliseconds"] = g.frame_milliseconds;
+                 d["guiding_readback_milliseconds"] = g.readback_milliseconds;
+                 d["guiding_fit_milliseconds"] = g.fit_milliseconds;
+                 d["guiding_upload_milliseconds"] = g.upload_milliseconds;
+                 d["guiding_bytes_per_region"] = g.bytes_per_region;
+                 d["guiding_sample_buffer_bytes"] = g.sample_buffer_bytes;
                  d["device"] = s.device().name;
                  return d;
              })

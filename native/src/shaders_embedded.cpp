@@ -1,6 +1,9 @@
 #include "shaders_embedded.h"
 
 #include "closesthit.spv.h"
+#include "guiding_query_closest_hit.spv.h"
+#include "guiding_query_intersection.spv.h"
+#include "guiding_query_miss.spv.h"
 #include "ic_finish.spv.h"
 #include "ic_hemisphere.spv.h"
 #include "ic_query_any_hit.spv.h"
@@ -27,4 +30,7 @@ PX_SHADER(ic_query_miss)
 PX_SHADER(ic_query_intersection)
 PX_SHADER(ic_query_any_hit)
 PX_SHADER(ic_finish)
+PX_SHADER(guiding_query_miss)
+PX_SHADER(guiding_query_intersection)
+PX_SHADER(guiding_query_closest_hit)
 }  // namespace px

@@ -6,6 +6,7 @@ layout(constant_id = 0) const uint METHOD = METHOD_MIS;
 
 #include "../techniques/irradiance_cache.glsl"
 #include "../techniques/adrrs.glsl"
+#include "../techniques/guiding_field.glsl"
 
 layout(set = 0, binding = BINDING_TLAS) uniform accelerationStructureEXT tlas;
 layout(location = 0) rayPayloadEXT HitPayload hit;
@@ -29,6 +30,9 @@ struct PathOptions {
     uint adrrs_pixels;    // pixels of this dispatch
     uint adrrs_samples;   // samples per pixel of this dispatch (the split budget's multiple)
     uint pixel;           // for creation requests (their order on the host)
+    bool guiding;         // guided sampling where the region has a mixture (TECH_GUIDING)
+    bool guiding_record;  // record training samples at the first guided vertices ...
+    uint guiding_slot;    // ... into guiding_samples[slot * GUIDING_PATH_VERTICES + k]
     // Where the path starts: a camera or hemisphere ray (throughput 1, no bounces), or a split
     // copy (resume): the ray to a vertex whose emission and NEE the path that split counted.
     vec3 throughput;
@@ -57,6 +61,9 @@ PathOptions path_options() {
     opt.adrrs_pixels = 0u;
     opt.adrrs_samples = 1u;
     opt.pixel = 0u;
+    opt.guiding = false;
+    opt.guiding_record = false;
+    opt.guiding_slot = 0u;
     opt.throughput = vec3(1.0);
     opt.bounces = 0u;
     opt.discrete = 0u;
@@ -130,6 +137,17 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
     bool prev_delta = true;  // the camera ray counts as delta: nothing to weigh it against
     float prev_pdf = 0.0;
     uint bounces = opt.bounces, discrete = opt.discrete;
+    // Guiding training records (thesis 4.6.2) of this path's first guided vertices: the
+    // direction sampled there, its pdf, and what the rest of the path brings in along it,
+    // (radiance at the end - radiance when it was sampled) / throughput after its sampling
+    // weight. With NEE that is the MIS-weighted emission the next segment finds plus the
+    // light (NEE and beyond) of the later vertices: the next vertex's NEE is credited, the
+    // emission NEE already sampled here counts only with its BSDF-side MIS weight.
+    GuidingSample g_rec[GUIDING_PATH_VERTICES];
+    vec3 g_throughput[GUIDING_PATH_VERTICES], g_radiance[GUIDING_PATH_VERTICES];
+    uint g_count = 0u;
+    uint g_open = NO_INDEX;  // the record whose next non-specular vertex is not reached yet
+    float g_travelled = 0.0; // path length from that record's vertex to this segment's origin
 
     for (;;) {
         traceRayEXT(tlas, gl_RayFlagsOpaqueEXT, 0xff, 0, 0, MISS_SCENE, origin, t_min, dir, t_max, 0);
@@ -149,9 +167,11 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
                                       light_pdf) != NO_INDEX) {
             res.radiance += throughput * light_radiance * (emission_scale * emission_weight(prev_delta, prev_pdf, light_pdf, opt.light_samples));
             if (res.segments == 1u) res.first_t = t_light;
+            if (USES(TECH_GUIDING) && g_open != NO_INDEX) g_rec[g_open].distance = g_travelled + t_light;
             break;
         }
-        if (hit.t < 0.0) {
+        if (hit.t < 0.0) {  // escaped: its record keeps the infinite distance
+            if (USES(TECH_GUIDING) && g_open != NO_INDEX) g_rec[g_open].distance = GUIDING_DISTANCE_INFINITE;
             vec3 le = distant_radiance(dir, camera_ray, light_pdf);
             res.radiance += throughput * le * (emission_scale * emission_weight(prev_delta, prev_pdf, light_pdf, opt.light_samples));
             break;
@@ -160,6 +180,8 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         SurfaceHit sh = fetch_surface(hit.instance, hit.primitive, hit.barycentrics);
         Material mat = materials[sh.material];
         vec3 wo = -dir;
+        // The open record's distance, final unless this vertex turns out delta (below).
+        if (USES(TECH_GUIDING) && g_open != NO_INDEX) g_rec[g_open].distance = g_travelled + hit.t;
         if (res.segments == 1u) {
             res.first_t = hit.t;
             res.first_normal = dot(sh.ns, wo) >= 0.0 ? sh.ns : -sh.ns;
@@ -192,6 +214,19 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         make_basis(ns, tangent, bitangent);
         vec3 wo_local = vec3(dot(wo, tangent), dot(wo, bitangent), dot(wo, ns));
         bool delta = surface_is_delta(surf);
+        if (USES(TECH_GUIDING) && g_open != NO_INDEX) {
+            if (delta) g_travelled += hit.t;  // through specular chains to the next real vertex
+            else g_open = NO_INDEX;
+        }
+        // The guiding region's mixture at this vertex (none: BSDF sampling alone).
+        bool g_vertex = USES(TECH_GUIDING) && opt.guiding && !delta && guiding_surface(surf, mat.roughness);
+        uint g_region = NO_INDEX, g_lobes = 0u;
+        if (g_vertex) {
+            g_region = guiding_region_at(sh.p);
+            if (g_region != NO_INDEX) g_lobes = guiding_regions[g_region].lobe_count;
+        }
+        float g_prob = g_lobes > 0u ? tech.guiding.prob : 0.0;
+        uint g_first = g_region * GUIDING_MAX_COMPONENTS;
         if (!albedo_done && !delta) {
             res.albedo = albedo_throughput * surf.albedo;
             albedo_done = true;
@@ -235,6 +270,9 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
                 float bsdf_pdf;
                 vec3 f = bsdf_eval(surf, wo_local, wi_local, bsdf_pdf);
                 if (max3(f) <= 0.0 || max3(ls.radiance) <= 0.0) continue;
+                // Guided vertex: the continuation's density is the one-sample MIS mixture.
+                if (USES(TECH_GUIDING) && g_prob > 0.0)
+                    bsdf_pdf = mix(bsdf_pdf, guiding_vmm_pdf(g_first, g_lobes, sh.p, ls.wi), g_prob);
                 // Aim the shadow ray from the offset origin at the sampled point itself (a
                 // direction kept from the unoffset point misses grazing lights), stopping short.
                 vec3 shadow_origin = offset_ray(sh.p, dot(ls.wi, ng) > 0.0 ? ng : -ng);
@@ -279,9 +317,26 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
             adrrs_decided = true;
         }
 
-        // Continue the path by sampling the BSDF.
+        // Continue the path by sampling the BSDF, or at a guided vertex the region's VMM with
+        // probability guiding_prob (one-sample MIS, Veach 1997 sec. 9.2.4: the direction's
+        // weight is f cos / (p p_vmm + (1 - p) p_bsdf) whichever technique drew it).
         BsdfSample bs;
-        if (!bsdf_sample(surf, wo_local, vec3(rnd(rng), rnd(rng), rnd(rng)), bs)) break;
+        if (USES(TECH_GUIDING) && g_prob > 0.0 && rnd(rng) < g_prob) {
+            vec3 wi = guiding_vmm_sample(g_first, g_lobes, sh.p, vec3(rnd(rng), rnd(rng), rnd(rng)));
+            bs.wi = vec3(dot(wi, tangent), dot(wi, bitangent), dot(wi, ns));
+            vec3 f = bsdf_eval(surf, wo_local, bs.wi, bs.pdf);
+            if (max3(f) <= 0.0 || !(bs.pdf > 0.0)) break;
+            bs.weight = f / bs.pdf;  // as if the BSDF had sampled it; the mixture pdf follows
+            bs.delta = false;
+        } else if (!bsdf_sample(surf, wo_local, vec3(rnd(rng), rnd(rng), rnd(rng)), bs)) {
+            break;
+        }
+        if (USES(TECH_GUIDING) && g_prob > 0.0 && !bs.delta) {
+            vec3 wi = normalize(bs.wi.x * tangent + bs.wi.y * bitangent + bs.wi.z * ns);
+            float p = mix(bs.pdf, guiding_vmm_pdf(g_first, g_lobes, sh.p, wi), g_prob);
+            bs.weight *= bs.pdf / p;
+            bs.pdf = p;
+        }
         throughput *= bs.weight;
         if (bs.delta) {
             discrete++;
@@ -293,6 +348,14 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         prev_delta = bs.delta;
         prev_pdf = bs.pdf;
         dir = normalize(bs.wi.x * tangent + bs.wi.y * bitangent + bs.wi.z * ns);
+        if (USES(TECH_GUIDING) && opt.guiding_record && g_vertex && g_count < GUIDING_PATH_VERTICES) {
+            g_rec[g_count] = GuidingSample(sh.p, g_region, guiding_pack_direction(dir), bs.pdf, 0.0,
+                                           GUIDING_DISTANCE_INFINITE);
+            g_throughput[g_count] = throughput;
+            g_radiance[g_count] = res.radiance;
+            g_open = g_count++;
+            g_travelled = 0.0;
+        }
         origin = offset_ray(sh.p, dot(dir, ng) > 0.0 ? ng : -ng);
         t_min = 0.0;
         t_max = INFINITY_F;
@@ -302,6 +365,15 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
             float survive = min(1.0, max3(throughput));
             if (rnd(rng) >= survive) break;
             throughput /= survive;
+        }
+    }
+    if (USES(TECH_GUIDING)) {
+        for (uint k = 0u; k < g_count; ++k) {
+            vec3 gathered = res.radiance - g_radiance[k], t = g_throughput[k];
+            vec3 incident = vec3(t.x > 0.0 ? gathered.x / t.x : 0.0, t.y > 0.0 ? gathered.y / t.y : 0.0,
+                                 t.z > 0.0 ? gathered.z / t.z : 0.0);
+            g_rec[k].weight = max(luminance(incident), 0.0) / g_rec[k].pdf;  // non-finite: the host drops it
+            guiding_samples[opt.guiding_slot * GUIDING_PATH_VERTICES + k] = g_rec[k];
         }
     }
     return res;

@@ -16,3 +16,10 @@ struct IcQuery {
     float weight;              // sum of w_i
     vec2 weighted_gradients;   // sum of w_i (|grad_t|, |grad_r|)
 };
+
+// The guiding region query (shaders/techniques/guiding_field.glsl): the region found (NO_INDEX:
+// none) and, for the lobes pass' sphere rays, the hit distance.
+struct GuidingQuery {
+    uint region;
+    float t;
+};

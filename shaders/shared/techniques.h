@@ -13,6 +13,7 @@
 // Technique bits: specialization constant TECHNIQUES (constant_id 3), part of the pipeline key.
 PX_CONST uint TECH_IC = 1u << 0;     // the irradiance cache exists (built for shading or for ADRRS)
 PX_CONST uint TECH_ADRRS = 1u << 1;  // adjoint-driven Russian roulette and splitting
+PX_CONST uint TECH_GUIDING = 1u << 2;  // path guiding (region TLAS, VMM sampling, training samples)
 
 // Programs: which ray-generation shader a ray-tracing pipeline starts (part of its key).
 PX_CONST uint PROGRAM_CAMERA = 0;         // raygen.rgen: camera paths into the film
@@ -23,6 +24,7 @@ PX_CONST uint FRAME_RENDER = 0;      // camera paths accumulate into the film
 PX_CONST uint FRAME_IC_PREPARE = 1;  // camera paths only queue cache entries (thesis 4.4)
 PX_CONST uint FRAME_ADRRS_ESTIMATE = 2;  // camera paths to the first non-delta vertex build ADRRS' pixel estimate
 PX_CONST uint FRAME_ADRRS_SPLITS = 3;    // one invocation per queued pixel traces its split paths
+PX_CONST uint FRAME_GUIDING_TRAIN = 4;   // camera paths only record guiding training samples
 
 // ---- irradiance cache (thesis 3.2.3, 4.4; Ward et al. 1988; Ward & Heckbert 1992) ----------
 // Stratified hemisphere of one entry: IC_THETA x IC_PHI cosine-weighted rays (thesis eq. 3.20).
@@ -86,10 +88,13 @@ struct AdrrsSplit {
 };
 PX_CONST uint ADRRS_SPLIT_CAMERA_RAY = 1u;
 
+#include "guiding.h"
+
 // Every technique's settings, one buffer (BINDING_TECH_PARAMS).
 struct TechniqueParams {
     IcParams ic;
     AdrrsParams adrrs;
+    GuidingParams guiding;
 };
 
 // One cache entry. The influence sphere (centre position, radius accuracy * radius) is also

@@ -50,14 +50,23 @@ PX_CONST uint BINDING_ADRRS_ESTIMATE = 27; // vec4 per pixel: ADRRS' pixel estim
 PX_CONST uint BINDING_ADRRS_QUEUE = 28;    // uint active count, 3 pad; per pixel of a dispatch: entries,
                                            // copies; then the list of active pixels
 PX_CONST uint BINDING_ADRRS_SPLITS = 29;   // AdrrsSplit[pixel of a dispatch][adrrs.slots]
-PX_CONST uint BINDING_COUNT = 30;
+PX_CONST uint BINDING_GUIDING_TLAS = 30;    // guiding: TLAS over the regions' AABBs (spatial order)
+PX_CONST uint BINDING_GUIDING_REGIONS = 31; // GuidingRegion[regions]
+PX_CONST uint BINDING_GUIDING_LOBES = 32;   // GuidingLobe[regions * GUIDING_MAX_COMPONENTS]
+PX_CONST uint BINDING_GUIDING_ORDER = 33;   // uint per region-BLAS primitive: its region
+PX_CONST uint BINDING_GUIDING_SAMPLES = 34; // GuidingSample[recording paths * GUIDING_PATH_VERTICES]
+PX_CONST uint BINDING_COUNT = 35;
 
 // ---- shader binding table: miss shaders and hit groups (RayTracingPipeline group order) -
 PX_CONST uint MISS_SCENE = 0;         // miss.rmiss: the world
 PX_CONST uint MISS_SHADOW = 1;        // shadow.rmiss: the light is visible
 PX_CONST uint MISS_IC_QUERY = 2;      // ic_query.rmiss: nothing to do
+PX_CONST uint MISS_GUIDING_QUERY = 3; // guiding_query.rmiss: no region
 PX_CONST uint HIT_GROUP_TRIANGLES = 0;  // the scene TLAS' instances (closesthit.rchit)
 PX_CONST uint HIT_GROUP_IC = 1;         // the cache TLAS' instance (ic_query.rint + .rahit)
+PX_CONST uint HIT_GROUP_GUIDING = 2;    // the region TLAS' instance (guiding_query.rint + .rchit)
+// A pipeline without the cache holds guiding's miss shader and hit group in the cache's slots
+// too (unused copies), so these indices hold in every pipeline.
 
 // ---- film passes ------------------------------------------------------------------------
 PX_CONST uint PASS_COMBINED = 0;   // rgb radiance, a = 1
@@ -69,7 +78,10 @@ PX_CONST uint PASS_IC_IRRADIANCE = 5;  // rgb = cached irradiance at the first d
 PX_CONST uint PASS_IC_GRADIENTS = 6;   // r = |translational|, g = |rotational| / ic.gradient_max
 PX_CONST uint PASS_ADRRS_ESTIMATE = 7;  // rgb = ADRRS' pixel estimate
 PX_CONST uint PASS_ADRRS_SPLITS = 8;    // x = extra paths split off per pixel sample
-PX_CONST uint PASS_COUNT = 9;
+PX_CONST uint PASS_GUIDING_REGIONS = 9;     // rgb = a colour per guiding region at the first hit
+PX_CONST uint PASS_GUIDING_COMPONENTS = 10; // x = active lobes / guiding_max_components at the first hit
+PX_CONST uint PASS_GUIDING_LOBES = 11;      // rgb = VMM pdf: probe inset (lat-long) + per-region spheres
+PX_CONST uint PASS_COUNT = 12;
 
 // ---- enums ------------------------------------------------------------------------------
 PX_CONST uint METHOD_PT = 0;   // BSDF sampling only
@@ -210,6 +222,7 @@ struct FrameParams {
     uint col_offset;
     uint sample_offset;
     uint sample_count;
+    uint guiding_record;    // 1: camera paths record guiding training samples (GuidingSample)
 };
 
 // Sampling test routines (shaders/tests/sampling_test.comp).
@@ -218,7 +231,12 @@ PX_CONST uint TEST_CONDUCTOR = 1;
 PX_CONST uint TEST_DIELECTRIC = 2;
 PX_CONST uint TEST_LIGHT = 3;   // light sampling from a shading point (all lights)
 PX_CONST uint TEST_IC_HEMISPHERE = 4;  // the cache's stratified cosine hemisphere (one ray per stratum)
-PX_CONST uint TEST_ADRRS = 8;          // ADRRS' weight window and expected-value split
+// Guiding (shaders/techniques/guiding.glsl); lobes (3 vec4 each) follow the samples in the
+// test buffer, test_params.xyz = query position, test_param0 = lobe count.
+PX_CONST uint TEST_GUIDING_VMF = 5;   // lobe 0 alone: vmf_sample / vmf_pdf
+PX_CONST uint TEST_GUIDING_VMM = 6;   // the mixture: guiding_vmm_sample / guiding_vmm_pdf
+PX_CONST uint TEST_GUIDING_PACK = 7;  // guiding_pack_direction / guiding_unpack_direction
+PX_CONST uint TEST_ADRRS = 8;         // ADRRS' weight window and expected-value split
 
 #include "techniques.h"
 

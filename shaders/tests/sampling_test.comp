@@ -18,6 +18,24 @@
 layout(local_size_x = 64) in;
 layout(set = 0, binding = BINDING_TEST_IO, scalar) buffer TestIo { vec4 io[]; };
 
+// Guiding routines: GuidingLobe i is stored as 3 vec4 after the 2 * test_count sample slots.
+GuidingLobe test_lobe(uint i) {
+    uint b = 2u * params.test_count + 3u * i;
+    vec4 a = io[b], c = io[b + 1u], d = io[b + 2u];
+    GuidingLobe l;
+    l.mu = a.xyz;
+    l.kappa = a.w;
+    l.weight = c.x;
+    l.norm = c.y;
+    l.exp_m2k = c.z;
+    l.distance = c.w;
+    l.target = d.xyz;
+    l.cdf = d.w;
+    return l;
+}
+#define GUIDING_FETCH_LOBE(i) test_lobe(i)
+#include "../techniques/guiding.glsl"
+
 const uint TEST_EVAL = 16u;
 
 // Sum over all lights of the density with which sample_light produces direction wi from p,
@@ -92,6 +110,38 @@ void main() {
         vec3 wi = stratified_cosine_hemisphere(stratum / IC_PHI, stratum % IC_PHI, IC_THETA, IC_PHI, rnd2(rng));
         io[2u * i] = vec4(wi, wi.z * INV_PI);
         io[2u * i + 1u] = vec4(1.0, wi.z * INV_PI, wi.z * INV_PI, 1.0);
+        return;
+    }
+
+    if (routine == TEST_GUIDING_VMF || routine == TEST_GUIDING_VMM) {
+        vec3 x = params.test_params.xyz;
+        uint lobes = uint(params.test_param0);
+        GuidingLobe l = test_lobe(0u);
+        if (eval_mode) {
+            vec3 wi = normalize(io[2u * i].xyz);
+            float pdf = routine == TEST_GUIDING_VMF ? vmf_pdf(guiding_lobe_mu(l, x), l.kappa, l.norm, wi)
+                                                    : guiding_vmm_pdf(0u, lobes, x, wi);
+            io[2u * i + 1u] = vec4(0.0, pdf, 0.0, 0.0);
+            return;
+        }
+        vec3 u = vec3(rnd(rng), rnd(rng), rnd(rng));
+        vec3 wi;
+        float pdf;
+        if (routine == TEST_GUIDING_VMF) {
+            wi = vmf_sample(guiding_lobe_mu(l, x), l.kappa, l.exp_m2k, u.xy);
+            pdf = vmf_pdf(guiding_lobe_mu(l, x), l.kappa, l.norm, wi);
+        } else {
+            wi = guiding_vmm_sample(0u, lobes, x, u);
+            pdf = guiding_vmm_pdf(0u, lobes, x, wi);
+        }
+        io[2u * i] = vec4(wi, pdf);
+        io[2u * i + 1u] = vec4(1.0, 0.0, pdf, 1.0);
+        return;
+    }
+
+    if (routine == TEST_GUIDING_PACK) {  // io[2i].xyz: a direction; out: packed bits, unpacked
+        uint packed = guiding_pack_direction(normalize(io[2u * i].xyz));
+        io[2u * i + 1u] = vec4(uintBitsToFloat(packed), guiding_unpack_direction(packed));
         return;
     }
 

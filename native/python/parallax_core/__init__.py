@@ -26,6 +26,7 @@ __all__ = ["Session", "RenderParams", "devices", "METHODS", "PASSES", "PARTS", "
 PASSES = tuple(_NativeSession.pass_names())
 HEURISTICS = ("balance", "power")
 ADRRS_ESTIMATES = ("ic", "image")  # px::ADRRS_ESTIMATE_IC, ADRRS_ESTIMATE_IMAGE
+SIGNED_FIELDS = ("guiding_probe_x", "guiding_probe_y")  # -1: the image centre
 
 
 @dataclasses.dataclass
@@ -65,6 +66,20 @@ class RenderParams:
     adrrs_estimate_spp: int = 4     # ic: estimate frames; image: samples before the first estimate
     adrrs_estimate: str = "ic"      # pixel estimate: ic (NEE + cache at the first hit) | image (blurred)
     adrrs_ic_glossy: bool = True    # the ic estimate reads the cache at glossy vertices too
+    # Path guiding with parallax-aware vMF mixtures (thesis 3.2.5-3.2.8, 4.6; Ruppert et al. 2020;
+    # px::GuidingParams in shaders/shared/guiding.h, checked by px::validate_guiding_params).
+    guiding: bool = False           # on/off
+    guiding_prob: float = 0.5       # one-sample MIS: probability of sampling the VMM (else the BSDF)
+    guiding_parallax: bool = True   # lobes aim at their target points (thesis eq. 4.5)
+    guiding_training_spp: int = 32  # 1-spp training frames before the image accumulates; 0 = keep training
+    guiding_min_samples: int = 512  # a region fits once it has accumulated this many samples
+    guiding_max_components: int = 16  # lobes per region (1..16)
+    guiding_split_merge: bool = True  # split and merge lobes (Ruppert et al. 2020, sec. 4)
+    guiding_region_splits: int = 8  # 2^k initial regions (halvings of the scene box)
+    guiding_region_threshold: int = 10000  # samples before a region splits; 0 = never
+    guiding_max_regions: int = 4096  # adaptive refinement stops here
+    guiding_probe_x: int = -1       # pixel of the Guiding Lobes inset; -1 = image centre
+    guiding_probe_y: int = -1
 
     def validate(self) -> None:
         if self.method not in METHODS:
@@ -75,7 +90,10 @@ class RenderParams:
             raise ValueError(f"unknown adrrs_estimate {self.adrrs_estimate!r} (ic or image)")
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
-            if f.type in ("int", "bool"):
+            if f.name in SIGNED_FIELDS:
+                if isinstance(value, bool) or not isinstance(value, int) or not -1 <= value < 2**31:
+                    raise ValueError(f"{f.name} must be an integer >= -1, got {value!r}")
+            elif f.type in ("int", "bool"):
                 if not isinstance(value, int) or value < 0 or value >= 2**32 or (f.type == "bool" and value > 1):
                     kind = "a boolean" if f.type == "bool" else "a non-negative integer"
                     raise ValueError(f"{f.name} must be {kind}, got {value!r}")
@@ -172,13 +190,18 @@ class Session(_NativeSession):
         """Every pass, by name."""
         return {name: self.read(name) for name in PASSES}
 
-    def test_sampling(self, routine: int, params, count: int, seed: int = 0, directions=None):
-        """Run shaders/tests/sampling_test.comp; returns float32 (count, 2, 4). Test use only."""
+    def test_sampling(self, routine: int, params, count: int, seed: int = 0, directions=None, constants=None):
+        """Run shaders/tests/sampling_test.comp; returns float32 (count, 2, 4). Test use only.
+        ``constants``: float32 values (a multiple of 4) the routine reads after the samples."""
         import numpy as np
 
         data = []
-        if directions is not None:
+        if directions is not None or constants is not None:
             d = np.zeros((count, 2, 4), np.float32)
-            d[:, 0, :3] = directions
-            data = d.ravel().tolist()
+            if directions is not None:
+                d[:, 0, :3] = directions
+            data = d.ravel()
+            if constants is not None:
+                data = np.concatenate([data, np.asarray(constants, np.float32).ravel()])
+            data = data.tolist()
         return self._test_sampling(routine, [float(x) for x in params], count, seed, data)

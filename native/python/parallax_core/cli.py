@@ -108,6 +108,13 @@ def ic_status(stats):
             f"{stats.get('ic_dropped', 0)} dropped")
 
 
+def guiding_status(stats):
+    """Path guiding's stats line (as F12 shows it)."""
+    return (f"Guiding {stats.get('guiding_trained_regions', 0)}/{stats.get('guiding_regions', 0)} regions trained, "
+            f"{stats.get('guiding_lobes', 0)} lobes, {stats.get('guiding_training_frames', 0)} training frames, "
+            f"fit {stats.get('guiding_fit_milliseconds', 0.0) / 1e3:.2f} s")
+
+
 def _device_arg(value):
     return int(value) if value.isdigit() else value
 
@@ -216,10 +223,11 @@ def cmd_render(args):
     finally:
         sys.stderr.write("\n")
 
-    ic, adrrs = params.get("ic", False), params.get("adrrs", False)
+    ic, adrrs, guiding = params.get("ic", False), params.get("adrrs", False), params.get("guiding", False)
     # A technique's passes only with the technique on.
     passes = {name: session.read(name) for name in session.pass_names()
-              if (ic or not name.startswith("ic_")) and (adrrs or not name.startswith("adrrs_"))}
+              if (ic or not name.startswith("ic_")) and (adrrs or not name.startswith("adrrs_"))
+              and (guiding or not name.startswith("guiding_"))}
     write_exr(args.output, passes)
     if args.png:
         write_png(args.png, passes["combined"])
@@ -232,6 +240,8 @@ def cmd_render(args):
           + (f", {args.png}" if args.png else ""))
     if ic or adrrs:
         print(ic_status(stats))
+    if guiding:
+        print(guiding_status(stats))
     return 0
 
 

@@ -15,7 +15,7 @@ from .scene import (Camera, Light, Material, Mesh, SceneData, World,
 __all__ = [
     "quad", "box", "uv_sphere", "merge",
     "cornell_box", "veach_mis", "furnace_sphere", "closed_emitter_box",
-    "triangle_soup_scene", "env_map_scene", "sun_room", "SCENES",
+    "triangle_soup_scene", "env_map_scene", "sun_room", "lamp_in_glass", "SCENES",
 ]
 
 
@@ -337,6 +337,39 @@ def sun_room(width=256, height=256):
                      width, height)
 
 
+def lamp_in_glass(width=128, height=128, strength=100.0, lamp=(1.55, 1.55, 2.1), lamp_size=0.1, shell_size=0.3,
+                  albedo=0.8):
+    """light_behind_glass without Blender (blender_scenes/build.py): a closed room of diffuse
+    walls whose only light is a small emissive cube inside a hollow glass cube (1 cm walls)
+    near the ceiling (the shell's walls are 1 cm thick whatever its size). Shadow rays cannot pass the glass: every wall is lit by caustic paths
+    only, which BSDF sampling finds rarely (the thesis' "clocks" situation, sec. 5.3.4)."""
+    materials = [Material("diffuse", (albedo, albedo, albedo), name="white"),
+                 Material("diffuse", (0.5, 0.45, 0.4), name="floor"),
+                 Material("dielectric", (1.0, 1.0, 1.0), roughness=0.0, ior=1.5, name="glass"),
+                 Material("emission", (0.0, 0.0, 0.0), emission=(1.0, 0.9, 0.75), emission_strength=strength,
+                          name="lamp")]
+    P = lambda *c: np.array(c, dtype=np.float64)
+    lo, hi = P(-2, -2, 0), P(2, 2, 2.5)
+    inside = (lo + hi) / 2
+    x0, y0, z0 = lo
+    x1, y1, z1 = hi
+    walls = [([P(x0, y0, z0), P(x1, y0, z0), P(x1, y1, z0), P(x0, y1, z0)], 1, "floor"),
+             ([P(x0, y0, z1), P(x1, y0, z1), P(x1, y1, z1), P(x0, y1, z1)], 0, "ceiling"),
+             ([P(x0, y0, z0), P(x0, y1, z0), P(x0, y1, z1), P(x0, y0, z1)], 0, "wall_-x"),
+             ([P(x1, y0, z0), P(x1, y1, z0), P(x1, y1, z1), P(x1, y0, z1)], 0, "wall_+x"),
+             ([P(x0, y0, z0), P(x1, y0, z0), P(x1, y0, z1), P(x0, y0, z1)], 0, "wall_-y"),
+             ([P(x0, y1, z0), P(x1, y1, z0), P(x1, y1, z1), P(x0, y1, z1)], 0, "wall_+y")]
+    meshes = [_oriented_quad(c, inside, m, name) for c, m, name in walls]
+    meshes.append(box((0.3, 0.2, 0.4), (0.6, 0.6, 0.8), math.radians(20.0), 0, "block"))
+    inner = box(lamp, shell_size - 0.02, material=2)
+    inner.indices = np.asarray(inner.indices)[:, ::-1].copy()  # facing the cavity: out of the glass
+    meshes.append(merge([box(lamp, shell_size, material=2), inner], "glass_shell"))
+    meshes.append(box(lamp, lamp_size, material=3, name="lamp"))
+    camera = Camera.look_at((-1.8, -1.2, 1.2), (0.0, 1.3, 1.2), fov_y_degrees=75.0, width=width, height=height,
+                            clip_start=0.05)
+    return SceneData(meshes, [], materials, [], [], World((0.0, 0.0, 0.0), 1.0), camera, width, height)
+
+
 # name -> builder, for `parallax scene NAME`
 SCENES = {
     "cornell_box": cornell_box,
@@ -346,4 +379,5 @@ SCENES = {
     "triangle_soup": triangle_soup_scene,
     "env_map_scene": env_map_scene,
     "sun_room": sun_room,
+    "lamp_in_glass": lamp_in_glass,
 }

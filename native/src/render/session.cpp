@@ -13,7 +13,7 @@ bool RenderParams::operator==(const RenderParams& o) const {
     return method == o.method && mis_heuristic == o.mis_heuristic && samples_per_frame == o.samples_per_frame &&
            max_depth == o.max_depth && depth_leeway == o.depth_leeway && rr_start_depth == o.rr_start_depth &&
            light_samples == o.light_samples && seed == o.seed && std::memcmp(&ic, &o.ic, sizeof(ic)) == 0 &&
-           std::memcmp(&adrrs, &o.adrrs, sizeof(adrrs)) == 0;
+           std::memcmp(&adrrs, &o.adrrs, sizeof(adrrs)) == 0 && std::memcmp(&guiding, &o.guiding, sizeof(guiding)) == 0;
 }
 
 const std::vector<PassInfo>& pass_table() {
@@ -22,6 +22,8 @@ const std::vector<PassInfo>& pass_table() {
         {"albedo", PASS_ALBEDO, 3},     {"ray_depth", PASS_RAY_DEPTH, 1},
         {"ic_irradiance", PASS_IC_IRRADIANCE, 3}, {"ic_gradients", PASS_IC_GRADIENTS, 3},
         {"adrrs_estimate", PASS_ADRRS_ESTIMATE, 3}, {"adrrs_splits", PASS_ADRRS_SPLITS, 1},
+        {"guiding_regions", PASS_GUIDING_REGIONS, 3}, {"guiding_components", PASS_GUIDING_COMPONENTS, 1},
+        {"guiding_lobes", PASS_GUIDING_LOBES, 3},
     };
     return table;
 }
@@ -31,7 +33,7 @@ Session::Session(uint32_t width, uint32_t height, const std::string& device) : w
         throw std::invalid_argument("image size " + std::to_string(width) + "x" + std::to_string(height) +
                                     " is out of range (1..16384)");
     ctx_ = Context::shared(device);
-    set_ = std::make_unique<DescriptorSet>(*ctx_, BINDING_COUNT, std::vector<uint32_t>{BINDING_TLAS, BINDING_IC_TLAS});
+    set_ = std::make_unique<DescriptorSet>(*ctx_, BINDING_COUNT, std::vector<uint32_t>{BINDING_TLAS, BINDING_IC_TLAS, BINDING_GUIDING_TLAS});
     const size_t pixels = size_t(width) * height;
     film_ = Buffer(*ctx_, pixels * PASS_COUNT * sizeof(vec4), kStorageUsage);
     ray_count_ = Buffer(*ctx_, pixels * sizeof(uint32_t), kStorageUsage);
@@ -45,6 +47,8 @@ Session::Session(uint32_t width, uint32_t height, const std::string& device) : w
     ic_->bind(*set_);
     adrrs_ = std::make_unique<Adrrs>(*ctx_);
     adrrs_->bind(*set_);
+    guiding_ = std::make_unique<Guiding>(*ctx_);
+    guiding_->bind(*set_);
     upload_technique_params();
     reset();
 }
@@ -53,6 +57,7 @@ void Session::upload_technique_params() {
     TechniqueParams t{};
     t.ic = ic_->params();
     t.adrrs = adrrs_->params();
+    t.guiding = guiding_->params();
     technique_params_.upload(&t, sizeof(t));
 }
 
@@ -76,6 +81,8 @@ void Session::reset_accumulation(bool keep_cache) {
     ic_->bind(*set_);  // configure may have made new buffers and a new TLAS
     adrrs_->configure(params_.adrrs, width_, height_, params_.samples_per_frame);
     adrrs_->bind(*set_);
+    guiding_->configure(params_.guiding, scene_->host(), scene_version_, params_.seed, width_, height_);
+    guiding_->bind(*set_);
     upload_technique_params();
 }
 
@@ -121,6 +128,7 @@ std::vector<std::string> Session::update(const SceneArrays& arrays, bool spatial
     scene_ = std::move(next);
     arrays_ = std::move(next_arrays);
     scene_->bind(*set_);
+    if (parts != PART_CAMERA) ++scene_version_;  // guiding starts over (its field survives camera moves)
     // Edited scene data: the cache starts over (no stale irradiance). A camera move leaves
     // the irradiance where it was: the cache is kept and fills the new view's holes.
     reset_accumulation(parts == PART_CAMERA);
@@ -136,6 +144,7 @@ void Session::set_params(const RenderParams& p) {
     if (p.max_depth > 1024 || p.depth_leeway > 1024) throw std::invalid_argument("max_depth/depth_leeway must be <= 1024");
     validate_ic_params(p.ic);
     validate_adrrs_params(p.adrrs);
+    validate_guiding_params(p.guiding);
     std::lock_guard<std::mutex> lock(mutex_);
     if (p == params_) return;
     params_ = p;
@@ -155,16 +164,19 @@ RayTracingPipeline& Session::pipeline(uint32_t program) {
     static std::mutex mutex;
     static auto& pipelines =
         *new std::map<std::pair<Context*, std::array<uint32_t, 5>>, std::unique_ptr<RayTracingPipeline>>();
-    const uint32_t techniques = (ic_->enabled() ? TECH_IC : 0u) | (adrrs_->enabled() ? TECH_ADRRS : 0u);
+    const uint32_t techniques = (ic_->enabled() ? TECH_IC : 0u) | (adrrs_->enabled() ? TECH_ADRRS : 0u) |
+                                (guiding_->enabled() ? TECH_GUIDING : 0u);
     // Specialisation constants 0-3 (integrator.glsl, mis.glsl, common.glsl, irradiance_cache.glsl).
     const std::array<uint32_t, 5> key = {params_.method, params_.mis_heuristic, scene_->host().features, techniques,
                                          program};
     std::lock_guard<std::mutex> lock(mutex);
     auto it = pipelines.find({ctx_.get(), key});
     if (it != pipelines.end()) return *it->second;
-    // Stages, then groups: raygen | miss: MISS_SCENE, MISS_SHADOW, MISS_IC_QUERY | hit groups:
-    // HIT_GROUP_TRIANGLES, HIT_GROUP_IC (procedural: intersection + any-hit). The cache's
-    // shaders are left out of pipelines that never query it (less to compile).
+    // Stages, then groups: raygen | miss: MISS_SCENE, MISS_SHADOW, MISS_IC_QUERY,
+    // MISS_GUIDING_QUERY | hit groups: HIT_GROUP_TRIANGLES, HIT_GROUP_IC (procedural:
+    // intersection + any-hit), HIT_GROUP_GUIDING (intersection + closest-hit). A technique's
+    // shaders are left out of pipelines that never use it (less to compile); guiding without
+    // the cache puts copies of its groups into the cache's slots.
     std::vector<ShaderStage> stages = {
         {VK_SHADER_STAGE_RAYGEN_BIT_KHR, program == PROGRAM_IC_HEMISPHERE ? &shader_ic_hemisphere() : &shader_raygen()},
         {VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR, &shader_closesthit()},
@@ -184,6 +196,21 @@ RayTracingPipeline& Session::pipeline(uint32_t program) {
         groups.insert(groups.begin() + 3, {VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, 4});  // misses before hits
         groups.push_back({VK_RAY_TRACING_SHADER_GROUP_TYPE_PROCEDURAL_HIT_GROUP_KHR, VK_SHADER_UNUSED_KHR,
                           VK_SHADER_UNUSED_KHR, 6, 5});
+    }
+    if (techniques & TECH_GUIDING) {
+        const uint32_t miss = uint32_t(stages.size());
+        stages.push_back({VK_SHADER_STAGE_MISS_BIT_KHR, &shader_guiding_query_miss()});
+        stages.push_back({VK_SHADER_STAGE_INTERSECTION_BIT_KHR, &shader_guiding_query_intersection()});
+        stages.push_back({VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR, &shader_guiding_query_closest_hit()});
+        const ShaderGroup miss_group{VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, miss};
+        const ShaderGroup hit_group{VK_RAY_TRACING_SHADER_GROUP_TYPE_PROCEDURAL_HIT_GROUP_KHR, VK_SHADER_UNUSED_KHR,
+                                    miss + 2, VK_SHADER_UNUSED_KHR, miss + 1};
+        if (!(techniques & TECH_IC)) {
+            groups.insert(groups.begin() + 1 + MISS_IC_QUERY, miss_group);  // the cache's slots
+            groups.push_back(hit_group);
+        }
+        groups.insert(groups.begin() + 1 + MISS_GUIDING_QUERY, miss_group);
+        groups.push_back(hit_group);
     }
     auto p = std::make_unique<RayTracingPipeline>(*ctx_, set_->layout(), uint32_t(sizeof(FrameParams)), stages, groups,
                                                   std::vector<uint32_t>(key.begin(), key.begin() + 4));
@@ -212,6 +239,7 @@ FrameParams Session::frame_params(uint32_t frame) const {
     fp.rr_start_depth = params_.rr_start_depth;
     fp.light_samples = params_.light_samples;
     fp.mode = FRAME_RENDER;
+    fp.guiding_record = guiding_->records_render_frames() ? 1u : 0u;
     return fp;
 }
 
@@ -219,7 +247,10 @@ Session::DispatchPlan Session::dispatch_plan() const {
     DispatchPlan plan{};
     // Rays of one path at most: camera ray and bounces up to the depth limits, with the
     // shadow rays of each vertex.
-    plan.cost = uint64_t(params_.max_depth + params_.depth_leeway + 2) * (1 + params_.light_samples);
+    // With guiding, each vertex adds a region query and each sample the passes' queries.
+    plan.cost = uint64_t(params_.max_depth + params_.depth_leeway + 2) *
+                    (1 + params_.light_samples + (guiding_->enabled() ? 1 : 0)) +
+                (guiding_->enabled() ? 3 : 0);
     plan.budget = ctx_->report().type == "cpu" ? (uint64_t(1) << 21) : (uint64_t(1) << 30);
     const uint64_t spp = params_.samples_per_frame;
     if (adrrs_->enabled()) plan.cost *= 1 + params_.adrrs.max_splits;  // a sample's split copies too
@@ -302,6 +333,23 @@ void Session::estimate_frame() {
     adrrs_->estimate_frame_done();
 }
 
+// A guiding training frame (thesis 4.6.2): 1 spp camera paths record training samples with
+// the field as it stands, nothing reaches the film; then the fit and the upload.
+void Session::training_frame() {
+    RayTracingPipeline& camera = pipeline(PROGRAM_CAMERA);
+    FrameParams fp = frame_params(0x20000000u | guiding_->training_frames());
+    fp.mode = FRAME_GUIDING_TRAIN;
+    fp.samples_per_frame = fp.sample_count = 1;
+    fp.guiding_record = 1;
+    auto start = std::chrono::steady_clock::now();
+    ctx_->submit_and_wait([&](VkCommandBuffer cmd) {
+        guiding_->record_frame_start(cmd);
+        camera.trace(cmd, set_->set(), &fp, sizeof(fp), width_, height_);
+    });
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    guiding_->after_frame(*set_, ms);
+}
+
 // Frames go to the device in submissions of dispatches up to the plan's budget; cancel() is
 // checked between submissions. With the irradiance cache a submission ends with its frame,
 // which is followed by the cache's host step (its creation jobs and BLAS refit), and a new
@@ -328,15 +376,24 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
             stop = frames == 0 || cancel_.exchange(false);
             continue;
         }
+        if (cursor_.at_frame_start() && guiding_->needs_training_frame()) {
+            training_frame();
+            stop = frames == 0 || cancel_.exchange(false);
+            continue;
+        }
+        // The cache's and guiding's host steps come after each frame: a submission holds at
+        // most one frame.
+        const bool host_step = ic_->enabled() || guiding_->records_render_frames();
         bool frame_done = false, ic_step = false;
         ctx_->submit_and_wait([&](VkCommandBuffer cmd) {
             // With the cache a submission holds at most one frame: clear its request queue.
             if (ic_->enabled() && cursor_.at_frame_start()) ic_->record_frame_start(cmd);
+            if (guiding_->records_render_frames() && cursor_.at_frame_start()) guiding_->record_frame_start(cmd);
             uint64_t work = 0;
             while (work < plan.budget && (frames ? completed < frames : rows_left > 0)) {
                 work += record_dispatch(cmd, pipe, plan, stats_.frames + completed, rows_left, frame_done);
                 if (!frame_done) continue;
-                if (ic_->enabled()) {  // the cache's host step comes next
+                if (host_step) {  // the cache's or guiding's host step comes next
                     ic_step = true;
                     break;
                 }
@@ -345,8 +402,10 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
             }
         });
         if (ic_step) {  // (ADRRS builds the cache: its frames end here too)
-            ic_->after_frame(pipeline(PROGRAM_IC_HEMISPHERE), ic_finish_pipeline(), *set_,
-                             frame_params(stats_.frames + completed), paths, false);
+            if (ic_->enabled())
+                ic_->after_frame(pipeline(PROGRAM_IC_HEMISPHERE), ic_finish_pipeline(), *set_,
+                                 frame_params(stats_.frames + completed), paths, false);
+            if (guiding_->records_render_frames()) guiding_->after_frame(*set_, 0.0);
             ++completed;
             adrrs_->after_frame(film_, stats_.samples + uint64_t(completed) * params_.samples_per_frame);
         }
@@ -408,6 +467,7 @@ SessionStats Session::stats() {
     out.ic = ic_->stats();
     out.adrrs_estimate_frames = adrrs_->estimate_frames();
     out.adrrs_image_refreshes = adrrs_->image_refreshes();
+    out.guiding = guiding_->stats();
     return out;
 }
 
@@ -416,11 +476,13 @@ std::vector<float> Session::test_sampling(uint32_t routine, const std::vector<fl
     std::lock_guard<std::mutex> lock(mutex_);
     if (!scene_) throw std::runtime_error("no scene: call update(scene) before test_sampling()");
     if (params.size() != 5) throw std::invalid_argument("test_sampling needs 5 parameters");
-    if (!input.empty() && input.size() != size_t(count) * 8) throw std::invalid_argument("test input must be count*8 floats");
+    // count*8 floats (directions for eval mode), then whole vec4s of constants (guiding lobes)
+    if (!input.empty() && (input.size() < size_t(count) * 8 || (input.size() - size_t(count) * 8) % 4 != 0))
+        throw std::invalid_argument("test input must be count*8 floats followed by whole vec4s");
     if (!test_pipeline_)
         test_pipeline_ = std::make_unique<ComputePipeline>(*ctx_, set_->layout(), uint32_t(sizeof(FrameParams)),
                                                            shader_sampling_test());
-    Buffer io(*ctx_, size_t(count) * 8 * sizeof(float), kStorageUsage);
+    Buffer io(*ctx_, std::max(size_t(count) * 8, input.size()) * sizeof(float), kStorageUsage);
     if (!input.empty()) io.upload(input.data(), input.size() * sizeof(float));
     set_->bind_buffer(BINDING_TEST_IO, io);
     FrameParams fp{};

@@ -3,6 +3,7 @@
 #pragma once
 #include "scene/scene.h"
 #include "techniques/adrrs.h"
+#include "techniques/guiding/guiding.h"
 #include "techniques/irradiance_cache.h"
 #include "vk/pipeline.h"
 
@@ -25,6 +26,7 @@ struct RenderParams {
     uint32_t seed = 0;
     IcParams ic;  // irradiance cache (techniques/irradiance_cache.h)
     AdrrsParams adrrs;  // adjoint-driven Russian roulette and splitting (techniques/adrrs.h)
+    GuidingParams guiding;  // path guiding (techniques/guiding/guiding.h)
     bool operator==(const RenderParams& o) const;
 };
 
@@ -37,6 +39,7 @@ struct SessionStats {
     IcStats ic;
     uint32_t adrrs_estimate_frames = 0;  // estimate frames run (ADRRS_ESTIMATE_IC)
     uint32_t adrrs_image_refreshes = 0;  // image estimates made (ADRRS_ESTIMATE_IMAGE)
+    GuidingStats guiding;
 };
 
 struct PassInfo {
@@ -119,6 +122,7 @@ private:
                              uint32_t& rows, bool& frame_done);
     void prepare_frame();           // one irradiance-cache prepare frame, then its entries
     void estimate_frame();          // one ADRRS estimate frame (1 spp into the estimate)
+    void training_frame();          // one guiding training frame (1 spp, samples only), then the fit
     // Film, stats and partial frame; the irradiance cache starts over unless `keep_cache`.
     void reset_accumulation(bool keep_cache = false);
     void upload_technique_params();
@@ -134,6 +138,8 @@ private:
     Buffer film_, ray_count_, test_io_, technique_params_;
     std::unique_ptr<IrradianceCache> ic_;
     std::unique_ptr<Adrrs> adrrs_;
+    std::unique_ptr<Guiding> guiding_;
+    uint64_t scene_version_ = 0;  // bumped by every update but a camera-only one (guiding keeps its field)
     // One pipeline per (method, heuristic, scene features) combination, built on first use.
     std::unique_ptr<ComputePipeline> test_pipeline_;
     RenderParams params_;

@@ -1,0 +1,114 @@
+// The guiding field (thesis 4.6; Ruppert, Herholz & Lensch 2020): regions, their mixtures and
+// their training, as the session drives it between frames:
+//   after a frame:  field.add_samples(records read back from the GPU sample buffer)
+//                   field.fit()                      (multithreaded; may refine regions)
+//                   field.write_regions/write_lobes  (upload), and when layout_version()
+//                   changed, field.write_aabbs       (rebuild the region BLAS/TLAS)
+// Robust training: a region's samples accumulate across frames (a reservoir per region)
+// until it has guiding.min_samples of non-zero weight, then it fits (the thesis' clocks
+// scene failed because regions trained on one frame's samples only, sec. 5.3.4).
+// Deterministic: the same samples in the same order give the same field for a seed,
+// whatever the number of threads (regions fit independently).
+// Not thread-safe: one caller at a time (the fit may run on a worker thread while the GPU
+// traces the next frame with the previously uploaded records).
+#pragma once
+#include "techniques/guiding/parallax.h"
+#include "techniques/guiding/regions.h"
+
+#include <vector>
+
+namespace px {
+
+// Throws std::invalid_argument naming the setting (guiding_*) that is out of range.
+void validate_guiding_params(const GuidingParams& p);
+
+namespace guiding {
+
+struct FieldStats {
+    uint32_t regions = 0;
+    uint64_t samples_added = 0;     // accepted by add_samples (all time)
+    uint64_t samples_dropped = 0;   // rejected: not finite, negative weight, pdf <= 0
+    uint64_t region_fits = 0;       // all time
+    // the last fit():
+    uint32_t regions_fitted = 0;
+    uint32_t splits = 0, merges = 0;  // lobes
+    uint32_t refinements = 0;         // regions split
+    uint32_t em_iterations = 0;       // summed over the regions fitted
+    double fit_milliseconds = 0;
+};
+
+struct RegionInfo {
+    uint64_t samples = 0;   // received since the field was built or reset (incl. zero weight)
+    uint32_t pending = 0;   // non-zero samples waiting in the reservoir
+    double seen = 0;        // non-zero samples offered since the last fit
+    uint32_t components = 0;
+    uint32_t fits = 0;
+};
+
+class GuidingField {
+public:
+    // scene_min/max: the scene's AABB. threads 0: one per hardware thread.
+    GuidingField(const GuidingParams& params, const float scene_min[3], const float scene_max[3], uint32_t seed = 0,
+                 const FitOptions& fit = FitOptions(), uint32_t threads = 0);
+
+    // One frame's samples. A record whose region is NO_INDEX, out of range or not holding
+    // its position is looked up from the position.
+    void add_samples(const GuidingSample* samples, size_t count);
+    // Fits every region with enough samples, then splits regions past region_threshold.
+    const FieldStats& fit();
+    // Drops everything learnt: 2^region_splits untrained regions again.
+    void reset();
+
+    size_t region_count() const { return regions_.size(); }
+    uint32_t region_of(const Vec3& p) const { return tree_.lookup(p); }
+    const Aabb& region_bounds(uint32_t r) const { return tree_.bounds(r); }
+    // Regions in a spatially coherent order (input order for lavapipe's BVH builder).
+    std::vector<uint32_t> spatial_order() const { return tree_.spatial_order(); }
+    // Bumped whenever regions change (build, reset, refinement): rebuild the region TLAS.
+    uint64_t layout_version() const { return layout_version_; }
+
+    // GPU records: one GuidingRegion per region; GUIDING_MAX_COMPONENTS lobes per region;
+    // 6 floats per region (VkAabbPositionsKHR), enlarged by a hair so lookups never fall
+    // between regions (thesis 4.6.1).
+    void write_regions(std::vector<GuidingRegion>& out) const;
+    void write_lobes(std::vector<GuidingLobe>& out) const;
+    void write_aabbs(std::vector<float>& out) const;
+    static size_t gpu_bytes_per_region() {
+        return sizeof(GuidingRegion) + GUIDING_MAX_COMPONENTS * sizeof(GuidingLobe) + 6 * sizeof(float);
+    }
+
+    const Vmm& mixture(uint32_t r) const { return regions_.at(r).state.vmm; }
+    RegionInfo region_info(uint32_t r) const;
+    const FieldStats& stats() const { return stats_; }
+    const GuidingParams& params() const { return params_; }
+    const FitOptions& fit_options() const { return fit_; }
+
+private:
+    struct Region {
+        VmmState state;
+        std::vector<TrainingSample> pending;  // reservoir of non-zero samples since the last fit
+        double seen_nonzero = 0, seen_zero = 0;
+        Vec3 position_sum;
+        double position_count = 0;
+        uint64_t received = 0;        // since the region was made (refinement)
+        uint64_t received_total = 0;  // incl. the parent's, for the GPU record
+        FitReport last;
+    };
+    Region make_region(uint32_t r) const;
+    void fit_region(uint32_t r);
+    void refine(uint32_t r);
+    size_t fit_threshold(const Region& reg) const;
+
+    GuidingParams params_;
+    FitOptions fit_;
+    uint32_t seed_;
+    uint32_t threads_;
+    Aabb scene_;
+    RegionTree tree_;
+    std::vector<Region> regions_;
+    uint64_t layout_version_ = 0;
+    FieldStats stats_;
+};
+
+}  // namespace guiding
+}  // namespace px

@@ -1,0 +1,207 @@
+#include "techniques/guiding/guiding.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+
+namespace px {
+
+namespace {
+
+double ms_since(std::chrono::steady_clock::time_point start) {
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+// World AABB of the placed geometry: the 8 transformed corners of each instance's mesh
+// bounds (the bounding sphere where there are no instances).
+void scene_bounds(const SceneHost& scene, float lo[3], float hi[3]) {
+    for (int a = 0; a < 3; ++a) {
+        lo[a] = INFINITY;
+        hi[a] = -INFINITY;
+    }
+    if (scene.placement && scene.geometry) {
+        const auto& g = *scene.geometry;
+        for (const InstanceInfo& inst : scene.placement->instances) {
+            if (inst.mesh >= g.mesh_lo.size()) continue;
+            const vec3 b[2] = {g.mesh_lo[inst.mesh], g.mesh_hi[inst.mesh]};
+            for (int c = 0; c < 8; ++c) {
+                const float p[3] = {b[c & 1].x, b[(c >> 1) & 1].y, b[(c >> 2) & 1].z};
+                for (int a = 0; a < 3; ++a) {
+                    const vec4& row = inst.object_to_world[a];
+                    const float w = row.x * p[0] + row.y * p[1] + row.z * p[2] + row.w;
+                    lo[a] = std::min(lo[a], w);
+                    hi[a] = std::max(hi[a], w);
+                }
+            }
+        }
+    }
+    for (int a = 0; a < 3; ++a) {
+        if (std::isfinite(lo[a]) && std::isfinite(hi[a])) continue;
+        const vec3& c = scene.info.scene_center;
+        const float r = std::max(scene.info.scene_radius, 1e-3f);
+        for (int k = 0; k < 3; ++k) {
+            const float ck = k == 0 ? c.x : k == 1 ? c.y : c.z;
+            lo[k] = ck - r;
+            hi[k] = ck + r;
+        }
+        break;
+    }
+}
+
+GuidingParams field_key(GuidingParams p) {
+    p.enabled = 1;
+    p.probe_x = p.probe_y = -1;  // visualisation only
+    p.record_stride = 0;         // derived from the image size: the field does not depend on it
+    return p;
+}
+
+}  // namespace
+
+Guiding::Guiding(Context& ctx) : ctx_(ctx) {
+    samples_ = Buffer(ctx_, sizeof(GuidingSample), kStorageUsage);
+    build_placeholder();
+}
+
+// Guiding never switched on: one empty region keeps every binding valid (the shaders are
+// specialised without guiding and never read it).
+void Guiding::build_placeholder() {
+    const GuidingRegion region{};
+    regions_ = Buffer::with_data(ctx_, &region, sizeof(region), kStorageUsage);
+    const GuidingLobe lobe{};
+    lobes_ = Buffer::with_data(ctx_, &lobe, sizeof(lobe), kStorageUsage);
+    const uint32_t order = 0;
+    order_ = Buffer::with_data(ctx_, &order, sizeof(order), kStorageUsage);
+    const VkAabbPositionsKHR box{0, 0, 0, 1e-3f, 1e-3f, 1e-3f};
+    aabbs_ = Buffer::with_data(ctx_, &box, sizeof(box),
+                               kStorageUsage | VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR);
+    tlas_.reset();
+    blas_ = build_aabb_blas(ctx_, aabbs_, 1);
+    TlasInstance instance{};
+    instance.transform = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+    instance.mask = 0xff;
+    instance.sbt_offset = HIT_GROUP_GUIDING;
+    instance.blas = blas_->address();
+    tlas_ = build_tlas(ctx_, {instance});
+}
+
+void Guiding::configure(const GuidingParams& params, const SceneHost& scene, uint64_t scene_version, uint32_t seed,
+                        uint32_t width, uint32_t height) {
+    validate_guiding_params(params);
+    params_ = params;
+    const uint64_t pixels = uint64_t(width) * height;
+    params_.record_stride = uint32_t((pixels + GUIDING_MAX_RECORD_PATHS - 1) / GUIDING_MAX_RECORD_PATHS);
+    if (!enabled()) return;  // a trained field stays (switching guiding back on reuses it)
+    record_paths_ = uint32_t((pixels + params_.record_stride - 1) / params_.record_stride);
+    const size_t sample_bytes = size_t(record_paths_) * GUIDING_PATH_VERTICES * sizeof(GuidingSample);
+    if (samples_.size() != sample_bytes) samples_ = Buffer(ctx_, sample_bytes, kStorageUsage);
+    const GuidingParams key = field_key(params_);
+    if (field_ && std::memcmp(&key, &field_key_, sizeof(key)) == 0 && scene_version == scene_version_ && seed == seed_)
+        return;
+    float lo[3], hi[3];
+    scene_bounds(scene, lo, hi);
+    field_ = std::make_unique<guiding::GuidingField>(params_, lo, hi, seed);
+    field_key_ = key;
+    scene_version_ = scene_version;
+    seed_ = seed;
+    training_frames_ = 0;
+    stats_ = GuidingStats{};
+    built_layout_ = ~0ull;
+    upload(nullptr);
+}
+
+void Guiding::bind(DescriptorSet& set) const {
+    set.bind_tlas(BINDING_GUIDING_TLAS, tlas_->handle());
+    set.bind_buffer(BINDING_GUIDING_REGIONS, regions_);
+    set.bind_buffer(BINDING_GUIDING_LOBES, lobes_);
+    set.bind_buffer(BINDING_GUIDING_ORDER, order_);
+    set.bind_buffer(BINDING_GUIDING_SAMPLES, samples_);
+}
+
+void Guiding::upload(DescriptorSet* set) {
+    std::vector<GuidingRegion> regions;
+    std::vector<GuidingLobe> lobes;
+    field_->write_regions(regions);
+    field_->write_lobes(lobes);
+    const size_t n = regions.size();
+    if (regions_.size() != n * sizeof(GuidingRegion)) {
+        regions_ = Buffer(ctx_, n * sizeof(GuidingRegion), kStorageUsage);
+        lobes_ = Buffer(ctx_, n * GUIDING_MAX_COMPONENTS * sizeof(GuidingLobe), kStorageUsage);
+    }
+    regions_.upload(regions.data(), n * sizeof(GuidingRegion));
+    lobes_.upload(lobes.data(), lobes.size() * sizeof(GuidingLobe));
+    if (field_->layout_version() != built_layout_) {
+        // The regions' boxes in the tree's depth-first order (lavapipe's BVH builder splits
+        // in input order); primitive i is region order[i].
+        std::vector<float> boxes, sorted(n * 6);
+        field_->write_aabbs(boxes);
+        const std::vector<uint32_t> order = field_->spatial_order();
+        for (size_t i = 0; i < n; ++i) std::copy_n(&boxes[size_t(order[i]) * 6], 6, &sorted[i * 6]);
+        order_ = Buffer::with_vector(ctx_, order, kStorageUsage);
+        aabbs_ = Buffer::with_data(ctx_, sorted.data(), sorted.size() * sizeof(float),
+                                   kStorageUsage | VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR);
+        tlas_.reset();
+        blas_ = build_aabb_blas(ctx_, aabbs_, uint32_t(n));
+        TlasInstance instance{};
+        instance.transform = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+        instance.mask = 0xff;
+        instance.sbt_offset = HIT_GROUP_GUIDING;
+        instance.blas = blas_->address();
+        tlas_ = build_tlas(ctx_, {instance});
+        built_layout_ = field_->layout_version();
+    }
+    if (set) bind(*set);
+}
+
+void Guiding::record_frame_start(VkCommandBuffer cmd) const {
+    vkCmdFillBuffer(cmd, samples_.handle(), 0, VK_WHOLE_SIZE, 0);
+    VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    b.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    b.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_RAY_TRACING_SHADER_BIT_KHR, 0, 1, &b, 0,
+                         nullptr, 0, nullptr);
+}
+
+void Guiding::after_frame(DescriptorSet& set, double frame_milliseconds) {
+    if (!enabled() || !field_) return;
+    auto start = std::chrono::steady_clock::now();
+    std::vector<GuidingSample> samples(size_t(record_paths_) * GUIDING_PATH_VERTICES);
+    samples_.download(samples.data(), samples.size() * sizeof(GuidingSample));
+    // Unfilled slots (pdf 0: paths with fewer guided vertices) are no samples.
+    samples.erase(std::remove_if(samples.begin(), samples.end(), [](const GuidingSample& s) { return s.pdf == 0.0f; }),
+                  samples.end());
+    stats_.readback_milliseconds += ms_since(start);
+    field_->add_samples(samples.data(), samples.size());
+    const guiding::FieldStats& fit = field_->fit();
+    stats_.fit_milliseconds += fit.fit_milliseconds;
+    stats_.refinements += fit.refinements;
+    if (fit.regions_fitted || fit.refinements) {
+        start = std::chrono::steady_clock::now();
+        upload(&set);
+        stats_.upload_milliseconds += ms_since(start);
+    }
+    stats_.frame_milliseconds += frame_milliseconds;
+    ++training_frames_;
+}
+
+GuidingStats Guiding::stats() const {
+    GuidingStats s = stats_;
+    s.training_frames = training_frames_;
+    if (!field_) return s;
+    const guiding::FieldStats& f = field_->stats();
+    s.regions = uint32_t(field_->region_count());
+    s.samples_added = f.samples_added;
+    s.samples_dropped = f.samples_dropped;
+    s.region_fits = f.region_fits;
+    for (uint32_t r = 0; r < s.regions; ++r) {
+        const uint32_t k = field_->mixture(r).count;
+        s.trained_regions += k > 0;
+        s.lobes += k;
+    }
+    s.bytes_per_region = guiding::GuidingField::gpu_bytes_per_region() + sizeof(uint32_t) +
+                         (blas_ ? blas_->size() / std::max<size_t>(1, s.regions) : 0);
+    s.sample_buffer_bytes = samples_.size();
+    return s;
+}
+
+}  // namespace px

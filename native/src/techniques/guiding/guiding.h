@@ -1,0 +1,81 @@
+// Path guiding, the session's side (thesis 4.6; Ruppert, Herholz & Lensch 2020;
+// shaders/techniques/guiding_field.glsl): owns the GuidingField (field.h) and its GPU data —
+// regions, lobes, the region AABBs' BLAS/TLAS (queried by zero-length rays) and the training
+// sample buffer — and drives the training between frames:
+//   training frames (FRAME_GUIDING_TRAIN, 1 spp, nothing reaches the film) until
+//   guiding_training_spp of them have run, or, with guiding_training_spp = 0, every rendered
+//   frame records too ("keep training"); after each recording frame after_frame() reads the
+//   samples back, adds them to the field, fits (multithreaded), and uploads the mixtures
+//   (rebuilding the region TLAS when adaptive refinement changed the regions).
+// The field survives camera moves, probe changes and guiding being switched off and on; new
+// geometry or lights, the seed or any other guiding setting start it over (configure).
+#pragma once
+#include "scene/scene.h"
+#include "techniques/guiding/field.h"
+#include "vk/accel.h"
+#include "vk/pipeline.h"
+
+#include <memory>
+
+namespace px {
+
+struct GuidingStats {
+    uint32_t training_frames = 0;  // recording frames whose samples reached the field
+    uint32_t regions = 0;
+    uint32_t trained_regions = 0;  // regions with a mixture
+    uint32_t lobes = 0;            // active lobes, all regions
+    uint64_t samples_added = 0;
+    uint64_t samples_dropped = 0;
+    uint64_t region_fits = 0;
+    uint32_t refinements = 0;      // regions split, all time
+    // Training cost, summed over the training frames: the GPU frame (training frames only),
+    // the sample readback, the fit, the upload (with TLAS rebuilds).
+    double frame_milliseconds = 0, readback_milliseconds = 0, fit_milliseconds = 0, upload_milliseconds = 0;
+    uint64_t bytes_per_region = 0;   // GPU: region record, lobes, AABB, BLAS share
+    uint64_t sample_buffer_bytes = 0;
+};
+
+class Guiding {
+public:
+    explicit Guiding(Context& ctx);
+    // Settings, scene and image size for the next frames. The field is kept when nothing it
+    // depends on changed: the guiding settings (the probe and on/off aside), the seed and
+    // `scene_version` (the session bumps it for every update but a camera-only one).
+    void configure(const GuidingParams& params, const SceneHost& scene, uint64_t scene_version, uint32_t seed,
+                   uint32_t width, uint32_t height);
+    void bind(DescriptorSet& set) const;
+    const GuidingParams& params() const { return params_; }  // record_stride filled in
+    bool enabled() const { return params_.enabled != 0; }
+    // Training frames still to run before the image accumulates.
+    bool needs_training_frame() const {
+        return enabled() && params_.training_spp != GUIDING_KEEP_TRAINING && training_frames_ < params_.training_spp;
+    }
+    // Rendered frames record samples too (keep training).
+    bool records_render_frames() const { return enabled() && params_.training_spp == GUIDING_KEEP_TRAINING; }
+    uint32_t training_frames() const { return training_frames_; }
+    // Clears the sample buffer: before a recording frame's first dispatch.
+    void record_frame_start(VkCommandBuffer cmd) const;
+    // After a recording frame: readback, fit, upload; rebinds the TLAS into `set` when the
+    // regions changed. `frame_milliseconds`: the frame's GPU time, for the stats.
+    void after_frame(DescriptorSet& set, double frame_milliseconds);
+    GuidingStats stats() const;
+    const guiding::GuidingField* field() const { return field_.get(); }
+
+private:
+    void upload(DescriptorSet* set);  // regions and lobes; AABBs, order and TLAS if the layout changed
+    void build_placeholder();
+    Context& ctx_;
+    GuidingParams params_{};
+    GuidingParams field_key_{};  // the settings the field was made for
+    uint64_t scene_version_ = ~0ull;
+    uint32_t seed_ = 0;
+    uint32_t record_paths_ = 0;  // path slots of the sample buffer
+    std::unique_ptr<guiding::GuidingField> field_;
+    Buffer regions_, lobes_, order_, aabbs_, samples_;
+    std::unique_ptr<AccelerationStructure> blas_, tlas_;
+    uint64_t built_layout_ = ~0ull;
+    uint32_t training_frames_ = 0;
+    GuidingStats stats_;
+};
+
+}  // namespace px

@@ -1,0 +1,82 @@
+// Path guiding with parallax-aware von Mises-Fisher mixtures (thesis 3.2.5-3.2.8, 4.6;
+// Ruppert, Herholz & Lensch 2020): the records the host fit (native/src/techniques/guiding/)
+// and the shaders (shaders/techniques/guiding.glsl) exchange. Polyglot, included by
+// techniques.h (include types.h, never this file alone). Every record is a multiple of
+// 16 bytes with each vec3 followed by a 4-byte scalar, so scalar and std430 layouts agree.
+#ifndef PARALLAX_SHARED_GUIDING_H
+#define PARALLAX_SHARED_GUIDING_H
+
+// Lobes per region: region r owns lobes[r * GUIDING_MAX_COMPONENTS .. + lobe_count).
+PX_CONST uint GUIDING_MAX_COMPONENTS = 16;
+// Below this concentration a lobe is sampled and evaluated as the uniform sphere.
+PX_CONST float GUIDING_KAPPA_MIN = 1e-3;
+// Sample distances at or above this (and negative ones) mean "no next vertex": the light
+// came from infinitely far (environment, sun) and parallax leaves the sample's direction.
+PX_CONST float GUIDING_DISTANCE_INFINITE = 1e29;
+// GuidingParams.training_spp: train for the whole render.
+PX_CONST uint GUIDING_KEEP_TRAINING = 0;
+
+// User settings (issue 12; the same names with a guiding_ prefix in Session.set_params and
+// --set). The host validates them (validate_guiding_params) before a field uses them.
+struct GuidingParams {
+    uint enabled PX_DEFAULT(0);              // guiding
+    float prob PX_DEFAULT(0.5f);             // guiding_prob: one-sample MIS, P(sample the VMM)
+    uint parallax PX_DEFAULT(1);             // guiding_parallax: lobes aim at their targets
+    uint training_spp PX_DEFAULT(32);        // guiding_training_spp (GUIDING_KEEP_TRAINING: always)
+    uint min_samples PX_DEFAULT(512);        // guiding_min_samples: a region fits once it has these
+    uint max_components PX_DEFAULT(16);      // guiding_max_components, <= GUIDING_MAX_COMPONENTS
+    uint split_merge PX_DEFAULT(1);          // guiding_split_merge
+    uint region_splits PX_DEFAULT(8);        // guiding_region_splits: 2^k initial regions
+    uint region_threshold PX_DEFAULT(10000); // guiding_region_threshold: samples before a region splits (0: never)
+    uint max_regions PX_DEFAULT(4096);       // adaptive refinement stops at this many regions
+    int probe_x PX_DEFAULT(-1);              // guiding_probe_x: pixel of the Guiding Lobes pass (-1: centre)
+    int probe_y PX_DEFAULT(-1);              // guiding_probe_y
+    uint record_stride PX_DEFAULT(1);        // derived by the host: pixel i records in frames f
+                                             // with i % stride == f % stride, into path slot i / stride
+};
+
+// Training samples: each recording path fills up to GUIDING_PATH_VERTICES slots (its first
+// guided vertices); at most GUIDING_MAX_RECORD_PATHS paths record per frame.
+PX_CONST uint GUIDING_PATH_VERTICES = 4;
+PX_CONST uint GUIDING_MAX_RECORD_PATHS = 1u << 18;
+// Guided (and recording) vertices: diffuse, or glossy with roughness above this (the
+// reference's 0.3; sharper lobes are left to the BSDF).
+PX_CONST float GUIDING_MIN_ROUGHNESS = 0.3;
+PX_CONST float GUIDING_QUERY_T = 1e-6;  // t_max of the zero-length region query ray
+
+// One vMF lobe as the sampling shader reads it (thesis eq. 3.27, Jakob 2012):
+// v(w) = norm * exp(kappa (dot(mu, w) - 1)), norm = kappa / (2 pi (1 - exp(-2 kappa))).
+// With a finite distance (parallax), the lobe's mean direction at x is normalize(target - x)
+// (thesis eq. 4.5); mu is its direction from the region's pivot.
+struct GuidingLobe {
+    vec3 mu;          // unit mean direction seen from the region's pivot
+    float kappa;      // concentration; < GUIDING_KAPPA_MIN: uniform
+    float weight;     // mixture weight pi_k (the weights of a region sum to 1)
+    float norm;       // kappa / (2 pi (1 - exp(-2 kappa))); 1 / (4 pi) for a uniform lobe
+    float exp_m2k;    // exp(-2 kappa), for sampling
+    float distance;   // harmonic-mean distance from the pivot to the light; -1: infinite or parallax off
+    vec3 target;      // pivot + distance * mu (valid when distance > 0)
+    float cdf;        // weight of lobes 0..k of the region (selection; the last one is 1)
+};
+
+// One guiding region: an AABB of the region TLAS (same index) and its mixture.
+struct GuidingRegion {
+    vec3 aabb_min;
+    uint lobe_count;  // active lobes; 0: not trained yet (sample the BSDF only)
+    vec3 aabb_max;
+    uint fits;        // fits done so far
+    vec3 pivot;       // mean position of the region's samples: where mu and distances refer to
+    uint samples;     // training samples received (saturating)
+};
+
+// One training sample, written by the trace loop at a non-specular vertex (thesis 4.6.2).
+struct GuidingSample {
+    vec3 position;    // the vertex
+    uint region;      // its guiding region (NO_INDEX: the host looks it up from the position)
+    uint direction;   // sampled direction, octahedral, packSnorm2x16 (guiding_pack_direction)
+    float pdf;        // density the direction was sampled with (solid angle, MIS mixture)
+    float weight;     // luminance of the incident radiance along it / pdf (>= 0; NEE-credited)
+    float distance;   // to the next non-specular vertex; >= GUIDING_DISTANCE_INFINITE: none
+};
+
+#endif
