@@ -235,6 +235,8 @@ NB_MODULE(_native, m) {
                  d["ic_build_milliseconds"] = st.ic.build_milliseconds;
                  d["adrrs_estimate_frames"] = st.adrrs_estimate_frames;
                  d["adrrs_image_refreshes"] = st.adrrs_image_refreshes;
+                 d["adrrs_adjoint_builds"] = st.adrrs_adjoint_builds;
+                 d["adrrs_adjoint_milliseconds"] = st.adrrs_adjoint_milliseconds;
                  const px::GuidingStats& g = st.guiding;
                  d["guiding_training_frames"] = g.training_frames;
                  d["guiding_regions"] = g.regions;

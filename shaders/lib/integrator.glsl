@@ -234,13 +234,13 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
 
         // Irradiance cache at diffuse vertices (thesis 4.4): where entries cover this point the
         // path ends here with NEE + albedo/pi * E; elsewhere it may queue a new entry and goes on.
-        // With ADRRS the cache is read at every non-delta vertex: E is its adjoint.
+        // With ADRRS the cache's adjoint grid is read at every non-delta vertex (adrrs.glsl).
         bool ic_vertex = false, ic_found = false;
         vec3 irradiance = vec3(0.0);
         bool ic_surface = surf.type == MATERIAL_DIFFUSE || ((USES(TECH_ADRRS) || opt.ic_glossy) && !delta);
-        if (USES(TECH_IC) && ic_surface && !resumed && (opt.ic_use || opt.ic_prepare || opt.adrrs)) {
+        if (USES(TECH_IC) && ic_surface && !resumed && (opt.ic_use || opt.ic_prepare)) {
             vec2 gradients;
-            ic_found = ic_lookup(sh.p, ns, !(opt.ic_use || opt.ic_prepare), irradiance, gradients);
+            ic_found = ic_lookup(sh.p, ns, irradiance, gradients);
             if (!ic_recorded) {
                 res.ic_irradiance = irradiance;
                 res.ic_gradients = gradients;
@@ -256,6 +256,8 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
                 if (!ic_found) atomicAdd(ic_queue_uncovered, 1u);
                 break;
             }
+        } else if (USES(TECH_ADRRS) && ic_surface && !resumed && opt.adrrs) {
+            ic_found = adrrs_adjoint_irradiance(sh.p, ns, irradiance);  // the adjoint alone
         }
 
         // Next event estimation (Veach 1997 eq. 9.8 / 9.13 weights for MIS). A vertex where the

@@ -69,6 +69,12 @@ struct AdrrsParams {
     uint ic_glossy PX_DEFAULT(1);        // adrrs_ic_glossy: the ic estimate reads the cache at
                                          // glossy vertices too (thesis 4.4 "IC on glossy")
     uint slots PX_DEFAULT(0);            // derived by the host: queue entries per pixel
+    // Derived by the host: the adjoint grid (BINDING_ADRRS_ADJOINT), the cache's entries
+    // averaged per cell and per normal direction (the 6 signed axes).
+    vec3 grid_min PX_DEFAULT((vec3{0.0f, 0.0f, 0.0f}));
+    float grid_cell PX_DEFAULT(0.0f);  // cell edge (0: no grid yet)
+    uint grid_nx PX_DEFAULT(0), grid_ny PX_DEFAULT(0), grid_nz PX_DEFAULT(0);
+    uint grid_pad PX_DEFAULT(0);
 };
 
 // A split path (BINDING_ADRRS_QUEUE): the ray that reached the vertex where it was split,

@@ -55,7 +55,8 @@ PX_CONST uint BINDING_GUIDING_REGIONS = 31; // GuidingRegion[regions]
 PX_CONST uint BINDING_GUIDING_LOBES = 32;   // GuidingLobe[regions * GUIDING_MAX_COMPONENTS]
 PX_CONST uint BINDING_GUIDING_ORDER = 33;   // uint per region-BLAS primitive: its region
 PX_CONST uint BINDING_GUIDING_SAMPLES = 34; // GuidingSample[recording paths * GUIDING_PATH_VERTICES]
-PX_CONST uint BINDING_COUNT = 35;
+PX_CONST uint BINDING_ADRRS_ADJOINT = 35;  // vec4 per grid cell and axis direction: mean E (rgb), entries
+PX_CONST uint BINDING_COUNT = 36;
 
 // ---- shader binding table: miss shaders and hit groups (RayTracingPipeline group order) -
 PX_CONST uint MISS_SCENE = 0;         // miss.rmiss: the world

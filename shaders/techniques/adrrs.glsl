@@ -4,7 +4,9 @@
 // BSDF-sampled continuation) is expected to bring v * L_r,ind(x): the path throughput v times
 // the indirect light reflected at x, approximated with the cache as rho(x)/pi * E_IC(x)
 // (rho: the lobe's directional albedo, the "directionally uniform" f_BSDF of thesis eq. 4.1;
-// the reference dropped it). Zero variance would have every path bring the pixel value I, so
+// the reference dropped it). E_IC is read from the adjoint grid, the cache's entries averaged
+// per cell and normal direction by the host: a few loads instead of a cache query (a
+// procedural-geometry traversal that costs several rays) at every vertex. Zero variance would have every path bring the pixel value I, so
 // the window is centred on C = I~ / (rho/pi E_IC) (eq. 4.1), bounded by delta- = 2C/(1+s) and
 // delta+ = s delta- (eqs. 4.2, 4.3). Per colour channel the comparison of v with C is made on
 // the luminance of v * rho/pi * E against that of I~, so a zero channel never makes C infinite.
@@ -40,6 +42,24 @@ layout(set = 0, binding = BINDING_ADRRS_QUEUE, scalar) buffer AdrrsQueueBuffer {
     uint adrrs_words[];
 };
 layout(set = 0, binding = BINDING_ADRRS_SPLITS, scalar) buffer AdrrsSplitBuffer { AdrrsSplit adrrs_splits[]; };
+layout(set = 0, binding = BINDING_ADRRS_ADJOINT, scalar) readonly buffer AdrrsAdjointBuffer { vec4 adrrs_adjoint[]; };
+
+// The cached indirect irradiance around (p, n) from the adjoint grid; false where no entry
+// reached the cell (no adjoint: no decision).
+bool adrrs_adjoint_irradiance(vec3 p, vec3 n, out vec3 irradiance) {
+    irradiance = vec3(0.0);
+    if (!(tech.adrrs.grid_cell > 0.0)) return false;
+    ivec3 c = ivec3(floor((p - tech.adrrs.grid_min) / tech.adrrs.grid_cell));
+    uvec3 dims = uvec3(tech.adrrs.grid_nx, tech.adrrs.grid_ny, tech.adrrs.grid_nz);
+    if (any(lessThan(c, ivec3(0))) || any(greaterThanEqual(uvec3(c), dims))) return false;
+    vec3 a = abs(n);
+    uint axis = a.x >= a.y && a.x >= a.z ? 0u : a.y >= a.z ? 1u : 2u;
+    uint dir = 2u * axis + (n[axis] < 0.0 ? 1u : 0u);
+    vec4 v = adrrs_adjoint[((uint(c.z) * dims.y + uint(c.y)) * dims.x + uint(c.x)) * 6u + dir];
+    if (!(v.w > 0.0)) return false;
+    irradiance = v.rgb;
+    return true;
+}
 
 // The pixel estimate I~ (rgb) and whether there is one yet.
 bool adrrs_pixel_estimate(uint pixel_index, out vec3 estimate) {

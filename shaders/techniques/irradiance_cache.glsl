@@ -42,19 +42,17 @@ layout(set = 0, binding = BINDING_IC_QUEUE, scalar) buffer IcQueueBuffer {
 layout(location = 2) rayPayloadEXT IcQuery ic_query;
 
 // The weighted mean of the usable entries around (p, n) (eq. 3.18) and their mean gradient
-// lengths; false where there is none. With first_only, the first usable entry traversal finds
-// (one any-hit call instead of one per overlapping entry: enough for ADRRS' adjoint).
-bool ic_lookup(vec3 p, vec3 n, bool first_only, out vec3 irradiance, out vec2 gradient_lengths) {
+// lengths; false where there is none.
+bool ic_lookup(vec3 p, vec3 n, out vec3 irradiance, out vec2 gradient_lengths) {
     irradiance = vec3(0.0);
     gradient_lengths = vec2(0.0);
     if (!USES(TECH_IC)) return false;
     ic_query.position = p;
     ic_query.normal = n;
     ic_query.weighted_irradiance = vec3(0.0);
-    ic_query.weight = first_only ? -1.0 : 0.0;
+    ic_query.weight = 0.0;
     ic_query.weighted_gradients = vec2(0.0);
-    uint flags = gl_RayFlagsSkipClosestHitShaderEXT | (first_only ? gl_RayFlagsTerminateOnFirstHitEXT : 0u);
-    traceRayEXT(ic_tlas, flags, 0xff, 0, 0, MISS_IC_QUERY, p, 0.0, n, IC_QUERY_T, 2);
+    traceRayEXT(ic_tlas, gl_RayFlagsSkipClosestHitShaderEXT, 0xff, 0, 0, MISS_IC_QUERY, p, 0.0, n, IC_QUERY_T, 2);
     if (!(ic_query.weight > 0.0)) return false;
     irradiance = ic_query.weighted_irradiance / ic_query.weight;
     gradient_lengths = ic_query.weighted_gradients / ic_query.weight;

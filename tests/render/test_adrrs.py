@@ -4,8 +4,6 @@ without splitting, on the Cornell box and through glass), degenerate adjoints, s
 the passes, determinism and the settings' validation."""
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
 
@@ -22,25 +20,18 @@ PLAIN = dict(rr_start_depth=0)
 BATCHES, SPP, SPP_PER_FRAME = 8, 32, 4
 
 
-def glass_box(size=SIZE):
-    """The Cornell box with its tall box made of glass: light reaches much of the room through it."""
-    scene = scenes.cornell_box(size, size)
-    scene.materials.append(Material("dielectric", (1.0, 1.0, 1.0), roughness=0.0, ior=1.5, name="glass"))
-    glass = len(scene.materials) - 1
-    scene.meshes = [dataclasses.replace(m, material_indices=np.full(len(m.indices), glass)) if m.name == "tall_box"
-                    else m for m in scene.meshes]
-    return scene
-
-
-def degenerate_scene(size=SIZE):
-    """A floor lit only by a point light (no indirect light anywhere: the cache is black), a
-    black patch on it (a black pixel estimate) and an emitter in view (emission-only pixels)."""
+def glass_and_degenerate_scene(size=SIZE):
+    """A floor lit by a point light through a glass cube, with a black patch on it (black
+    pixel estimates: C = 0) and an emitter in view (emission-only pixels). Away from the
+    cube's caustic no indirect light reaches the floor: a black cache (C = I~/0)."""
     mats = [Material("diffuse", (0.6, 0.6, 0.6), name="floor"), Material("diffuse", (0.0, 0.0, 0.0), name="black"),
-            Material("emission", (0.0, 0.0, 0.0), emission=(4.0, 4.0, 4.0), emission_strength=1.0, name="emitter")]
+            Material("emission", (0.0, 0.0, 0.0), emission=(4.0, 4.0, 4.0), emission_strength=1.0, name="emitter"),
+            Material("dielectric", (1.0, 1.0, 1.0), roughness=0.0, ior=1.5, name="glass")]
     P = lambda *c: np.array(c, dtype=np.float64)
     meshes = [scenes.quad([P(-2, -2, 0), P(2, -2, 0), P(2, 2, 0), P(-2, 2, 0)], 0, "floor"),
-              scenes.quad([P(-0.5, -0.5, 0.01), P(0.5, -0.5, 0.01), P(0.5, 0.5, 0.01), P(-0.5, 0.5, 0.01)], 1, "black"),
-              scenes.quad([P(0.8, 1.0, 0.2), P(1.6, 1.0, 0.2), P(1.6, 1.0, 1.0), P(0.8, 1.0, 1.0)], 2, "emitter")]
+              scenes.quad([P(-1.5, -1.0, 0.01), P(-0.7, -1.0, 0.01), P(-0.7, -0.2, 0.01), P(-1.5, -0.2, 0.01)], 1, "black"),
+              scenes.quad([P(0.8, 1.0, 0.2), P(1.6, 1.0, 0.2), P(1.6, 1.0, 1.0), P(0.8, 1.0, 1.0)], 2, "emitter"),
+              scenes.box((0.0, 0.0, 0.6), 0.8, 0.3, 3, "glass")]
     lights = [Light("point", power=300.0, position=(0.0, 0.0, 3.0))]
     camera = Camera.look_at((0.0, -4.0, 3.0), (0.0, 0.0, 0.3), fov_y_degrees=50.0, width=size, height=size)
     return SceneData(meshes, [], mats, [], lights, World((0.0, 0.0, 0.0), 1.0), camera, size, size)
@@ -75,15 +66,10 @@ def test_unbiased_on_the_cornell_box(cornell, params):
         assert session.read("adrrs_splits").max() > 0  # the window did split paths
 
 
-def test_unbiased_through_glass():
-    scene = glass_box()
-    mean, se, session, means = batches(scene, "mis", BATCHES, SPP, spp_per_frame=SPP_PER_FRAME, **PLAIN)
-    assert_unbiased(scene, session, (mean, se, means))
-
-
-def test_degenerate_adjoints_stay_finite_and_unbiased():
-    """A black cache (C = I~/0), black estimates (C = 0) and emitters seen directly."""
-    scene = degenerate_scene()
+def test_unbiased_through_glass_with_degenerate_adjoints():
+    """Light through glass, a black cache (C = I~/0), black estimates (C = 0) and emitters
+    seen directly: finite and unbiased."""
+    scene = glass_and_degenerate_scene()
     mean, se, session, means = batches(scene, "mis", BATCHES, SPP, spp_per_frame=SPP_PER_FRAME, **PLAIN)
     assert_unbiased(scene, session, (mean, se, means))
     assert np.isfinite(session.read("adrrs_estimate")).all()

@@ -160,12 +160,12 @@ void Session::reset() {
 // (their descriptor set layouts are the same object): a new F12 render or viewport session
 // does not wait for a compile again. Like the device they are kept until the process ends
 // (never destroyed at exit, when the driver may already be going away).
-RayTracingPipeline& Session::pipeline(uint32_t program) {
+RayTracingPipeline& Session::pipeline(uint32_t program, bool cache_queries) {
     static std::mutex mutex;
     static auto& pipelines =
         *new std::map<std::pair<Context*, std::array<uint32_t, 5>>, std::unique_ptr<RayTracingPipeline>>();
-    const uint32_t techniques = (ic_->enabled() ? TECH_IC : 0u) | (adrrs_->enabled() ? TECH_ADRRS : 0u) |
-                                (guiding_->enabled() ? TECH_GUIDING : 0u);
+    const uint32_t techniques = (ic_->enabled() && cache_queries ? TECH_IC : 0u) |
+                                (adrrs_->enabled() ? TECH_ADRRS : 0u) | (guiding_->enabled() ? TECH_GUIDING : 0u);
     // Specialisation constants 0-3 (integrator.glsl, mis.glsl, common.glsl, irradiance_cache.glsl).
     const std::array<uint32_t, 5> key = {params_.method, params_.mis_heuristic, scene_->host().features, techniques,
                                          program};
@@ -320,6 +320,15 @@ void Session::prepare_frame() {
     });
     ic_->after_frame(pipeline(PROGRAM_IC_HEMISPHERE), ic_finish_pipeline(), *set_, fp, uint64_t(width_) * height_,
                      true);
+    refresh_adjoint();
+}
+
+// ADRRS' adjoint grid follows the cache's entries (after prepare frames and frames that
+// added entries).
+void Session::refresh_adjoint() {
+    if (!adrrs_->update_adjoint(*ic_)) return;
+    adrrs_->bind(*set_);
+    upload_technique_params();
 }
 
 // An ADRRS estimate frame (thesis 4.5): 1 spp to the first non-delta vertex, shaded with
@@ -361,7 +370,8 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
     auto start = std::chrono::steady_clock::now();
     const DispatchPlan plan = dispatch_plan();
     const uint64_t paths = uint64_t(width_) * height_ * params_.samples_per_frame;
-    RayTracingPipeline& pipe = pipeline(PROGRAM_CAMERA);
+    // ADRRS alone renders from its adjoint grid: no cache queries, no cache shaders.
+    RayTracingPipeline& pipe = pipeline(PROGRAM_CAMERA, params_.ic.enabled || !params_.adrrs.enabled);
     uint32_t completed = 0;
     uint32_t rows_left = frames ? UINT32_MAX : rows;
     bool stop = false;
@@ -408,6 +418,7 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
             if (guiding_->records_render_frames()) guiding_->after_frame(*set_, 0.0);
             ++completed;
             adrrs_->after_frame(film_, stats_.samples + uint64_t(completed) * params_.samples_per_frame);
+            refresh_adjoint();
         }
         if (frame_done && frames == 0) break;
         stop = cancel_.exchange(false);
@@ -467,6 +478,8 @@ SessionStats Session::stats() {
     out.ic = ic_->stats();
     out.adrrs_estimate_frames = adrrs_->estimate_frames();
     out.adrrs_image_refreshes = adrrs_->image_refreshes();
+    out.adrrs_adjoint_builds = adrrs_->adjoint_builds();
+    out.adrrs_adjoint_milliseconds = adrrs_->adjoint_milliseconds();
     out.guiding = guiding_->stats();
     return out;
 }

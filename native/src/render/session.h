@@ -39,6 +39,8 @@ struct SessionStats {
     IcStats ic;
     uint32_t adrrs_estimate_frames = 0;  // estimate frames run (ADRRS_ESTIMATE_IC)
     uint32_t adrrs_image_refreshes = 0;  // image estimates made (ADRRS_ESTIMATE_IMAGE)
+    uint32_t adrrs_adjoint_builds = 0;   // adjoint grids made from the cache
+    double adrrs_adjoint_milliseconds = 0;
     GuidingStats guiding;
 };
 
@@ -122,12 +124,15 @@ private:
                              uint32_t& rows, bool& frame_done);
     void prepare_frame();           // one irradiance-cache prepare frame, then its entries
     void estimate_frame();          // one ADRRS estimate frame (1 spp into the estimate)
+    void refresh_adjoint();         // ADRRS' adjoint grid after the cache changed
     void training_frame();          // one guiding training frame (1 spp, samples only), then the fit
     // Film, stats and partial frame; the irradiance cache starts over unless `keep_cache`.
     void reset_accumulation(bool keep_cache = false);
     void upload_technique_params();
     FrameParams frame_params(uint32_t frame) const;
-    RayTracingPipeline& pipeline(uint32_t program);
+    // The pipeline of `program` for the current settings; without cache_queries it leaves the
+    // irradiance cache's shaders (and TECH_IC) out even where the cache exists.
+    RayTracingPipeline& pipeline(uint32_t program, bool cache_queries = true);
     ComputePipeline& ic_finish_pipeline();
     std::shared_ptr<Context> ctx_;  // first member: destroyed after everything using it
     uint32_t width_, height_;

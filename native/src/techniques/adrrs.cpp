@@ -3,6 +3,8 @@
 #include "techniques/validate.h"
 
 #include <algorithm>
+#include <chrono>
+#include <cmath>
 #include <vector>
 
 namespace px {
@@ -11,6 +13,8 @@ namespace {
 
 constexpr uint64_t kMaxQueuedSplits = 1u << 21;  // split entries of the whole image (128 MiB)
 constexpr int kBlurRadius = 3;                   // image estimate: two box passes of 7 pixels
+constexpr uint32_t kGridCells = 48;              // adjoint grid cells along its longest axis
+constexpr int kMaxSplatCells = 3;                // an entry reaches at most 3 cells each way
 
 // One box-filter pass along rows (dx = 1) or columns of an rgb image; the edges average
 // the pixels inside the image only.
@@ -69,6 +73,7 @@ void Adrrs::configure(const AdrrsParams& params, uint32_t width, uint32_t height
     if (estimate_.size() != estimate_bytes) estimate_ = Buffer(ctx_, estimate_bytes, kStorageUsage);
     if (queue_.size() != queue_bytes) queue_ = Buffer(ctx_, queue_bytes, kStorageUsage);
     if (splits_.size() != split_bytes) splits_ = Buffer(ctx_, split_bytes, kStorageUsage);
+    if (!adjoint_.valid()) adjoint_ = Buffer(ctx_, sizeof(vec4), kStorageUsage);
     reset();
 }
 
@@ -77,6 +82,9 @@ void Adrrs::reset() {
     queue_.fill_zero();
     estimate_frames_ = 0;
     image_refreshes_ = 0;
+    adjoint_entries_ = adjoint_builds_ = 0;
+    adjoint_milliseconds_ = 0;
+    params_.grid_cell = 0.0f;  // no adjoint until the cache has entries
     next_refresh_ = params_.estimate_spp;
 }
 
@@ -84,6 +92,60 @@ void Adrrs::bind(DescriptorSet& set) const {
     set.bind_buffer(BINDING_ADRRS_ESTIMATE, estimate_);
     set.bind_buffer(BINDING_ADRRS_QUEUE, queue_);
     set.bind_buffer(BINDING_ADRRS_SPLITS, splits_);
+    set.bind_buffer(BINDING_ADRRS_ADJOINT, adjoint_);
+}
+
+// The cache's entries averaged over a grid around them, per cell and per normal direction
+// (the dominant signed axis): each entry reaches the cells within its harmonic-mean distance
+// R (at least half a cell, at most kMaxSplatCells), weighted 1 / (1 + d/R) like Ward's weight.
+bool Adrrs::update_adjoint(const IrradianceCache& cache) {
+    // Remade when the cache has grown by an eighth since (a new entry changes little).
+    if (!enabled() || cache.count() == 0 || uint64_t(cache.count()) * 8 < uint64_t(adjoint_entries_) * 9) return false;
+    const auto start = std::chrono::steady_clock::now();
+    const std::vector<IcEntry> entries = cache.download_entries();
+    adjoint_entries_ = uint32_t(entries.size());
+    float lo[3] = {1e30f, 1e30f, 1e30f}, hi[3] = {-1e30f, -1e30f, -1e30f};
+    for (const IcEntry& e : entries) {
+        const float p[3] = {e.position.x, e.position.y, e.position.z};
+        for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], p[a] - e.radius), hi[a] = std::max(hi[a], p[a] + e.radius);
+    }
+    const float extent = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 1e-6f});
+    const float cell = extent / float(kGridCells);
+    uint32_t dims[3];
+    for (int a = 0; a < 3; ++a) dims[a] = std::clamp(uint32_t(std::ceil((hi[a] - lo[a]) / cell)), 1u, kGridCells);
+    std::vector<vec4> sums(size_t(dims[0]) * dims[1] * dims[2] * 6, vec4{0, 0, 0, 0});
+    for (const IcEntry& e : entries) {
+        const float p[3] = {e.position.x, e.position.y, e.position.z}, n[3] = {e.normal.x, e.normal.y, e.normal.z};
+        const int axis = std::abs(n[0]) >= std::abs(n[1]) && std::abs(n[0]) >= std::abs(n[2]) ? 0 : std::abs(n[1]) >= std::abs(n[2]) ? 1 : 2;
+        const uint32_t dir = 2 * axis + (n[axis] < 0 ? 1 : 0);
+        const float reach = std::clamp(e.radius, 0.5f * cell, kMaxSplatCells * cell);
+        int c0[3], c1[3];
+        for (int a = 0; a < 3; ++a) {
+            c0[a] = std::max(0, int(std::floor((p[a] - reach - lo[a]) / cell)));
+            c1[a] = std::min(int(dims[a]) - 1, int(std::floor((p[a] + reach - lo[a]) / cell)));
+        }
+        for (int z = c0[2]; z <= c1[2]; ++z)
+            for (int y = c0[1]; y <= c1[1]; ++y)
+                for (int x = c0[0]; x <= c1[0]; ++x) {
+                    const float d[3] = {lo[0] + (x + 0.5f) * cell - p[0], lo[1] + (y + 0.5f) * cell - p[1],
+                                        lo[2] + (z + 0.5f) * cell - p[2]};
+                    const float dist = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+                    if (dist > reach + 0.87f * cell) continue;  // the cell lies outside the entry's reach
+                    const float w = 1.0f / (1.0f + dist / std::max(e.radius, 1e-6f));
+                    vec4& s = sums[((size_t(z) * dims[1] + y) * dims[0] + x) * 6 + dir];
+                    s.x += w * e.irradiance.x, s.y += w * e.irradiance.y, s.z += w * e.irradiance.z, s.w += w;
+                }
+    }
+    for (vec4& s : sums)
+        if (s.w > 0) s = {s.x / s.w, s.y / s.w, s.z / s.w, s.w};
+    if (adjoint_.size() != sums.size() * sizeof(vec4)) adjoint_ = Buffer(ctx_, sums.size() * sizeof(vec4), kStorageUsage);
+    adjoint_.upload(sums.data(), sums.size() * sizeof(vec4));
+    params_.grid_min = {lo[0], lo[1], lo[2]};
+    params_.grid_cell = entries.empty() ? 0.0f : cell;
+    params_.grid_nx = dims[0], params_.grid_ny = dims[1], params_.grid_nz = dims[2];
+    ++adjoint_builds_;
+    adjoint_milliseconds_ += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    return true;
 }
 
 void Adrrs::record_queue_clear(VkCommandBuffer cmd) const {

@@ -10,6 +10,7 @@
 // split dispatch over the same pixels (record_dispatch).
 #pragma once
 #include "scene/scene.h"
+#include "techniques/irradiance_cache.h"
 #include "vk/pipeline.h"
 
 namespace px {
@@ -37,12 +38,21 @@ public:
     // double.
     void after_frame(const Buffer& film, uint64_t samples);
     uint32_t image_refreshes() const { return image_refreshes_; }
+    uint32_t adjoint_builds() const { return adjoint_builds_; }
+    double adjoint_milliseconds() const { return adjoint_milliseconds_; }
+    // Remakes the adjoint grid from the cache's entries when they grew; returns
+    // true when it did (the settings, which hold the grid's shape, must be uploaded again and
+    // the buffer bound again).
+    bool update_adjoint(const IrradianceCache& cache);
 
 private:
     Context& ctx_;
     AdrrsParams params_{};
     uint32_t width_ = 0, height_ = 0;
-    Buffer estimate_, queue_, splits_;
+    Buffer estimate_, queue_, splits_, adjoint_;
+    uint32_t adjoint_entries_ = 0;  // cache entries the grid was made from
+    uint32_t adjoint_builds_ = 0;
+    double adjoint_milliseconds_ = 0;
     uint32_t estimate_frames_ = 0;
     uint64_t next_refresh_ = 0;  // samples at which the image estimate is refreshed next
     uint32_t image_refreshes_ = 0;

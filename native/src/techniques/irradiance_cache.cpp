@@ -171,6 +171,12 @@ void IrradianceCache::bind(DescriptorSet& set) const {
     set.bind_buffer(BINDING_IC_SAMPLES, samples_);
 }
 
+std::vector<IcEntry> IrradianceCache::download_entries() const {
+    std::vector<IcEntry> entries(count_);
+    if (count_) entries_.download(entries.data(), entries.size() * sizeof(IcEntry));
+    return entries;
+}
+
 size_t IrradianceCache::bytes_per_entry() const {
     return sizeof(IcEntry) + sizeof(VkAabbPositionsKHR) + size_t(blas_->size() / std::max(allocated_, 1u));
 }

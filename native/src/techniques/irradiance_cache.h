@@ -51,6 +51,8 @@ public:
     void after_frame(const RayTracingPipeline& hemisphere, const ComputePipeline& finish, DescriptorSet& set,
                      FrameParams frame, uint64_t paths, bool prepare);
     const IcStats& stats() const { return stats_; }
+    uint32_t count() const { return count_; }  // used slots
+    std::vector<IcEntry> download_entries() const;
     size_t bytes_per_entry() const;
 
 private:
