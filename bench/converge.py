@@ -16,8 +16,8 @@ largest 0.1% of pixels dropped, the rest averaged.
 - Parallax methods render progressively; the error is recorded along the way (convergence
   plot). `ic` is MIS with the irradiance cache at its default settings (RenderParams'
   defaults); its prepare frames run inside its time. `guiding` (MIS + path guiding),
-  `guiding_pt` (without NEE) and `guiding_noparallax` run their training frames inside
-  their time too. Cycles (CPU, through bpy; also with
+  `guiding_pt` (without NEE) and `guiding_noparallax` keep training while the image
+  accumulates, the fits inside their time (see method_params). Cycles (CPU, through bpy; also with
   its Open PGL path guiding) renders the same .blend at the same size with a time limit,
   once per checkpoint. Mitsuba 3 renders the same SceneData (bench/mitsuba_peer.py),
   progressively.
@@ -111,12 +111,19 @@ def method_params(method):
     measured time; the throughput roulette stays where ADRRS has no adjoint)."""
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r} (methods: {', '.join(METHODS)})")
-    off = dict(ic=False, adrrs=False, guiding=False, guiding_parallax=True)
+    off = dict(ic=False, adrrs=False, guiding=False, guiding_parallax=True, guiding_training_spp=32,
+               guiding_min_samples=512)
     if method == "adrrs":
         return dict(off, method="mis", adrrs=True)
-    if method.startswith("guiding"):  # training frames run inside the measured time
+    if method.startswith("guiding"):
+        # Keep training (guiding_training_spp 0): every frame accumulates into the image and
+        # trains the field, whose fits run inside the measured time. Training frames first (the
+        # default, 32) would spend most of a short lavapipe budget (10-60 s at 1-3 spp/s) on
+        # frames that are thrown away; regions fit from 128 lit samples on (the default 512
+        # is rarely reached where light comes through glass).
         return dict(off, method="pt" if method == "guiding_pt" else "mis", guiding=True,
-                    guiding_parallax=method != "guiding_noparallax")
+                    guiding_parallax=method != "guiding_noparallax", guiding_training_spp=0,
+                    guiding_min_samples=128)
     return dict(off, method="mis", ic=True) if method == "ic" else dict(off, method=method)
 
 
@@ -277,8 +284,7 @@ def warm_pipelines(scene, methods, device):
     session = pc.Session(scene.width, scene.height, device)
     session.update(scene)
     for method in methods:
-        session.set_params(**method_params(method), max_depth=MAX_DEPTH, depth_leeway=0, ic_prepare_frames=1,
-                           guiding_training_spp=1)
+        session.set_params(**method_params(method), max_depth=MAX_DEPTH, depth_leeway=0, ic_prepare_frames=1)
         session.render(1)  # with ic: one prepare frame (camera + hemisphere + finish pipelines) and a frame
 
 
