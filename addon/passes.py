@@ -22,6 +22,12 @@ PASSES = (
          lambda scene, layer: scene.parallax.adrrs and layer.parallax.use_pass_adrrs_estimate),
     Pass("ADRRS Splits", 1, "X", "VALUE", "adrrs_splits",
          lambda scene, layer: scene.parallax.adrrs and layer.parallax.use_pass_adrrs_splits),
+    Pass("Guiding Regions", 3, "RGB", "COLOR", "guiding_regions",
+         lambda scene, layer: scene.parallax.guiding and layer.parallax.use_pass_guiding_regions),
+    Pass("Guiding Components", 1, "X", "VALUE", "guiding_components",
+         lambda scene, layer: scene.parallax.guiding and layer.parallax.use_pass_guiding_components),
+    Pass("Guiding Lobes", 3, "RGB", "COLOR", "guiding_lobes",
+         lambda scene, layer: scene.parallax.guiding and layer.parallax.use_pass_guiding_lobes),
 )
 BY_NAME = {p.name: p for p in PASSES}
 

@@ -29,6 +29,10 @@ IC_SETTINGS = ("ic", "ic_accuracy", "ic_min_radius", "ic_create_prob", "ic_updat
                "ic_prepare_frames", "ic_capacity", "ic_rebuild_interval", "ic_highlight")
 ADRRS_SETTINGS = ("adrrs", "adrrs_splitting", "adrrs_window", "adrrs_rr_min", "adrrs_max_splits",
                   "adrrs_estimate_spp", "adrrs_estimate", "adrrs_ic_glossy")
+GUIDING_SETTINGS = ("guiding", "guiding_prob", "guiding_parallax", "guiding_training_spp",
+                    "guiding_min_samples", "guiding_max_components", "guiding_split_merge",
+                    "guiding_region_splits", "guiding_region_threshold", "guiding_max_regions",
+                    "guiding_probe_x", "guiding_probe_y")
 ADRRS_ESTIMATE_ITEMS = (
     ("ic", "Irradiance Cache", "Estimate frames after the cache's prepare frames: paths to the "
                                "first non-specular hit, lit by NEE and the cache (thesis 4.5)"),
@@ -165,6 +169,49 @@ class ParallaxRenderSettings(bpy.types.PropertyGroup):
     adrrs_ic_glossy: BoolProperty(
         name="Cache on Glossy", description="The Irradiance Cache estimate reads the cache at "
         "glossy surfaces too (thesis, sec. 4.4)", default=True)
+    # Path guiding (thesis 3.2.5-3.2.8, 4.6; Ruppert, Herholz & Lensch 2020)
+    guiding: BoolProperty(
+        name="Path Guiding", description="Sample directions from a von Mises-Fisher mixture of the "
+        "incident light, learnt per region of the scene from the paths traced so far, mixed with "
+        "BSDF sampling (Ruppert, Herholz & Lensch 2020; thesis, sec. 4.6). Unbiased",
+        default=False, update=lambda self, ctx: _update_scene_passes(self))
+    guiding_prob: FloatProperty(
+        name="Guiding Probability", description="Probability of sampling the mixture rather than "
+        "the BSDF at a guided vertex (one-sample MIS of the two)", default=0.5, min=0.0, max=1.0,
+        subtype="FACTOR")
+    guiding_parallax: BoolProperty(
+        name="Parallax", description="Each lobe aims at the point its light came from, so one "
+        "region's mixture points the right way from anywhere in it (Ruppert et al. 2020)",
+        default=True)
+    guiding_training_spp: IntProperty(
+        name="Training Samples", description="Samples per pixel (1 per training frame) spent "
+        "training before the image accumulates; 0 = keep training while the image accumulates",
+        default=32, min=0, max=65536)
+    guiding_min_samples: IntProperty(
+        name="Min Samples", description="A region fits its mixture once it has accumulated this "
+        "many lit samples (across frames, so rarely lit regions train too)", default=512, min=1,
+        max=2**24)
+    guiding_max_components: IntProperty(
+        name="Max Components", description="Most lobes per region's mixture", default=16, min=1,
+        max=16)
+    guiding_split_merge: BoolProperty(
+        name="Split and Merge", description="Split lobes that fit their samples badly and merge "
+        "lobes that say the same (Ruppert et al. 2020)", default=True)
+    guiding_region_splits: IntProperty(
+        name="Region Splits", description="The scene box is halved this many times along its "
+        "longest axis: 2^n regions to start with", default=8, min=0, max=20)
+    guiding_region_threshold: IntProperty(
+        name="Region Threshold", description="A region that received this many samples splits in "
+        "two, both halves keeping its mixture (0 = never)", default=10000, min=0, max=2**31 - 1)
+    guiding_max_regions: IntProperty(
+        name="Max Regions", description="Adaptive refinement stops at this many regions",
+        default=4096, min=1, max=2**22)
+    guiding_probe_x: IntProperty(
+        name="Probe X", description="Pixel column whose first hit's mixture the Guiding Lobes "
+        "pass plots (-1 = the image centre)", default=-1, min=-1, max=16383)
+    guiding_probe_y: IntProperty(
+        name="Probe Y", description="Pixel row (from the top) whose first hit's mixture the Guiding "
+        "Lobes pass plots (-1 = the image centre)", default=-1, min=-1, max=16383)
     # Device
     device: EnumProperty(
         name="Device", description="Vulkan device to render on", items=DEVICE_ITEMS, default="auto")
@@ -177,7 +224,7 @@ class ParallaxRenderSettings(bpy.types.PropertyGroup):
             depth_leeway=self.depth_leeway,
             rr_start_depth=self.rr_start_depth if self.use_russian_roulette else 0,
             light_samples=self.light_samples, seed=self.seed,
-            **{name: getattr(self, name) for name in IC_SETTINGS + ADRRS_SETTINGS})
+            **{name: getattr(self, name) for name in IC_SETTINGS + ADRRS_SETTINGS + GUIDING_SETTINGS})
 
 
 class ParallaxViewLayerSettings(bpy.types.PropertyGroup):
@@ -201,6 +248,17 @@ class ParallaxViewLayerSettings(bpy.types.PropertyGroup):
     use_pass_adrrs_splits: BoolProperty(
         name="ADRRS Splits", description="ADRRS: extra paths split off per pixel sample (with "
         "ADRRS on)", default=True, update=lambda self, ctx: _update_passes(ctx))
+    use_pass_guiding_regions: BoolProperty(
+        name="Guiding Regions", description="Path guiding: a colour per guiding region at the "
+        "first hit (with Path Guiding on)", default=True, update=lambda self, ctx: _update_passes(ctx))
+    use_pass_guiding_components: BoolProperty(
+        name="Guiding Components", description="Path guiding: active lobes of the first hit's "
+        "region / Max Components (with Path Guiding on)", default=True,
+        update=lambda self, ctx: _update_passes(ctx))
+    use_pass_guiding_lobes: BoolProperty(
+        name="Guiding Lobes", description="Path guiding: a lat-long plot of the probe pixel's "
+        "mixture (inset, bottom left) and a sphere per trained region coloured by its mixture's "
+        "density (with Path Guiding on)", default=True, update=lambda self, ctx: _update_passes(ctx))
 
 
 def _update_scene_passes(settings):

@@ -121,6 +121,43 @@ class PARALLAX_PT_adrrs(_RenderPanel, bpy.types.Panel):
         super().draw(context)
 
 
+class PARALLAX_PT_guiding(_RenderPanel, bpy.types.Panel):
+    bl_label = "Path Guiding"
+    bl_options = {"DEFAULT_CLOSED"}
+    properties = ("guiding_prob", "guiding_parallax", "guiding_training_spp")
+
+    def draw_header(self, context):
+        self.layout.prop(context.scene.parallax, "guiding", text="")
+
+    def draw(self, context):
+        self.layout.active = context.scene.parallax.guiding
+        super().draw(context)
+
+
+class _GuidingSubPanel(_RenderPanel):
+    bl_parent_id = "PARALLAX_PT_guiding"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        self.layout.active = context.scene.parallax.guiding
+        super().draw(context)
+
+
+class PARALLAX_PT_guiding_fitting(_GuidingSubPanel, bpy.types.Panel):
+    bl_label = "Fitting"
+    properties = ("guiding_min_samples", "guiding_max_components", "guiding_split_merge")
+
+
+class PARALLAX_PT_guiding_regions(_GuidingSubPanel, bpy.types.Panel):
+    bl_label = "Regions"
+    properties = ("guiding_region_splits", "guiding_region_threshold", "guiding_max_regions")
+
+
+class PARALLAX_PT_guiding_visualisation(_GuidingSubPanel, bpy.types.Panel):
+    bl_label = "Visualisation"
+    properties = ("guiding_probe_x", "guiding_probe_y")
+
+
 class PARALLAX_PT_device(_RenderPanel, bpy.types.Panel):
     bl_label = "Device"
     properties = ("device",)
@@ -154,6 +191,11 @@ class PARALLAX_PT_passes(_ParallaxPanel, bpy.types.Panel):
         col.active = context.scene.parallax.adrrs
         col.prop(view_layer.parallax, "use_pass_adrrs_estimate", text="Estimate")
         col.prop(view_layer.parallax, "use_pass_adrrs_splits", text="Splits")
+        col = layout.column(heading="Path Guiding")
+        col.active = context.scene.parallax.guiding
+        col.prop(view_layer.parallax, "use_pass_guiding_regions", text="Regions")
+        col.prop(view_layer.parallax, "use_pass_guiding_components", text="Components")
+        col.prop(view_layer.parallax, "use_pass_guiding_lobes", text="Lobes")
 
 
 _device_lines = None
@@ -175,7 +217,9 @@ def detected_devices():
 
 classes = (PARALLAX_PT_sampling, PARALLAX_PT_light_paths, PARALLAX_PT_lights,
            PARALLAX_PT_irradiance_cache, PARALLAX_PT_ic_accuracy, PARALLAX_PT_ic_creation,
-           PARALLAX_PT_ic_gradients, PARALLAX_PT_ic_visualisation, PARALLAX_PT_adrrs, PARALLAX_PT_device,
+           PARALLAX_PT_ic_gradients, PARALLAX_PT_ic_visualisation, PARALLAX_PT_adrrs,
+           PARALLAX_PT_guiding, PARALLAX_PT_guiding_fitting, PARALLAX_PT_guiding_regions,
+           PARALLAX_PT_guiding_visualisation, PARALLAX_PT_device,
            PARALLAX_PT_passes)
 
 # Built-in panels that make sense for Parallax: output, format, colour management, and

@@ -15,7 +15,9 @@ largest 0.1% of pixels dropped, the rest averaged.
   them.
 - Parallax methods render progressively; the error is recorded along the way (convergence
   plot). `ic` is MIS with the irradiance cache at its default settings (RenderParams'
-  defaults); its prepare frames run inside its time. Cycles (CPU, through bpy; also with
+  defaults); its prepare frames run inside its time. `guiding` (MIS + path guiding),
+  `guiding_pt` (without NEE) and `guiding_noparallax` keep training while the image
+  accumulates, the fits inside their time (see method_params). Cycles (CPU, through bpy; also with
   its Open PGL path guiding) renders the same .blend at the same size with a time limit,
   once per checkpoint. Mitsuba 3 renders the same SceneData (bench/mitsuba_peer.py),
   progressively.
@@ -39,7 +41,9 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
 SCENES = ("cornell_box", "veach_mis", "cornell_dielectric", "light_behind_glass", "atrium")
 EXTRA_SCENES = ("sun_room",)  # indirect light through a window: the irradiance cache's case
-METHODS = ("pt", "nee", "mis", "ic", "adrrs")  # ic: MIS + the irradiance cache; adrrs: MIS + ADRRS (defaults)
+# ic: MIS + the irradiance cache; adrrs: MIS + ADRRS; guiding: MIS + path guiding (defaults);
+# guiding_pt: guiding without NEE; guiding_noparallax: guiding with parallax off.
+METHODS = ("pt", "nee", "mis", "ic", "adrrs", "guiding", "guiding_pt", "guiding_noparallax")
 MAX_DEPTH = 8  # Cycles' Max Bounces in every scene; Parallax with no discrete leeway
 REFERENCE_SEED = 7919  # the compared runs use seed 0
 
@@ -107,9 +111,20 @@ def method_params(method):
     measured time; the throughput roulette stays where ADRRS has no adjoint)."""
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r} (methods: {', '.join(METHODS)})")
+    off = dict(ic=False, adrrs=False, guiding=False, guiding_parallax=True, guiding_training_spp=32,
+               guiding_min_samples=512)
     if method == "adrrs":
-        return dict(method="mis", ic=False, adrrs=True)
-    return dict(method="mis", ic=True, adrrs=False) if method == "ic" else dict(method=method, ic=False, adrrs=False)
+        return dict(off, method="mis", adrrs=True)
+    if method.startswith("guiding"):
+        # Keep training (guiding_training_spp 0): every frame accumulates into the image and
+        # trains the field, whose fits run inside the measured time. Training frames first (the
+        # default, 32) would spend most of a short lavapipe budget (10-60 s at 1-3 spp/s) on
+        # frames that are thrown away; regions fit from 128 lit samples on (the default 512
+        # is rarely reached where light comes through glass).
+        return dict(off, method="pt" if method == "guiding_pt" else "mis", guiding=True,
+                    guiding_parallax=method != "guiding_noparallax", guiding_training_spp=0,
+                    guiding_min_samples=128)
+    return dict(off, method="mis", ic=True) if method == "ic" else dict(off, method=method)
 
 
 def render_parallax(scene, method, seconds, device, reference, label, seed=0):
@@ -128,8 +143,9 @@ def render_parallax(scene, method, seconds, device, reference, label, seed=0):
     start = time.perf_counter()
     session = pc.Session(scene.width, scene.height, device)
     params = dict(method_params(method), samples_per_frame=1, max_depth=MAX_DEPTH, depth_leeway=0, seed=seed)
-    prepares = params["ic"] or params["adrrs"]  # cache prepare (and ADRRS estimate) frames first
-    sizing = dict(params, method="mis", ic=False, adrrs=False) if prepares else params
+    # Cache prepare, ADRRS estimate and guiding training frames first.
+    prepares = params["ic"] or params["adrrs"] or params["guiding"]
+    sizing = dict(params, method="mis", ic=False, adrrs=False, guiding=False) if prepares else params
     session.set_params(**sizing)
     session.update(scene)
     session.render(1)
@@ -180,7 +196,7 @@ def render_parallax(scene, method, seconds, device, reference, label, seed=0):
     if reference is not None and (not curve or curve[-1][0] < used - 1e-3):
         curve.append((used, rel_mse(image, reference)))
     info.update({k: (round(v, 3) if isinstance(v, float) else v) for k, v in stats.items()
-                 if k.startswith(("ic_", "adrrs_")) or k in ("frames", "rays")} if prepares else {})
+                 if k.startswith(("ic_", "adrrs_", "guiding_")) or k in ("frames", "rays")} if prepares else {})
     if params["adrrs"]:
         info["adrrs_splits_per_sample"] = round(float(session.read("adrrs_splits").mean()), 4)
     info["ray_depth"] = round(float(session.read("ray_depth").mean()), 3)

@@ -133,6 +133,12 @@ def ic_status(stats):
             f"{stats.get('ic_dropped', 0)} dropped")
 
 
+def guiding_status(stats):
+    """Path guiding's part of the stats line."""
+    return (f"Guiding {stats.get('guiding_trained_regions', 0)}/{stats.get('guiding_regions', 0)} regions, "
+            f"{stats.get('guiding_lobes', 0)} lobes, {stats.get('guiding_training_frames', 0)} training frames")
+
+
 def _write_result(result, snapshot):
     images = snapshot[3]
     for render_pass in result.layers[0].passes:
@@ -196,6 +202,8 @@ def render(engine, depsgraph):
             line = f"Sample {samples}/{total} | {rate / 1e6:.1f} M rays/s | {seconds:.1f} s"
             if settings.ic or settings.adrrs:  # ADRRS builds the cache too
                 line += f" | {ic_status(stats)}"
+            if settings.guiding:
+                line += f" | {guiding_status(stats)}"
             engine.update_stats("", line)
             if progress_stream is not None:
                 progress_stream.write(f"\rParallax: {line}  ")

@@ -169,9 +169,13 @@ class _Worker(threading.Thread):
             self._preview_factor, preview_parts = factor, None
         for session, session_parts in ((self._full, parts), (self._preview, preview_parts)):
             if session is not None:
-                # The quick preview frame skips the irradiance cache and ADRRS: their prepare
-                # and estimate frames would cost many frames; the full-size session shows them.
-                session.set_params(**(params if session is self._full else {**params, "ic": False, "adrrs": False}))
+                # The quick preview frame skips the irradiance cache, ADRRS and guiding: their
+                # prepare, estimate and training frames would cost many frames; the full-size
+                # session shows them. There guiding keeps training while the image accumulates
+                # (training frames would leave the viewport empty), and its field survives
+                # camera moves (Session keeps it; edits to geometry or lights restart it).
+                session.set_params(**({**params, "guiding_training_spp": 0} if session is self._full
+                                      else {**params, "ic": False, "adrrs": False, "guiding": False}))
                 if edited:
                     session.update(scene, parts=None if session_parts is None else sorted(session_parts))
         with self._lock:  # a stop() before this returns here; one after it cancels these sessions

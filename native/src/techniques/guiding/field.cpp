@@ -205,7 +205,10 @@ const FieldStats& GuidingField::fit() {
         const double min_extent = 1e-6 * length(scene_.extent());
         const size_t n = regions_.size();
         for (uint32_t r = 0; r < n && regions_.size() < params_.max_regions; ++r) {
-            if (regions_[r].received <= params_.region_threshold) continue;
+            // Only a region with a mixture splits (its children inherit it): splitting untrained
+            // regions would divide their few lit samples where light is rare and keep them from
+            // ever reaching min_samples.
+            if (regions_[r].received <= params_.region_threshold || regions_[r].state.vmm.count == 0) continue;
             const Aabb& b = tree_.bounds(r);
             if (b.extent()[b.longest_axis()] <= min_extent) continue;
             refine(r);

@@ -54,7 +54,8 @@ public:
     // One frame's samples. A record whose region is NO_INDEX, out of range or not holding
     // its position is looked up from the position.
     void add_samples(const GuidingSample* samples, size_t count);
-    // Fits every region with enough samples, then splits regions past region_threshold.
+    // Fits every region with enough samples, then splits the regions with a mixture that
+    // received more than region_threshold samples.
     const FieldStats& fit();
     // Drops everything learnt: 2^region_splits untrained regions again.
     void reset();
