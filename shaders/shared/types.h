@@ -178,8 +178,14 @@ struct Light {
     vec3 axis_u;     // rect/disk full extent along u; triangle edge p1 - p0
     float spot_smooth;     // spot: (1 - cos_half_angle) * blend (Cycles' smoothstep width)
     vec3 axis_v;     // rect/disk full extent along v; triangle edge p2 - p0
-    float area;      // rect/disk/triangle area
+    float area;      // rect/disk/triangle area; sphere/spot: pi radius^2
+    uint flags;      // LIGHT_FLAG_*
 };
+
+// Point/spot with a radius: Cycles' Soft Falloff (Blender's default). The light is a disk of
+// the sphere's radius and radiance centred on the light and facing the shading point (Cycles'
+// is_sphere = false), so irradiance falls off as 1/(d^2 + r^2) near it instead of 1/d^2.
+PX_CONST uint LIGHT_FLAG_SOFT_FALLOFF = 1u;
 
 struct SceneInfo {
     vec4 camera_to_world[3];  // rows; camera looks down -Z with +Y up (Blender)

@@ -612,6 +612,12 @@ void prepare_lights(const SceneArrays& a, bool new_environment, SceneHost& s) {
         if (lcam.rows != L) bad("light_camera_visible and light_type differ in length");
         camera_visible.assign(lcam.data, lcam.data + L);
     }
+    std::vector<uint32_t> soft_falloff(L, 0u);  // optional: true spheres by default
+    if (a.count("light_soft_falloff")) {
+        auto lsoft = get<uint32_t>(a, "light_soft_falloff", 'u', {});
+        if (lsoft.rows != L) bad("light_soft_falloff and light_type differ in length");
+        soft_falloff.assign(lsoft.data, lsoft.data + L);
+    }
     s.info.analytic_first = uint(lights.size());
     for (size_t n : {la.position.rows, la.direction.rows, la.axis_u.rows, la.axis_v.rows, la.radius.rows, la.color.rows,
                      la.spot_size.rows, la.spot_blend.rows, la.sun_angle.rows})
@@ -624,6 +630,8 @@ void prepare_lights(const SceneArrays& a, bool new_environment, SceneHost& s) {
         if ((camera_visible[i] != 0) != (pass == 0)) continue;
         double weight = 0;
         Light l = analytic_light(la, i, radius, weight);
+        if (soft_falloff[i] != 0 && (l.type == LIGHT_SPHERE || l.type == LIGHT_SPOT) && l.radius > 0)
+            l.flags |= LIGHT_FLAG_SOFT_FALLOFF;
         if (!(weight > 0)) {  // black, zero size or a dark spot: contributes nothing
             dark.push_back(i);
             continue;
