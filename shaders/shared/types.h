@@ -55,7 +55,8 @@ PX_CONST uint BINDING_GUIDING_REGIONS = 31; // GuidingRegion[regions]
 PX_CONST uint BINDING_GUIDING_LOBES = 32;   // GuidingLobe[regions * GUIDING_MAX_COMPONENTS]
 PX_CONST uint BINDING_GUIDING_ORDER = 33;   // uint per region-BLAS primitive: its region
 PX_CONST uint BINDING_GUIDING_SAMPLES = 34; // GuidingSample[recording paths * GUIDING_PATH_VERTICES]
-PX_CONST uint BINDING_COUNT = 35;
+PX_CONST uint BINDING_GGX_TABLES = 35;     // uint unorm16 pairs: multiscatter GGX albedos (ggx_tables.h)
+PX_CONST uint BINDING_COUNT = 36;
 
 // ---- shader binding table: miss shaders and hit groups (RayTracingPipeline group order) -
 PX_CONST uint MISS_SCENE = 0;         // miss.rmiss: the world
@@ -157,7 +158,12 @@ struct Material {
     // chain further). -1: no mix (mix_weight ignored). Acyclic, validated on the host.
     int mix_next;
     float mix_weight;  // in [0,1]
+    uint flags;        // MATERIAL_FLAG_*
 };
+
+// Conductor/dielectric: Cycles' Multiscatter GGX, the single-scatter lobe scaled by
+// 1/E(mu_o) (and the Fresnel-coloured multi-bounce term) from shaders/shared/ggx_tables.h.
+PX_CONST uint MATERIAL_FLAG_MULTISCATTER = 1u;
 
 struct TextureInfo {
     uint offset;  // first texel in the texel buffer
@@ -243,6 +249,8 @@ PX_CONST uint TEST_GUIDING_VMF = 5;   // lobe 0 alone: vmf_sample / vmf_pdf
 PX_CONST uint TEST_GUIDING_VMM = 6;   // the mixture: guiding_vmm_sample / guiding_vmm_pdf
 PX_CONST uint TEST_GUIDING_PACK = 7;  // guiding_pack_direction / guiding_unpack_direction
 PX_CONST uint TEST_ADRRS = 8;         // ADRRS' weight window and expected-value split
+PX_CONST uint TEST_CONDUCTOR_MS = 9;  // TEST_CONDUCTOR / TEST_DIELECTRIC with Multiscatter GGX
+PX_CONST uint TEST_DIELECTRIC_MS = 10;
 
 #include "techniques.h"
 

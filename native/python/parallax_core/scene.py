@@ -48,6 +48,7 @@ FLAT_KEYS = {
     "material_texture": (np.int32, "(K,)"),
     "material_mix_next": (np.int32, "(K,)"),
     "material_mix_weight": (np.float32, "(K,)"),
+    "material_multiscatter": (np.uint32, "(K,)"),
     "texture_texels": (np.uint8, "(N,4)"),
     "texture_info": (np.uint32, "(X,3)"),
     "light_type": (np.uint32, "(L,)"),
@@ -103,7 +104,7 @@ def parts_set(parts):
 
 # Keys added after version 1 files were written, with the value a missing key stands for.
 # Keys newer than some saved files, with their defaults (and the array they follow in length).
-_OPTIONAL_KEY_DEFAULTS = {"material_mix_next": -1, "material_mix_weight": 1.0,
+_OPTIONAL_KEY_DEFAULTS = {"material_mix_next": -1, "material_mix_weight": 1.0, "material_multiscatter": 0,
                           "light_camera_visible": 1, "light_soft_falloff": 0}
 
 # Most materials one mix chain may hold, head included (MIX_CHAIN_MAX in shared/types.h).
@@ -250,6 +251,9 @@ class Material:
     chain contribute only their BSDF, so put a mix's combined emission on its head. Chains
     must be acyclic and hold at most MIX_CHAIN_MAX materials; ``mix_next=None`` (no mix)
     ignores ``mix_weight``.
+
+    multiscatter (conductor, dielectric): Cycles' Multiscatter GGX, the single-scatter lobe
+    scaled to conserve the energy lost to masking (Kulla & Conty 2017, as Cycles does it).
     """
     type: str = "diffuse"
     base_color: tuple = (0.8, 0.8, 0.8)
@@ -261,6 +265,7 @@ class Material:
     name: str = ""
     mix_next: int | None = None
     mix_weight: float = 1.0
+    multiscatter: bool = False
 
 
 @dataclass
@@ -654,6 +659,7 @@ class SceneData:
         out["material_mix_weight"] = np.array(
             [1.0 if m.mix_next is None else min(max(float(m.mix_weight), 0.0), 1.0)
              for m in mats], np.float32)
+        out["material_multiscatter"] = np.array([int(bool(m.multiscatter)) for m in mats], np.uint32)
         texels, info, first = [], [], 0
         for tex in self.textures:
             rgba = _texture_rgba(tex.pixels, "texture")
@@ -780,7 +786,8 @@ class SceneData:
                      name=mnames[k],
                      mix_next=(None if a["material_mix_next"][k] < 0
                                else int(a["material_mix_next"][k])),
-                     mix_weight=float(a["material_mix_weight"][k]))
+                     mix_weight=float(a["material_mix_weight"][k]),
+                     multiscatter=bool(a["material_multiscatter"][k]))
             for k in range(len(a["material_type"]))]
         tnames = meta.get("texture_names") or [""] * len(a["texture_info"])
         textures = [Texture(a["texture_texels"][o:o + w * h].reshape(h, w, 4).copy(), tnames[x])
