@@ -152,7 +152,7 @@ def _add_light(**kw):
     prefix) appended; the others are a valid point light's."""
     row = {"type": 1, "position": (0, 0, 1), "direction": (0, 0, -1), "axis_u": (1, 0, 0),
            "axis_v": (0, 1, 0), "radius": 0.1, "color": (10, 10, 10), "spot_size": 1.0,
-           "spot_blend": 0.1, "sun_angle": 0.0, "camera_visible": 1}
+           "spot_blend": 0.1, "sun_angle": 0.0, "camera_visible": 1, "soft_falloff": 0}
     row.update(kw)
 
     def edit(a):

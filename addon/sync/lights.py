@@ -1,7 +1,7 @@
 """Blender lights -> Parallax lights, in Cycles' units (the core converts power to radiance).
 
-Power is ``energy * 2^exposure``. Point/spot: in W, radius = ``shadow_soft_size``, rendered
-as a true sphere (Cycles with Soft Falloff off). Sun: strength in W/m^2 and angular diameter. Area: power in W over the
+Power is ``energy * 2^exposure``. Point/spot: in W, radius = ``shadow_soft_size``; with Soft
+Falloff (Blender's default) a disk facing the shading point as in Cycles, else a true sphere. Sun: strength in W/m^2 and angular diameter. Area: power in W over the
 shape scaled by the object (square, rectangle, disk, ellipse), one-sided along local -Z.
 """
 import numpy as np
@@ -34,11 +34,9 @@ def export_lights(depsgraph, data, warnings):
         if getattr(light, "use_nodes", False) and light.node_tree is not None:
             warnings.add(f"{label}: light node trees are ignored (colour x power is used)")
         if light.type in ("POINT", "SPOT"):
-            if getattr(light, "use_soft_falloff", False) and light.shadow_soft_size > 0:
-                warnings.add(f"{label}: Soft Falloff is rendered as off (a true sphere light); "
-                             "it differs only close to the light")
             kind = "point" if light.type == "POINT" else "spot"
-            extra = dict(radius=float(light.shadow_soft_size))
+            extra = dict(radius=float(light.shadow_soft_size),
+                         soft_falloff=bool(getattr(light, "use_soft_falloff", True)))
             if kind == "spot":
                 extra.update(spot_size=float(light.spot_size), spot_blend=float(light.spot_blend))
             data.lights.append(Light(type=kind, power=power, **common, **extra))

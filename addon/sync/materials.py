@@ -9,8 +9,9 @@ A node tree is reduced to weighted BSDF lobes plus one emission colour:
   Image Texture (UV mapped) into a colour input -> that lobe's sRGB base-colour texture.
 Several lobes become a chain of core materials picked stochastically per hit with
 probability weight / total (``Material.mix_next``/``mix_weight``); the total weight scales the
-lobes' colours. Documented approximations, each warned about once: multiscatter GGX and
-Beckmann are rendered as single-scatter GGX; Principled's dielectric specular layer over the
+lobes' colours. Multiscatter GGX (the default of Glossy, Glass and Principled) is GGX with
+Cycles' energy compensation. Documented approximations, each warned about once: Beckmann is
+rendered as single-scatter GGX; Principled's dielectric specular layer over the
 diffuse base, coat, sheen, subsurface and alpha are ignored; its metal uses the base colour
 as a constant Fresnel; linked factors and colours other than an Image Texture use the
 socket's own value; any other shader node renders as a diffuse surface of its colour.
@@ -98,6 +99,7 @@ class MaterialTable:
                 roughness=lobe["roughness"], ior=lobe["ior"],
                 emission=tuple(emission) if i == 0 else (0.0, 0.0, 0.0),
                 base_color_texture=lobe["texture"], name=name if i == 0 else f"{name} (lobe {i})",
+                multiscatter=lobe["multiscatter"],
                 mix_next=None if last else next_index,
                 mix_weight=1.0 if last else min(1.0, p / remaining))
             if i == 0:
@@ -136,9 +138,10 @@ def node_tree(id_block):
     return id_block.node_tree
 
 
-def _lobe(type, base_color, roughness=0.5, ior=1.45, texture=None):
+def _lobe(type, base_color, roughness=0.5, ior=1.45, texture=None, multiscatter=False):
     return dict(type=type, base_color=np.asarray(base_color[:3], dtype=np.float64),
-                roughness=float(roughness), ior=float(ior), texture=texture)
+                roughness=float(roughness), ior=float(ior), texture=texture,
+                multiscatter=bool(multiscatter) and type in ("conductor", "dielectric"))
 
 
 class _NodeReader:
@@ -252,31 +255,32 @@ class _NodeReader:
         return [(1.0, _lobe("diffuse", color, texture=texture))], np.zeros(3)
 
     def _distribution(self, node, roughness):
+        """(roughness, multiscatter) of a microfacet node's distribution."""
         distribution = getattr(node, "distribution", "GGX")
-        if roughness > 0.0 and distribution not in ("GGX", "SHARP"):
+        if roughness > 0.0 and distribution not in ("GGX", "SHARP", "MULTI_GGX"):
             self.warn(f"'{node.name}': {distribution} is rendered as single-scatter GGX")
-        return 0.0 if distribution == "SHARP" else roughness
+        return (0.0 if distribution == "SHARP" else roughness), distribution == "MULTI_GGX"
 
     def _bsdf_glossy(self, node):
         color, texture = self.color(node, "Color")
-        roughness = self._distribution(node, self.value(node, "Roughness", 0.5))
+        roughness, ms = self._distribution(node, self.value(node, "Roughness", 0.5))
         if abs(self.value(node, "Anisotropy", 0.0)) > 0.0:
             self.warn(f"'{node.name}': anisotropy is ignored")
-        return [(1.0, _lobe("conductor", color, roughness, texture=texture))], np.zeros(3)
+        return [(1.0, _lobe("conductor", color, roughness, texture=texture, multiscatter=ms))], np.zeros(3)
 
     _bsdf_anisotropic = _bsdf_glossy
 
     def _bsdf_metallic(self, node):
         self.warn(f"'{node.name}': Metallic BSDF uses its base colour as a constant Fresnel")
         color, texture = self.color(node, "Base Color")
-        roughness = self._distribution(node, self.value(node, "Roughness", 0.5))
-        return [(1.0, _lobe("conductor", color, roughness, texture=texture))], np.zeros(3)
+        roughness, ms = self._distribution(node, self.value(node, "Roughness", 0.5))
+        return [(1.0, _lobe("conductor", color, roughness, texture=texture, multiscatter=ms))], np.zeros(3)
 
     def _bsdf_glass(self, node):
         color, texture = self.color(node, "Color", (1.0, 1.0, 1.0))
-        roughness = self._distribution(node, self.value(node, "Roughness", 0.0))
+        roughness, ms = self._distribution(node, self.value(node, "Roughness", 0.0))
         ior = self.ior(node, 1.5)
-        return [(1.0, _lobe("dielectric", color, roughness, ior, texture))], np.zeros(3)
+        return [(1.0, _lobe("dielectric", color, roughness, ior, texture, ms))], np.zeros(3)
 
     def _bsdf_principled(self, node):
         def first(*names):
@@ -285,7 +289,7 @@ class _NodeReader:
         color, texture = self.color(node, "Base Color")
         metallic = min(max(self.value(node, "Metallic", 0.0), 0.0), 1.0)
         transmission = min(max(self.value(node, first("Transmission Weight", "Transmission"), 0.0), 0.0), 1.0)
-        roughness = self._distribution(node, self.value(node, "Roughness", 0.5))
+        roughness, ms = self._distribution(node, self.value(node, "Roughness", 0.5))
         ior = self.ior(node, 1.45)
         for name in ("Coat Weight", "Clearcoat", "Sheen Weight", "Sheen", "Subsurface Weight", "Subsurface"):
             if name in node.inputs and self.value(node, name, 0.0) > 0.0:
@@ -293,8 +297,8 @@ class _NodeReader:
         if self.value(node, "Alpha", 1.0) < 1.0:
             self.warn(f"'{node.name}': Alpha is ignored (rendered opaque)")
         lobes = [
-            (metallic, _lobe("conductor", color, roughness, ior, texture)),
-            ((1.0 - metallic) * transmission, _lobe("dielectric", color, roughness, ior, texture)),
+            (metallic, _lobe("conductor", color, roughness, ior, texture, ms)),
+            ((1.0 - metallic) * transmission, _lobe("dielectric", color, roughness, ior, texture, ms)),
             ((1.0 - metallic) * (1.0 - transmission), _lobe("diffuse", color, roughness, ior, texture)),
         ]
         emission_color, emission_texture = self.color(node, first("Emission Color", "Emission"), (0.0, 0.0, 0.0))

@@ -4,6 +4,9 @@
 //   conductor   GGX microfacet, alpha = roughness^2, Fresnel = colour (Cycles Glossy BSDF),
 //               height-correlated Smith G2, visible-normal sampling (Heitz 2018)
 //   dielectric  smooth or rough GGX glass (Walter et al. 2007), colour tints both lobes
+// Either GGX lobe may carry Cycles' multiscatter energy compensation (Surface.ms).
+
+#include "../shared/ggx_tables.h"
 
 const float DELTA_ALPHA = 1e-4;  // alpha below this: a perfect mirror / smooth glass
 
@@ -12,6 +15,7 @@ struct Surface {
     vec3 albedo;  // base colour (x texture)
     float alpha;  // GGX roughness
     float eta;    // dielectric: IOR on the far side / IOR on the side of wo (after flip)
+    vec3 ms;      // multiscatter energy compensation factor of the whole lobe (1: single scatter)
 };
 
 struct BsdfSample {
@@ -74,6 +78,61 @@ float fresnel_dielectric(float cos_i, float eta) {
     return 0.5 * a * a * (1.0 + b * b);
 }
 
+// ---- multiscatter energy compensation ---------------------------------------------------
+float ggx_table(uint i) {
+    uint w = ggx_table_words[i >> 1];
+    return float((i & 1u) != 0u ? (w >> 16) : (w & 0xffffu)) * (1.0 / 65535.0);
+}
+
+// Linear interpolation on a grid of n points over [0, 1]: cell and fraction of x.
+uint ggx_table_cell(float x, uint n, out float f) {
+    float g = clamp(x, 0.0, 1.0) * float(n - 1u);
+    uint i = min(uint(g), n - 2u);
+    f = g - float(i);
+    return i;
+}
+
+float ggx_table_1d(uint offset, uint n, float x) {
+    float fx;
+    uint ix = ggx_table_cell(x, n, fx);
+    return mix(ggx_table(offset + ix), ggx_table(offset + ix + 1u), fx);
+}
+
+float ggx_table_2d(uint offset, uint n, float x, float y) {  // table[x][y]
+    float fx;
+    uint ix = ggx_table_cell(x, n, fx);
+    return mix(ggx_table_1d(offset + ix * n, n, y), ggx_table_1d(offset + (ix + 1u) * n, n, y), fx);
+}
+
+float ggx_table_3d(uint offset, uint n, float x, float y, float z) {  // table[x][y][z]
+    float fx;
+    uint ix = ggx_table_cell(x, n, fx);
+    return mix(ggx_table_2d(offset + ix * n * n, n, y, z), ggx_table_2d(offset + (ix + 1u) * n * n, n, y, z), fx);
+}
+
+// Multiscatter GGX as Cycles does it (Kulla & Conty 2017, "Revisiting Physically Based
+// Shading at Imageworks"; Turquin 2019): the single-scatter lobe times
+// 1 + F_ms (1 - E) / E, E = E(mu_o) its albedo with F = 1, F_ms = F E_avg / (1 - F (1 - E_avg))
+// the multi-bounce Fresnel of a lobe of colour F (1/E when F = 1). Glass: 1 / E_glass(mu_o),
+// the albedo of reflection + refraction at its relative IOR. Call once wo is known.
+void surface_multiscatter(inout Surface s, float mu) {
+    s.ms = vec3(1.0);
+    if (s.alpha < DELTA_ALPHA || s.type == MATERIAL_DIFFUSE || s.type == MATERIAL_EMISSION) return;
+    float rough = sqrt(s.alpha);
+    if (s.type == MATERIAL_CONDUCTOR) {
+        float e = max(ggx_table_2d(GGX_E_OFFSET, 32u, rough, mu), 1e-3);
+        float e_avg = ggx_table_1d(GGX_EAVG_OFFSET, 32u, rough);
+        vec3 f = clamp(s.albedo, 0.0, 1.0);
+        vec3 f_ms = f * e_avg / (1.0 - f * (1.0 - e_avg));
+        s.ms = 1.0 + f_ms * ((1.0 - e) / e);
+        return;
+    }
+    float ior = s.eta >= 1.0 ? s.eta : 1.0 / s.eta;
+    float z = sqrt((ior - 1.0) / (ior + 1.0));
+    uint offset = s.eta >= 1.0 ? GLASS_E_OFFSET : GLASS_INV_E_OFFSET;
+    s.ms = vec3(1.0 / max(ggx_table_3d(offset, 32u, rough, mu, z), 1e-3));
+}
+
 // ---- evaluation ----------------------------------------------------------------------
 // f(wo, wi) |wi.z| and the sampling pdf. wo.z > 0 is guaranteed by the caller.
 vec3 bsdf_eval(Surface s, vec3 wo, vec3 wi, out float pdf) {
@@ -89,7 +148,7 @@ vec3 bsdf_eval(Surface s, vec3 wo, vec3 wi, out float pdf) {
         vec3 m = normalize(wo + wi);
         float d = ggx_d(m, s.alpha);
         pdf = ggx_g1(wo, s.alpha) * d / (4.0 * wo.z);
-        return s.albedo * (d * ggx_g2(wo, wi, s.alpha) / (4.0 * wo.z));
+        return s.albedo * s.ms * (d * ggx_g2(wo, wi, s.alpha) / (4.0 * wo.z));
     }
     if (!HAS(FEATURE_DIELECTRIC)) return vec3(0.0);
     // rough dielectric
@@ -98,7 +157,7 @@ vec3 bsdf_eval(Surface s, vec3 wo, vec3 wi, out float pdf) {
         float f = fresnel_dielectric(dot(wo, m), s.eta);
         float d = ggx_d(m, s.alpha);
         pdf = ggx_g1(wo, s.alpha) * d / (4.0 * wo.z) * f;
-        return s.albedo * (f * d * ggx_g2(wo, wi, s.alpha) / (4.0 * wo.z));
+        return s.albedo * s.ms * (f * d * ggx_g2(wo, wi, s.alpha) / (4.0 * wo.z));
     }
     if (wi.z == 0.0) return vec3(0.0);
     vec3 m = normalize(wo + s.eta * wi);  // generalized half vector (Walter et al. eq. 16)
@@ -111,7 +170,7 @@ vec3 bsdf_eval(Surface s, vec3 wo, vec3 wi, out float pdf) {
     float jacobian = s.eta * s.eta * abs(wi_m) / denom;  // d omega_m / d omega_i (eq. 17)
     pdf = ggx_vndf_pdf(wo, m, s.alpha) * (1.0 - f) * jacobian;
     // Walter eq. 21 times |wi.z|; no 1/eta^2 radiance scaling, as in Cycles.
-    return s.albedo * ((1.0 - f) * d * ggx_g2(wo, wi, s.alpha) * wo_m * jacobian / wo.z);
+    return s.albedo * s.ms * ((1.0 - f) * d * ggx_g2(wo, wi, s.alpha) * wo_m * jacobian / wo.z);
 }
 
 // ---- sampling ------------------------------------------------------------------------
@@ -139,7 +198,7 @@ bool bsdf_sample(Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
         bs.wi = reflect(-wo, m);
         if (bs.wi.z <= 0.0) return false;
         bs.pdf = ggx_vndf_pdf(wo, m, s.alpha) / (4.0 * dot(wo, m));
-        bs.weight = s.albedo * (ggx_g2(wo, bs.wi, s.alpha) / ggx_g1(wo, s.alpha));
+        bs.weight = s.albedo * s.ms * (ggx_g2(wo, bs.wi, s.alpha) / ggx_g1(wo, s.alpha));
         return true;
     }
     if (!HAS(FEATURE_DIELECTRIC)) return false;
@@ -167,6 +226,6 @@ bool bsdf_sample(Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
         float wi_m = dot(bs.wi, m);
         bs.pdf = ggx_vndf_pdf(wo, m, s.alpha) * (1.0 - f) * s.eta * s.eta * abs(wi_m) / sqr(wo_m + s.eta * wi_m);
     }
-    bs.weight = s.albedo * (ggx_g2(wo, bs.wi, s.alpha) / ggx_g1(wo, s.alpha));
+    bs.weight = s.albedo * s.ms * (ggx_g2(wo, bs.wi, s.alpha) / ggx_g1(wo, s.alpha));
     return true;
 }

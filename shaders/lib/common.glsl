@@ -24,6 +24,7 @@ layout(set = 0, binding = BINDING_ENV_TEXELS, scalar) readonly buffer EnvTexelBu
 layout(set = 0, binding = BINDING_ENV_MARGINAL, scalar) readonly buffer EnvMarginalBuffer { float env_marginal[]; };
 layout(set = 0, binding = BINDING_ENV_CONDITIONAL, scalar) readonly buffer EnvConditionalBuffer { float env_conditional[]; };
 layout(set = 0, binding = BINDING_SCENE, scalar) readonly buffer SceneBuffer { SceneInfo scene; };
+layout(set = 0, binding = BINDING_GGX_TABLES, scalar) readonly buffer GgxTableBuffer { uint ggx_table_words[]; };
 
 layout(push_constant, scalar) uniform PushConstants { FrameParams params; };
 

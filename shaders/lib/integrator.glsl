@@ -159,19 +159,19 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         bool resumed = opt.resume && res.segments == 1u;
         float emission_scale = ((opt.skip_first_emission || opt.resume) && res.segments == 1u) ? 0.0 : 1.0;
 
-        // Analytic lights are not in the TLAS: test them against this segment.
-        float t_light, light_pdf;
-        vec3 light_radiance;
-        if (HAS(FEATURE_SPHERE_LIGHTS | FEATURE_AREA_LIGHTS) &&
-            intersect_analytic_lights(origin, dir, t_surface, camera_ray, t_light, light_radiance,
-                                      light_pdf) != NO_INDEX) {
+        // Analytic lights are not in the TLAS: test them against this segment. As in Cycles they
+        // do not occlude (shadow rays ignore them too): every one along the segment adds its
+        // emission and the ray goes on to what lies behind.
+        for (uint i = scene.analytic_first; HAS(FEATURE_SPHERE_LIGHTS | FEATURE_AREA_LIGHTS) && i < analytic_end(camera_ray); ++i) {
+            float t_light, light_pdf;
+            vec3 light_radiance;
+            if (!analytic_light_hit(i, origin, dir, t_surface, t_light, light_radiance, light_pdf)) continue;
             res.radiance += throughput * light_radiance * (emission_scale * emission_weight(prev_delta, prev_pdf, light_pdf, opt.light_samples));
-            if (res.segments == 1u) res.first_t = t_light;
-            if (USES(TECH_GUIDING) && g_open != NO_INDEX) g_rec[g_open].distance = g_travelled + t_light;
-            break;
+            if (res.segments == 1u) res.first_t = min(res.first_t, t_light);
         }
         if (hit.t < 0.0) {  // escaped: its record keeps the infinite distance
             if (USES(TECH_GUIDING) && g_open != NO_INDEX) g_rec[g_open].distance = GUIDING_DISTANCE_INFINITE;
+            float light_pdf;
             vec3 le = distant_radiance(dir, camera_ray, light_pdf);
             res.radiance += throughput * le * (emission_scale * emission_weight(prev_delta, prev_pdf, light_pdf, opt.light_samples));
             break;
@@ -183,7 +183,7 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         // The open record's distance, final unless this vertex turns out delta (below).
         if (USES(TECH_GUIDING) && g_open != NO_INDEX) g_rec[g_open].distance = g_travelled + hit.t;
         if (res.segments == 1u) {
-            res.first_t = hit.t;
+            res.first_t = min(res.first_t, hit.t);  // a light in front keeps its distance
             res.first_normal = dot(sh.ns, wo) >= 0.0 ? sh.ns : -sh.ns;
         }
         if (max3(mat.emission) > 0.0 && emission_scale > 0.0) {
@@ -213,6 +213,8 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         vec3 tangent, bitangent;
         make_basis(ns, tangent, bitangent);
         vec3 wo_local = vec3(dot(wo, tangent), dot(wo, bitangent), dot(wo, ns));
+        surf.ms = vec3(1.0);
+        if ((mat.flags & MATERIAL_FLAG_MULTISCATTER) != 0u) surface_multiscatter(surf, wo_local.z);
         bool delta = surface_is_delta(surf);
         if (USES(TECH_GUIDING) && g_open != NO_INDEX) {
             if (delta) g_travelled += hit.t;  // through specular chains to the next real vertex

@@ -1,7 +1,7 @@
 // Light sampling for next event estimation, and the matching densities for MIS when a
 // BSDF-sampled ray hits a light. A light is chosen from light_cdf (weights ~ emitted
 // power); emissive triangles are sampled uniformly by area, spheres uniformly within the
-// cone they subtend, rectangles/disks by area, the sun within its cone, the environment
+// cone they subtend (Soft Falloff: a disk facing the point, by area), rectangles/disks by area, the sun within its cone, the environment
 // map by its luminance * sin(theta) table. All pdfs are per solid angle and include the
 // selection probability; delta lights report pdf = selection probability.
 
@@ -112,6 +112,24 @@ bool sample_one_light(uint index, vec3 p, vec2 u, out LightSample ls) {
         float d2 = dot(to, to);
         float d = sqrt(d2);
         vec3 axis = to / d;
+        if ((l.flags & LIGHT_FLAG_SOFT_FALLOFF) != 0u) {
+            // Soft Falloff: a disk of radius r facing p, sampled uniformly by area (pdf 1/(pi r^2)
+            // -> dist^2 / (pi r^2 cos_l) per solid angle); the spot cone is evaluated along the
+            // sampled direction (Cycles' point_light_sample / spot_light_sample, is_sphere off).
+            if (!(d > 0.0)) return false;
+            vec3 t, b;
+            make_basis(-axis, t, b);
+            vec2 o = l.radius * concentric_disk(u);
+            vec3 to_q = to + o.x * t + o.y * b;
+            ls.dist = length(to_q);
+            ls.wi = to_q / ls.dist;
+            float cos_l = dot(axis, ls.wi);  // disk normal -axis . -wi
+            float att = l.type == LIGHT_SPOT ? spot_attenuation(l, -ls.wi) : 1.0;
+            if (cos_l <= 0.0 || att <= 0.0) return false;
+            ls.pdf = ls.dist * ls.dist / (l.area * cos_l);
+            ls.radiance = l.radiance * att;
+            return true;
+        }
         float att = l.type == LIGHT_SPOT ? spot_attenuation(l, -axis) : 1.0;
         if (att <= 0.0) return false;
         if (l.radius <= 0.0) {  // point light: delta, radiance field holds the intensity
@@ -202,6 +220,20 @@ bool analytic_light_hit(uint index, vec3 o, vec3 d, float t_max, out float t, ou
     if (HAS(FEATURE_SPHERE_LIGHTS) && (l.type == LIGHT_SPHERE || l.type == LIGHT_SPOT)) {
         if (l.radius <= 0.0) return false;
         vec3 oc = o - l.position;
+        if ((l.flags & LIGHT_FLAG_SOFT_FALLOFF) != 0u) {  // the disk facing o (see sample_one_light)
+            float oc2 = dot(oc, oc);
+            if (!(oc2 > 0.0)) return false;
+            vec3 n = oc * inversesqrt(oc2);
+            float denom = dot(d, n);
+            if (denom >= 0.0) return false;
+            t = dot(-oc, n) / denom;
+            vec3 q = o + t * d - l.position;
+            if (t <= 0.0 || t >= t_max || dot(q, q) > l.radius * l.radius) return false;
+            float att = l.type == LIGHT_SPOT ? spot_attenuation(l, -d) : 1.0;
+            radiance = l.radiance * att;
+            pdf = att > 0.0 ? light_select_pdf(index) * t * t / (l.area * -denom) : 0.0;
+            return true;
+        }
         float b = dot(oc, d);
         float c = dot(oc, oc) - l.radius * l.radius;
         if (c <= 0.0) return false;  // origin inside: ignore
@@ -237,26 +269,6 @@ bool analytic_light_hit(uint index, vec3 o, vec3 d, float t_max, out float t, ou
 // per-object ray visibility), which the host puts first.
 uint analytic_end(bool camera_ray) {
     return scene.analytic_first + (camera_ray ? scene.analytic_camera_count : scene.analytic_count);
-}
-
-// Nearest analytic light (sphere, spot, rect, disk) along the ray within t_max.
-// Returns its index or NO_INDEX; t_hit, radiance and pdf (incl. selection) as seen from o.
-uint intersect_analytic_lights(vec3 o, vec3 d, float t_max, bool camera_ray, out float t_hit, out vec3 radiance,
-                               out float pdf) {
-    uint found = NO_INDEX;
-    t_hit = t_max;
-    radiance = vec3(0.0);
-    pdf = 0.0;
-    for (uint i = scene.analytic_first; i < analytic_end(camera_ray); ++i) {
-        float t, p;
-        vec3 le;
-        if (!analytic_light_hit(i, o, d, t_hit, t, le, p)) continue;
-        t_hit = t;
-        found = i;
-        radiance = le;
-        pdf = p;
-    }
-    return found;
 }
 
 // Radiance and MIS pdf (incl. selection) of everything at infinity in direction d:

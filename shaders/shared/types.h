@@ -56,7 +56,8 @@ PX_CONST uint BINDING_GUIDING_LOBES = 32;   // GuidingLobe[regions * GUIDING_MAX
 PX_CONST uint BINDING_GUIDING_ORDER = 33;   // uint per region-BLAS primitive: its region
 PX_CONST uint BINDING_GUIDING_SAMPLES = 34; // GuidingSample[recording paths * GUIDING_PATH_VERTICES]
 PX_CONST uint BINDING_ADRRS_ADJOINT = 35;  // vec4 per grid cell and axis direction: mean E (rgb), entries
-PX_CONST uint BINDING_COUNT = 36;
+PX_CONST uint BINDING_GGX_TABLES = 36;     // uint unorm16 pairs: multiscatter GGX albedos (ggx_tables.h)
+PX_CONST uint BINDING_COUNT = 37;
 
 // ---- shader binding table: miss shaders and hit groups (RayTracingPipeline group order) -
 PX_CONST uint MISS_SCENE = 0;         // miss.rmiss: the world
@@ -158,7 +159,12 @@ struct Material {
     // chain further). -1: no mix (mix_weight ignored). Acyclic, validated on the host.
     int mix_next;
     float mix_weight;  // in [0,1]
+    uint flags;        // MATERIAL_FLAG_*
 };
+
+// Conductor/dielectric: Cycles' Multiscatter GGX, the single-scatter lobe scaled by
+// 1/E(mu_o) (and the Fresnel-coloured multi-bounce term) from shaders/shared/ggx_tables.h.
+PX_CONST uint MATERIAL_FLAG_MULTISCATTER = 1u;
 
 struct TextureInfo {
     uint offset;  // first texel in the texel buffer
@@ -179,8 +185,14 @@ struct Light {
     vec3 axis_u;     // rect/disk full extent along u; triangle edge p1 - p0
     float spot_smooth;     // spot: (1 - cos_half_angle) * blend (Cycles' smoothstep width)
     vec3 axis_v;     // rect/disk full extent along v; triangle edge p2 - p0
-    float area;      // rect/disk/triangle area
+    float area;      // rect/disk/triangle area; sphere/spot: pi radius^2
+    uint flags;      // LIGHT_FLAG_*
 };
+
+// Point/spot with a radius: Cycles' Soft Falloff (Blender's default). The light is a disk of
+// the sphere's radius and radiance centred on the light and facing the shading point (Cycles'
+// is_sphere = false), so irradiance falls off as 1/(d^2 + r^2) near it instead of 1/d^2.
+PX_CONST uint LIGHT_FLAG_SOFT_FALLOFF = 1u;
 
 struct SceneInfo {
     vec4 camera_to_world[3];  // rows; camera looks down -Z with +Y up (Blender)
@@ -238,6 +250,8 @@ PX_CONST uint TEST_GUIDING_VMF = 5;   // lobe 0 alone: vmf_sample / vmf_pdf
 PX_CONST uint TEST_GUIDING_VMM = 6;   // the mixture: guiding_vmm_sample / guiding_vmm_pdf
 PX_CONST uint TEST_GUIDING_PACK = 7;  // guiding_pack_direction / guiding_unpack_direction
 PX_CONST uint TEST_ADRRS = 8;         // ADRRS' weight window and expected-value split
+PX_CONST uint TEST_CONDUCTOR_MS = 9;  // TEST_CONDUCTOR / TEST_DIELECTRIC with Multiscatter GGX
+PX_CONST uint TEST_DIELECTRIC_MS = 10;
 
 #include "techniques.h"
 

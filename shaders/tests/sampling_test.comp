@@ -146,11 +146,14 @@ void main() {
     }
 
     Surface s;
-    s.type = routine == TEST_DIFFUSE ? MATERIAL_DIFFUSE : routine == TEST_CONDUCTOR ? MATERIAL_CONDUCTOR : MATERIAL_DIELECTRIC;
+    s.type = routine == TEST_DIFFUSE ? MATERIAL_DIFFUSE
+           : (routine == TEST_CONDUCTOR || routine == TEST_CONDUCTOR_MS) ? MATERIAL_CONDUCTOR : MATERIAL_DIELECTRIC;
     s.albedo = vec3(1.0);
     s.alpha = params.test_params.w * params.test_params.w;
     s.eta = params.test_param0;
     vec3 wo = normalize(params.test_params.xyz);
+    s.ms = vec3(1.0);
+    if (routine == TEST_CONDUCTOR_MS || routine == TEST_DIELECTRIC_MS) surface_multiscatter(s, wo.z);
     if (eval_mode) {
         float pdf;
         vec3 f = bsdf_eval(s, wo, normalize(io[2u * i].xyz), pdf);

@@ -64,3 +64,23 @@ def export_current(bpy):
         final.scene_hook = None
     assert captured, final.last_report.errors
     return captured[0]
+
+
+def parity_ratio(p0, p1, c0, c1, block):
+    """(difference / noise ratio R, block relMSE) of two seed pairs (test_parity.py explains R:
+    about 1 without a systematic difference)."""
+    P0, P1, C0, C1 = (block_means(x, block) for x in (p0, p1, c0, c1))
+    difference = (((P0 + P1) - (C0 + C1)) / 2) ** 2
+    noise = ((P0 - P1) ** 2 + (C0 - C1) ** 2) / 4
+    rel_mse = float(difference.sum() / max((((C0 + C1) / 2) ** 2).sum(), 1e-30))
+    return float(difference.sum() / max(noise.sum(), 1e-30)), rel_mse
+
+
+def load_scene_builder():
+    """blender_scenes/build.py as a module (its helpers build scenes with bpy)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("parallax_scene_build", os.path.join(SCENES, "build.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

@@ -118,18 +118,22 @@ def test_mix_shader_with_emission_scales_the_bsdf(fresh, bpy):
     np.testing.assert_allclose(m.emission, (1.25, 1.25, 1.25), rtol=1e-6)
 
 
-def test_glossy_glass_and_multiscatter_warning(fresh, bpy):
+def test_glossy_glass_multiscatter_and_beckmann_warning(fresh, bpy):
     glossy, _ = _material(bpy, "Metal", "ShaderNodeBsdfAnisotropic", Roughness=0.4, distribution="GGX")
     glass, _ = _material(bpy, "Glass", "ShaderNodeBsdfGlass", Roughness=0.2, IOR=1.6,
                          distribution="MULTI_GGX")
+    rough, _ = _material(bpy, "Rough", "ShaderNodeBsdfGlossy", Roughness=0.3, distribution="BECKMANN")
     _cube(bpy, fresh, "A", glossy)
     _cube(bpy, fresh, "B", glass, location=(3, 0, 0))
+    _cube(bpy, fresh, "C", rough, location=(-3, 0, 0))
     data, warnings = export_current(bpy)
     by_name = {m.name: m for m in data.materials}
     assert by_name["Metal"].type == "conductor" and by_name["Metal"].roughness == pytest.approx(0.4)
+    assert not by_name["Metal"].multiscatter
     assert by_name["Glass"].type == "dielectric" and by_name["Glass"].ior == pytest.approx(1.6)
+    assert by_name["Glass"].multiscatter  # Cycles' energy compensation, no warning
     assert [w for w in warnings if "single-scatter GGX" in w] == [
-        "material 'Glass': 'Glass BSDF': MULTI_GGX is rendered as single-scatter GGX"]
+        "material 'Rough': 'Glossy BSDF': BECKMANN is rendered as single-scatter GGX"]
 
 
 def test_glass_ior_outside_the_core_range_is_clamped_with_a_warning(fresh, bpy):

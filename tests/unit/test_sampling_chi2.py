@@ -491,6 +491,56 @@ def test_sphere_light_irradiance(session, tilt_deg):
     assert estimate == pytest.approx(power * math.cos(t) / (4 * math.pi * d * d), rel=0.01)
 
 
+def test_soft_falloff_point_light(session):
+    """Cycles' Soft Falloff: a disk of the light's radius centred on it and facing the shading
+    point, with the sphere's radiance P / (4 pi^2 r^2), sampled uniformly by area. Its NEE
+    irradiance on a surface facing it is pi L r^2 / (d^2 + r^2) = P / (4 pi (d^2 + r^2))."""
+    c, rad, power = np.array([0.3, -0.2, 0.9]), 0.5, 25.0
+    scene = lights_scene([Light("point", power=power, position=tuple(c), radius=rad, soft_falloff=True)])
+    r = sample_lights(session, scene, P0, seed=SEED + 20)
+    ok = r[:, 1, 2] > 0.5
+    assert ok.all() and not (r[:, 1, 3] > 0.5).any()
+    np.testing.assert_allclose(r[:, 1, 0], power / (4 * math.pi ** 2 * rad ** 2), rtol=1e-5)
+    axis = unit(c - P0)
+    q = P0 + r[:, 0, :3].astype(np.float64) * r[:, 1, 1:2]
+    assert np.abs((q - c) @ axis).max() < 1e-4                      # in the plane facing P0,
+    assert np.linalg.norm(q - c, axis=1).max() <= rad * (1 + 1e-4)  # within the radius
+    assert np.linalg.norm(q - c, axis=1).min() < 0.05 * rad          # filling it
+    d = np.linalg.norm(c - P0)
+    cos_max = d / math.hypot(d, rad)
+    check_light_hits(session, P0, r)
+    check_fit("soft falloff point light", SphereGrid.cone(c - P0, cos_max), r[:, 0, :3], N, light_pdf(session, P0))
+    cos = r[:, 0, :3].astype(np.float64) @ axis
+    estimate = float(np.mean(r[:, 1, 0] * cos / r[:, 0, 3]))
+    assert estimate == pytest.approx(power / (4 * math.pi * (d * d + rad * rad)), rel=0.01)
+
+
+def test_soft_falloff_spot_light(session):
+    """The spot cone of a Soft Falloff spot is evaluated along each sampled direction (Cycles'
+    spot_light_sample with is_sphere off); hits see the same value."""
+    pos, rad, power = np.array([0.0, 0.0, 0.8]), 0.4, 50.0
+    t = math.radians(25.0)
+    direction = np.array([math.sin(t), 0.0, -math.cos(t)])
+    light = Light("spot", power=power, position=tuple(pos), direction=tuple(direction), radius=rad,
+                  spot_size=math.radians(60.0), spot_blend=0.5, soft_falloff=True)
+    r = sample_lights(session, lights_scene([light]), P0, seed=SEED + 21)
+    ok = r[:, 1, 2] > 0.5
+    assert 0.2 < ok.mean() < 1.0  # the cone's edge crosses the disk: some samples are dark
+    wi = r[ok, 0, :3].astype(np.float64)
+    cos_half = math.cos(math.radians(30.0))
+    att = np.array([smoothstep((-w @ direction - cos_half) / ((1 - cos_half) * 0.5)) for w in wi])
+    peak = power / (4 * math.pi ** 2 * rad ** 2)
+    np.testing.assert_allclose(r[ok, 1, 0], att * peak, rtol=2e-3, atol=1e-5 * peak)
+    # BSDF rays along the samples: the same pdf, and radiance (absolute tolerance: where the
+    # smoothstep is ~0 float rounding of the direction changes it relatively a lot)
+    e = session.test_sampling(TEST_LIGHT + EVAL, [*P0, 0.0, 0.0], int(ok.sum()), directions=r[ok, 0, :3])
+    assert_close_mostly("soft spot hit pdf", e[:, 1, 1], r[ok, 0, 3], loose=np.inf)
+    np.testing.assert_allclose(e[:, 1, 0], r[ok, 1, 0], rtol=1e-3, atol=1e-5 * peak)
+    d = np.linalg.norm(pos - P0)
+    check_fit("soft falloff spot light", SphereGrid.cone(pos - P0, d / math.hypot(d, rad)), wi, N,
+              light_pdf(session, P0))
+
+
 def spot_scene(power=50.0, off_axis_deg=27.0):
     pos = np.array([0.0, 0.0, 2.0])
     t = math.radians(off_axis_deg)  # angle between the spot axis and the direction to P0

@@ -48,6 +48,7 @@ FLAT_KEYS = {
     "material_texture": (np.int32, "(K,)"),
     "material_mix_next": (np.int32, "(K,)"),
     "material_mix_weight": (np.float32, "(K,)"),
+    "material_multiscatter": (np.uint32, "(K,)"),
     "texture_texels": (np.uint8, "(N,4)"),
     "texture_info": (np.uint32, "(X,3)"),
     "light_type": (np.uint32, "(L,)"),
@@ -61,6 +62,7 @@ FLAT_KEYS = {
     "light_spot_blend": (np.float32, "(L,)"),
     "light_sun_angle": (np.float32, "(L,)"),
     "light_camera_visible": (np.uint32, "(L,)"),
+    "light_soft_falloff": (np.uint32, "(L,)"),
     "world_color": (np.float32, "(3,)"),
     "world_map": (np.float32, "(H,W,3) or (0,0,3)"),
     "camera_to_world": (np.float32, "(3,4)"),
@@ -102,8 +104,8 @@ def parts_set(parts):
 
 # Keys added after version 1 files were written, with the value a missing key stands for.
 # Keys newer than some saved files, with their defaults (and the array they follow in length).
-_OPTIONAL_KEY_DEFAULTS = {"material_mix_next": -1, "material_mix_weight": 1.0,
-                          "light_camera_visible": 1}
+_OPTIONAL_KEY_DEFAULTS = {"material_mix_next": -1, "material_mix_weight": 1.0, "material_multiscatter": 0,
+                          "light_camera_visible": 1, "light_soft_falloff": 0}
 
 # Most materials one mix chain may hold, head included (MIX_CHAIN_MAX in shared/types.h).
 MIX_CHAIN_MAX = 16
@@ -249,6 +251,9 @@ class Material:
     chain contribute only their BSDF, so put a mix's combined emission on its head. Chains
     must be acyclic and hold at most MIX_CHAIN_MAX materials; ``mix_next=None`` (no mix)
     ignores ``mix_weight``.
+
+    multiscatter (conductor, dielectric): Cycles' Multiscatter GGX, the single-scatter lobe
+    scaled to conserve the energy lost to masking (Kulla & Conty 2017, as Cycles does it).
     """
     type: str = "diffuse"
     base_color: tuple = (0.8, 0.8, 0.8)
@@ -260,6 +265,7 @@ class Material:
     name: str = ""
     mix_next: int | None = None
     mix_weight: float = 1.0
+    multiscatter: bool = False
 
 
 @dataclass
@@ -278,7 +284,9 @@ class Light:
     ``shape`` and ``size`` (and ``size_y`` for rectangle/ellipse) along ``axis_u``/``axis_v``
     (the light's local X and Y, unit); if those are None a basis with u x v = -direction is
     derived. camera_visible: whether camera rays see the light itself (Blender's Camera ray
-    visibility; it lights the scene either way).
+    visibility; it lights the scene either way). soft_falloff (point/spot with a radius):
+    Cycles' Soft Falloff, Blender's default, where the light is a disk of ``radius`` facing
+    each shading point (irradiance ~ 1/(d^2 + r^2) near it); off: a true sphere.
     """
     type: str = "point"
     color: tuple = (1.0, 1.0, 1.0)
@@ -295,6 +303,7 @@ class Light:
     axis_u: tuple | None = None
     axis_v: tuple | None = None
     camera_visible: bool = True
+    soft_falloff: bool = False
     name: str = ""
 
 
@@ -650,6 +659,7 @@ class SceneData:
         out["material_mix_weight"] = np.array(
             [1.0 if m.mix_next is None else min(max(float(m.mix_weight), 0.0), 1.0)
              for m in mats], np.float32)
+        out["material_multiscatter"] = np.array([int(bool(m.multiscatter)) for m in mats], np.uint32)
         texels, info, first = [], [], 0
         for tex in self.textures:
             rgba = _texture_rgba(tex.pixels, "texture")
@@ -664,10 +674,10 @@ class SceneData:
     def _flatten_lights(self, light_keep, out):
         rows = [_light_row(l) for l, ok in zip(self.lights, light_keep) if ok]
         cols = ("type", "position", "direction", "axis_u", "axis_v", "radius", "color",
-                "spot_size", "spot_blend", "sun_angle", "camera_visible")
+                "spot_size", "spot_blend", "sun_angle", "camera_visible", "soft_falloff")
         shapes = {"position": 3, "direction": 3, "axis_u": 3, "axis_v": 3, "color": 3}
         for c in cols:
-            dt = np.uint32 if c in ("type", "camera_visible") else np.float32
+            dt = np.uint32 if c in ("type", "camera_visible", "soft_falloff") else np.float32
             shape = (-1, shapes[c]) if c in shapes else (-1,)
             out["light_" + c] = np.array([r[c] for r in rows], dtype=dt).reshape(shape)
 
@@ -776,7 +786,8 @@ class SceneData:
                      name=mnames[k],
                      mix_next=(None if a["material_mix_next"][k] < 0
                                else int(a["material_mix_next"][k])),
-                     mix_weight=float(a["material_mix_weight"][k]))
+                     mix_weight=float(a["material_mix_weight"][k]),
+                     multiscatter=bool(a["material_multiscatter"][k]))
             for k in range(len(a["material_type"]))]
         tnames = meta.get("texture_names") or [""] * len(a["texture_info"])
         textures = [Texture(a["texture_texels"][o:o + w * h].reshape(h, w, 4).copy(), tnames[x])
@@ -1045,6 +1056,7 @@ def _light_row(light):
         "spot_blend": min(max(float(light.spot_blend), 0.0), 1.0),
         "sun_angle": min(max(float(light.angle), 0.0), math.pi),
         "camera_visible": int(bool(light.camera_visible)),
+        "soft_falloff": int(bool(light.soft_falloff) and light.type in ("point", "spot")),
     }
 
 
@@ -1067,7 +1079,8 @@ def _light_from_row(a, j, name):
                  spot_size=float(a["light_spot_size"][j]),
                  spot_blend=float(a["light_spot_blend"][j]),
                  angle=float(a["light_sun_angle"][j]),
-                 camera_visible=bool(a["light_camera_visible"][j]), name=name, **kw)
+                 camera_visible=bool(a["light_camera_visible"][j]),
+                 soft_falloff=bool(a["light_soft_falloff"][j]), name=name, **kw)
 
 
 def _infer_first_vertex(a):

@@ -1,6 +1,7 @@
 #include "render/session.h"
 
 #include "shaders_embedded.h"
+#include "../../../shaders/shared/ggx_tables.h"
 
 #include <algorithm>
 #include <chrono>
@@ -43,6 +44,8 @@ Session::Session(uint32_t width, uint32_t height, const std::string& device) : w
     set_->bind_buffer(BINDING_TEST_IO, test_io_);
     technique_params_ = Buffer(*ctx_, sizeof(TechniqueParams), kStorageUsage);
     set_->bind_buffer(BINDING_TECH_PARAMS, technique_params_);
+    ggx_tables_ = Buffer::with_data(*ctx_, GGX_TABLE_WORDS, sizeof(GGX_TABLE_WORDS), kStorageUsage);
+    set_->bind_buffer(BINDING_GGX_TABLES, ggx_tables_);
     ic_ = std::make_unique<IrradianceCache>(*ctx_);
     ic_->bind(*set_);
     adrrs_ = std::make_unique<Adrrs>(*ctx_);

@@ -140,7 +140,7 @@ private:
     std::unique_ptr<Scene> scene_;  // written only by update(), under update_mutex_ and mutex_
     std::map<std::string, std::shared_ptr<const OwnedArray>> arrays_;  // the last arrays of every part
     uint64_t blas_builds_ = 0;
-    Buffer film_, ray_count_, test_io_, technique_params_;
+    Buffer film_, ray_count_, test_io_, technique_params_, ggx_tables_;  // ggx: constant, multiscatter albedos
     std::unique_ptr<IrradianceCache> ic_;
     std::unique_ptr<Adrrs> adrrs_;
     std::unique_ptr<Guiding> guiding_;

@@ -347,12 +347,14 @@ std::shared_ptr<const SceneMaterials> prepare_materials(const SceneArrays& a, co
     // Optional (files written before mix chains): absent means no mixes.
     auto mix_next = get<int32_t>(a, "material_mix_next", 'i', {}, true);
     auto mix_weight = get<float>(a, "material_mix_weight", 'f', {}, true);
+    auto multiscatter = get<uint32_t>(a, "material_multiscatter", 'u', {}, true);  // optional: off
     auto texels = get<uint8_t>(a, "texture_texels", 'u', {4});
     auto tex_info = get<uint32_t>(a, "texture_info", 'u', {3});
     if (base_color.rows != K || roughness.rows != K || ior.rows != K || emission.rows != K || texture.rows != K)
         bad("material_* arrays differ in length");
     if ((mix_next.data && mix_next.rows != K) || (mix_weight.data && mix_weight.rows != K))
         bad("material_mix_* arrays differ in length from material_type");
+    if (multiscatter.data && multiscatter.rows != K) bad("material_multiscatter differs in length from material_type");
     if (!mix_next.data != !mix_weight.data) bad("material_mix_next and material_mix_weight must be given together");
     for (size_t x = 0; x < tex_info.rows; ++x) {
         const uint32_t* ti = tex_info.data + 3 * x;
@@ -393,6 +395,7 @@ std::shared_ptr<const SceneMaterials> prepare_materials(const SceneArrays& a, co
         m.base_color_texture = std::max(texture.data[k], -1);
         m.mix_next = -1;
         m.mix_weight = 1.0f;
+        m.flags = (multiscatter.data && multiscatter.data[k] != 0) ? MATERIAL_FLAG_MULTISCATTER : 0u;
         if (mix_next.data) {
             int32_t next = mix_next.data[k];
             float w = mix_weight.data[k];
@@ -612,6 +615,12 @@ void prepare_lights(const SceneArrays& a, bool new_environment, SceneHost& s) {
         if (lcam.rows != L) bad("light_camera_visible and light_type differ in length");
         camera_visible.assign(lcam.data, lcam.data + L);
     }
+    std::vector<uint32_t> soft_falloff(L, 0u);  // optional: true spheres by default
+    if (a.count("light_soft_falloff")) {
+        auto lsoft = get<uint32_t>(a, "light_soft_falloff", 'u', {});
+        if (lsoft.rows != L) bad("light_soft_falloff and light_type differ in length");
+        soft_falloff.assign(lsoft.data, lsoft.data + L);
+    }
     s.info.analytic_first = uint(lights.size());
     for (size_t n : {la.position.rows, la.direction.rows, la.axis_u.rows, la.axis_v.rows, la.radius.rows, la.color.rows,
                      la.spot_size.rows, la.spot_blend.rows, la.sun_angle.rows})
@@ -624,6 +633,8 @@ void prepare_lights(const SceneArrays& a, bool new_environment, SceneHost& s) {
         if ((camera_visible[i] != 0) != (pass == 0)) continue;
         double weight = 0;
         Light l = analytic_light(la, i, radius, weight);
+        if (soft_falloff[i] != 0 && (l.type == LIGHT_SPHERE || l.type == LIGHT_SPOT) && l.radius > 0)
+            l.flags |= LIGHT_FLAG_SOFT_FALLOFF;
         if (!(weight > 0)) {  // black, zero size or a dark spot: contributes nothing
             dark.push_back(i);
             continue;
