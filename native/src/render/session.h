@@ -22,6 +22,8 @@ struct RenderParams {
     uint32_t rr_start_depth = 3;
     uint32_t light_samples = 1;
     uint32_t seed = 0;
+    // The viewport's first frame: preview.rgen's first-hit shading, which compiles quickly.
+    uint32_t preview = 0;  // 0/1, like the other flags
     IcParams ic;  // irradiance cache (techniques/irradiance_cache.h)
     bool operator==(const RenderParams& o) const;
 };
@@ -88,6 +90,11 @@ public:
     uint32_t width() const { return width_; }
     uint32_t height() const { return height_; }
     const DeviceReport& device() const { return ctx_->report(); }
+    // Whether the pipeline the next render() needs is compiled (false: it compiles first).
+    bool pipeline_ready();
+    // Compiles the pipelines the next render() needs, without rendering (the viewport runs it
+    // on a thread of its own while its preview program renders).
+    void compile();
     size_t triangle_count() const { return scene_ ? scene_->triangle_count() : 0; }
 
 private:
@@ -119,6 +126,9 @@ private:
     void upload_technique_params();
     FrameParams frame_params(uint32_t frame) const;
     RayTracingPipeline& pipeline(uint32_t program);
+    std::array<uint32_t, 5> pipeline_key(uint32_t program) const;
+    std::unique_ptr<RayTracingPipeline> build_pipeline(uint32_t program, const std::array<uint32_t, 5>& key);
+    uint32_t camera_program() const { return params_.preview ? PROGRAM_PREVIEW : PROGRAM_CAMERA; }
     ComputePipeline& ic_finish_pipeline();
     std::shared_ptr<Context> ctx_;  // first member: destroyed after everything using it
     uint32_t width_, height_;
