@@ -91,7 +91,7 @@ def startup(args, size):
                         cache = tempfile.mkdtemp(dir=tmp)
                         for cache_state in ("cold", "warm"):
                             session.env.update(MESA_SHADER_CACHE_DIR=cache, PX_NO_QUICK_FRAME=quick)
-                            proc, out = session.start(scene, f"startup-{variant}-{run}-{cache_state}")
+                            proc, out = session.start(scene, "startup", f"startup-{variant}-{run}-{cache_state}")
                             log, _ = proc.communicate(timeout=900)
                             with open(os.path.join(out, "result.json")) as f:
                                 result = json.load(f)
