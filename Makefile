@@ -6,7 +6,7 @@ PY := $(VENV)/bin/python
 PIP := $(VENV)/bin/pip
 STAMP := $(VENV)/.deps-stamp
 
-.PHONY: setup system venv build test demo bench extension scenes clean
+.PHONY: setup system venv build test asan demo bench extension scenes clean
 
 setup: system venv build
 
@@ -27,6 +27,11 @@ build: venv
 
 test: setup
 	@$(PY) -m pytest -q -p no:cacheprovider
+
+# The core built with AddressSanitizer + UndefinedBehaviorSanitizer + LeakSanitizer (into
+# build-asan/), running the unit and render tiers against it: scripts/asan.sh.
+asan: system venv
+	@bash scripts/asan.sh $(PY)
 
 # The demo is the Blender scene, rendered through bpy exactly as F12 would.
 demo: setup
@@ -50,4 +55,4 @@ bench: setup
 	@$(PY) bench/throughput.py
 
 clean:
-	rm -rf build out dist addon/wheels addon/_site
+	rm -rf build build-asan out dist addon/wheels addon/_site

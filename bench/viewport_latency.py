@@ -1,7 +1,16 @@
 """Viewport responsiveness in a real Blender window (Debian's Blender 3.4 under Xvfb,
-lavapipe): time from an edit to the first new frame, and samples/s while refining.
+lavapipe): time from an edit to the first new frame, and samples/s while refining; with
+--startup, time from switching to Rendered to the first image, cold and warm.
 
     .venv/bin/python bench/viewport_latency.py [--scenes cornell_box atrium] [--size 1280x720]
+    .venv/bin/python bench/viewport_latency.py --startup [--runs 2] [--scenes cornell_box]
+
+--startup (issue 9): each run is a new Blender process (mode "startup" of gui_driver.py);
+"cold" runs get an empty Mesa shader cache (MESA_SHADER_CACHE_DIR), "warm" runs the cache the
+cold run filled. It measures the viewport as built ("quick": the preview program's first
+frame while the path tracer compiles) and without that first frame (PX_NO_QUICK_FRAME=1,
+the viewport before issue 9), and writes them to bench/results/viewport_latency.json
+("startup") and viewport_latency.md.
 
 Per scene, tests/viewport/gui_driver.py (mode "bench") shows the camera view Rendered,
 then makes each kind of edit three times: orbit (camera), move an object (instances), change
@@ -29,8 +38,12 @@ def main(argv=None):
     parser.add_argument("--scenes", nargs="+", default=["cornell_box", "atrium"])
     parser.add_argument("--size", default="1280x720")
     parser.add_argument("--out", default=os.path.join(HERE, "results", "viewport_latency.json"))
+    parser.add_argument("--startup", action="store_true", help="measure start-up instead of edits")
+    parser.add_argument("--runs", type=int, default=2, help="--startup: cold/warm pairs per variant")
     args = parser.parse_args(argv)
     size = tuple(int(v) for v in args.size.split("x"))
+    if args.startup:
+        return startup(args, size)
     with tempfile.TemporaryDirectory() as tmp:
         subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-build-isolation", "--no-deps",
                         "-w", tmp, REPO], check=True)
@@ -57,8 +70,59 @@ def main(argv=None):
         h, w = result["size"]
         print(f"{scene:14s} refining at {w}x{h}: {result['samples_per_second']:.1f} samples/s")
     os.makedirs(os.path.dirname(args.out), exist_ok=True)
+    if os.path.exists(args.out):  # keep the start-up figures of --startup
+        with open(args.out) as f:
+            rows.setdefault("startup", json.load(f).get("startup", []))
     with open(args.out, "w") as f:
         json.dump(rows, f, indent=1)
+
+
+def startup(args, size):
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-build-isolation", "--no-deps",
+                        "-w", tmp, REPO], check=True)
+        (wheel,) = glob.glob(os.path.join(tmp, "parallax_core-*-cp311-*.whl"))
+        session = gui.BlenderGui(os.path.join(tmp, "gui"), wheel, size, scenes=args.scenes)
+        try:
+            for scene in args.scenes:
+                for run in range(args.runs):
+                    for variant, quick in (("quick", "0"), ("before", "1")):
+                        cache = tempfile.mkdtemp(dir=tmp)
+                        for cache_state in ("cold", "warm"):
+                            session.env.update(MESA_SHADER_CACHE_DIR=cache, PX_NO_QUICK_FRAME=quick)
+                            proc, out = session.start(scene, "startup", f"startup-{variant}-{run}-{cache_state}")
+                            log, _ = proc.communicate(timeout=900)
+                            with open(os.path.join(out, "result.json")) as f:
+                                result = json.load(f)
+                            if result["errors"]:
+                                raise RuntimeError("\n".join(result["errors"]) + log[-2000:])
+                            rows.append({"scene": scene, "variant": variant, "cache": cache_state, "run": run,
+                                         "first_image_s": result["first_image_seconds"],
+                                         "first_full_frame_s": result["first_full_frame_seconds"],
+                                         "size": result["size"]})
+                            print(rows[-1], flush=True)
+        finally:
+            session.close()
+    # Kept next to the edit latencies: viewport_latency.json["startup"], and a table in .md.
+    out = os.path.join(HERE, "results", "viewport_latency")
+    saved = {}
+    if os.path.exists(out + ".json"):
+        with open(out + ".json") as f:
+            saved = json.load(f)
+    saved["startup"] = rows
+    with open(out + ".json", "w") as f:
+        json.dump(saved, f, indent=1)
+    lines = [f"Switching a {size[0]}x{size[1]} Blender window's viewport to Rendered (bench/viewport_latency.py "
+             "--startup)", "",
+             "| scene | viewport | Mesa cache | first image (s) | first full-resolution frame (s) |",
+             "|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['scene']} | {r['variant']} | {r['cache']} | {r['first_image_s']:.2f} | "
+                     f"{r['first_full_frame_s']:.2f} |")
+    with open(out + ".md", "w") as f:
+        f.write("\n".join(lines) + "\n")
+    print("\n".join(lines))
 
 
 if __name__ == "__main__":

@@ -8,6 +8,11 @@ materials. After each edit one frame of a smaller session (pixel size 2-8, chose
 measured frame time so it takes about ``PREVIEW_SECONDS``) is shown first, then the full
 resolution refines. Full-size frames go in row bands (``final.band_rows``), so an edit
 waits for one band, not a whole frame.
+
+Start-up: before the path tracer's pipeline exists (compiling it takes seconds on lavapipe
+with a cold shader cache), the first frame comes from the preview program (first-hit
+shading, ``RenderParams.preview``, quick to compile) at the preview's pixel size, while the
+path tracer compiles on a thread of its own (issue 9).
 """
 import threading
 import time
@@ -88,6 +93,7 @@ class _Worker(threading.Thread):
         self._submitted = {}   # generation -> when it was handed over
         self._rendering = 0    # generation the sessions hold now
         self.latencies = []    # (parts, seconds from the hand-over to its first image)
+        self.first_frame_at = self.first_full_frame_at = None  # perf_counter() (bench/)
         _workers.add(self)
 
     # -- Blender's thread --
@@ -182,6 +188,8 @@ class _Worker(threading.Thread):
             if self._stopped:
                 return False
         if edited and self._preview is not None:
+            if not self._full.pipeline_ready:
+                self._quick_frame(params)
             self._preview.render(1)
             self._publish(self._preview, self._preview_factor)
         samples = self._full.samples
@@ -197,6 +205,20 @@ class _Worker(threading.Thread):
         if edited or time.perf_counter() - self._published >= PUBLISH_SECONDS:
             self._publish(self._full, 1)
         return True
+
+    def _quick_frame(self, params):
+        """Publishes a frame of the preview program and compiles the path tracer meanwhile."""
+        def compile_pipelines(session):
+            try:
+                session.compile()
+            except Exception:  # noqa: BLE001 - the render that needs the pipeline reports it
+                pass
+
+        threading.Thread(target=compile_pipelines, args=(self._full,), name="parallax-compile", daemon=True).start()
+        self._preview.set_params(**{**params, "ic": False, "preview": True})
+        self._preview.render(1)
+        self._publish(self._preview, self._preview_factor)
+        self._preview.set_params(**{**params, "ic": False, "preview": False})
 
     def _render_frame(self):
         """One full-size frame in row bands of about BAND_SECONDS; its duration, or None if
@@ -229,6 +251,9 @@ class _Worker(threading.Thread):
         samples = session.samples
         self.frame = (image, samples, pixel_size, self._rendering)
         self._published = time.perf_counter()
+        self.first_frame_at = self.first_frame_at or self._published
+        if pixel_size == 1:
+            self.first_full_frame_at = self.first_full_frame_at or self._published
         with self._lock:
             for generation in [g for g in self._submitted if g <= self._rendering]:
                 parts, handed_over = self._submitted.pop(generation)

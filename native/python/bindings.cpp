@@ -109,6 +109,7 @@ NB_MODULE(_native, m) {
         .def_rw("rr_start_depth", &px::RenderParams::rr_start_depth)
         .def_rw("light_samples", &px::RenderParams::light_samples)
         .def_rw("seed", &px::RenderParams::seed)
+        .def_rw("preview", &px::RenderParams::preview)
 #define PX_IC_FIELD(NAME, MEMBER)                                                                      \
     .def_prop_rw(NAME, [](const px::RenderParams& p) { return p.ic.MEMBER; },                        \
                  [](px::RenderParams& p, decltype(px::IcParams::MEMBER) v) { p.ic.MEMBER = v; })
@@ -209,6 +210,11 @@ NB_MODULE(_native, m) {
              "Trace the next `rows` rows of the current frame (GIL released); True when that "
              "completed the frame. For short, interruptible dispatches.")
         .def_prop_ro("next_row", &px::Session::next_row)
+        .def("compile", &px::Session::compile, nb::call_guard<nb::gil_scoped_release>(),
+             "Compile the pipelines the next render needs, without rendering (GIL released).")
+        .def_prop_ro("pipeline_ready", &px::Session::pipeline_ready,
+                     "Whether the pipeline the next render needs is compiled (else that render compiles it "
+                     "first: seconds on lavapipe with a cold Mesa shader cache).")
         .def_prop_ro("samples", &px::Session::samples, "Samples per pixel accumulated (cheap: no "
                      "download, unlike stats()).")
         .def("reset", &px::Session::reset, nb::call_guard<nb::gil_scoped_release>())

@@ -10,6 +10,7 @@
 #include "ic_query_intersection.spv.h"
 #include "ic_query_miss.spv.h"
 #include "miss.spv.h"
+#include "preview.spv.h"
 #include "raygen.spv.h"
 #include "sampling_test.spv.h"
 #include "shadow_miss.spv.h"
@@ -21,6 +22,7 @@ namespace px {
         return code;                                                                        \
     }
 PX_SHADER(raygen)
+PX_SHADER(preview)
 PX_SHADER(closesthit)
 PX_SHADER(miss)
 PX_SHADER(shadow_miss)

@@ -5,6 +5,7 @@
 
 namespace px {
 const std::vector<uint32_t>& shader_raygen();
+const std::vector<uint32_t>& shader_preview();
 const std::vector<uint32_t>& shader_closesthit();
 const std::vector<uint32_t>& shader_miss();
 const std::vector<uint32_t>& shader_shadow_miss();

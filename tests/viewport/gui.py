@@ -47,9 +47,10 @@ class BlenderGui:
             time.sleep(0.1)
         self.env["DISPLAY"] = f":{n}"
 
-    def start(self, scene, mode):
-        """Starts Blender on ``scene`` with gui_driver.py in ``mode``; returns (process, out dir)."""
-        out = os.path.join(self.root, f"{mode}-{scene}")
+    def start(self, scene, mode, tag=None):
+        """Starts Blender on ``scene`` with gui_driver.py in ``mode``; returns (process, out dir),
+        OUT_DIR named after ``tag`` (default: the mode)."""
+        out = os.path.join(self.root, f"{tag or mode}-{scene}")
         os.makedirs(out)
         proc = subprocess.Popen(
             ["blender", "--factory-startup", "-p", "0", "0", str(self.size[0]), str(self.size[1]),

@@ -102,6 +102,7 @@ def rendered_camera_view():
     region = next(r for r in area.regions if r.type == "WINDOW")
     with bpy.context.temp_override(area=area, region=region):
         bpy.ops.view3d.view_center_camera()
+    result["rendered_at"] = time.perf_counter()
     space.shading.type = "RENDERED"
     result["region"] = [region.x, region.y, region.width, region.height]
     result["window"] = [bpy.context.window.width, bpy.context.window.height]
@@ -174,6 +175,21 @@ def bench_steps():
     result["size"] = list(worker().frame[0].shape[:2])
 
 
+def startup_steps():
+    """Seconds from switching the viewport to Rendered to its first image, and to its first
+    full-resolution path-traced frame. PX_NO_QUICK_FRAME=1: without the preview program's
+    first frame (the viewport before issue 9), for comparison."""
+    if os.environ.get("PX_NO_QUICK_FRAME") == "1":
+        from parallax.engine import viewport
+        viewport._Worker._quick_frame = lambda self, params: None
+    yield from rendered_camera_view()
+    yield lambda: worker() is not None and worker().first_full_frame_at is not None
+    w = worker()
+    result["first_image_seconds"] = w.first_frame_at - result["rendered_at"]
+    result["first_full_frame_seconds"] = w.first_full_frame_at - result["rendered_at"]
+    result["size"] = list(w.frame[0].shape[:2])
+
+
 def cancel_steps():
     scene = bpy.context.scene
     scene.parallax.samples, scene.parallax.samples_per_frame = 100000, int(os.environ.get("PX_SPF", 64))
@@ -198,7 +214,8 @@ def cancel_steps():
 try:
     assert addon_utils.enable("parallax", default_set=True) is not None, "the add-on did not enable"
     bpy.context.scene.render.engine = "PARALLAX"
-    run_steps({"viewport": viewport_steps, "bench": bench_steps, "cancel": cancel_steps}[MODE]())
+    run_steps({"viewport": viewport_steps, "bench": bench_steps, "cancel": cancel_steps,
+               "startup": startup_steps}[MODE]())
 except Exception:
     result["errors"].append(traceback.format_exc())
     save_result()

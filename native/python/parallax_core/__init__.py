@@ -41,6 +41,8 @@ class RenderParams:
     rr_start_depth: int = 3         # Russian roulette from this bounce on; 0 = off
     light_samples: int = 1          # NEE samples per vertex
     seed: int = 0
+    preview: bool = False           # first-hit shading only (preview.rgen): compiles in a fraction
+                                    # of the path tracer's time; the viewport's first frame
     # Irradiance cache (thesis 3.2.3, 4.4; px::IcParams in shaders/shared/techniques.h, which
     # checks the ranges).
     ic: bool = False                # on/off

@@ -13,8 +13,9 @@ namespace px {
 bool RenderParams::operator==(const RenderParams& o) const {
     return method == o.method && mis_heuristic == o.mis_heuristic && samples_per_frame == o.samples_per_frame &&
            max_depth == o.max_depth && depth_leeway == o.depth_leeway && rr_start_depth == o.rr_start_depth &&
-           light_samples == o.light_samples && seed == o.seed && std::memcmp(&ic, &o.ic, sizeof(ic)) == 0 &&
-           std::memcmp(&adrrs, &o.adrrs, sizeof(adrrs)) == 0 && std::memcmp(&guiding, &o.guiding, sizeof(guiding)) == 0;
+           light_samples == o.light_samples && seed == o.seed && preview == o.preview &&
+           std::memcmp(&ic, &o.ic, sizeof(ic)) == 0 && std::memcmp(&adrrs, &o.adrrs, sizeof(adrrs)) == 0 &&
+           std::memcmp(&guiding, &o.guiding, sizeof(guiding)) == 0;
 }
 
 const std::vector<PassInfo>& pass_table() {
@@ -148,6 +149,9 @@ void Session::set_params(const RenderParams& p) {
     validate_ic_params(p.ic);
     validate_adrrs_params(p.adrrs);
     validate_guiding_params(p.guiding);
+    if (p.preview > 1) throw std::invalid_argument("preview must be 0 or 1");
+    if (p.preview && (p.ic.enabled || p.adrrs.enabled || p.guiding.enabled))
+        throw std::invalid_argument("preview frames use no technique: turn ic, adrrs and guiding off");
     std::lock_guard<std::mutex> lock(mutex_);
     if (p == params_) return;
     params_ = p;
@@ -163,25 +167,82 @@ void Session::reset() {
 // (their descriptor set layouts are the same object): a new F12 render or viewport session
 // does not wait for a compile again. Like the device they are kept until the process ends
 // (never destroyed at exit, when the driver may already be going away).
-RayTracingPipeline& Session::pipeline(uint32_t program, bool cache_queries) {
-    static std::mutex mutex;
-    static auto& pipelines =
-        *new std::map<std::pair<Context*, std::array<uint32_t, 5>>, std::unique_ptr<RayTracingPipeline>>();
+// Each is compiled once (std::call_once per key): a session needing another variant compiles
+// it at the same time rather than waiting (the viewport compiles its path tracer while its
+// preview program renders).
+namespace {
+struct PipelineSlot {
+    std::once_flag once;
+    std::unique_ptr<RayTracingPipeline> pipeline;
+    std::atomic<bool> ready{false};
+};
+std::mutex pipelines_mutex;  // guards the map, not the compiles
+auto& pipelines = *new std::map<std::pair<Context*, std::array<uint32_t, 5>>, std::shared_ptr<PipelineSlot>>();
+}  // namespace
+
+// Specialisation constants 0-3 (integrator.glsl, mis.glsl, common.glsl, irradiance_cache.glsl)
+// and the program; the preview program uses the scene features only.
+// Without cache_queries the irradiance cache's shaders (and TECH_IC) stay out even where the
+// cache exists (ADRRS alone renders from its adjoint grid).
+std::array<uint32_t, 5> Session::pipeline_key(uint32_t program, bool cache_queries) const {
+    if (program == PROGRAM_PREVIEW) return {0u, 0u, scene_->host().features, 0u, program};
     const uint32_t techniques = (ic_->enabled() && cache_queries ? TECH_IC : 0u) |
                                 (adrrs_->enabled() ? TECH_ADRRS : 0u) | (guiding_->enabled() ? TECH_GUIDING : 0u);
-    // Specialisation constants 0-3 (integrator.glsl, mis.glsl, common.glsl, irradiance_cache.glsl).
-    const std::array<uint32_t, 5> key = {params_.method, params_.mis_heuristic, scene_->host().features, techniques,
-                                         program};
-    std::lock_guard<std::mutex> lock(mutex);
-    auto it = pipelines.find({ctx_.get(), key});
-    if (it != pipelines.end()) return *it->second;
+    return {params_.method, params_.mis_heuristic, scene_->host().features, techniques, program};
+}
+
+// The camera pipeline of render frames; prepare, estimate and training frames use the full one.
+RayTracingPipeline& Session::render_pipeline() {
+    return pipeline(camera_program(), params_.ic.enabled || !params_.adrrs.enabled);
+}
+
+bool Session::pipeline_ready() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!scene_) return false;
+    std::lock_guard<std::mutex> plock(pipelines_mutex);
+    auto it = pipelines.find({ctx_.get(), pipeline_key(camera_program(), params_.ic.enabled || !params_.adrrs.enabled)});
+    return it != pipelines.end() && it->second->ready;
+}
+
+void Session::compile() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!scene_) throw std::runtime_error("no scene: call update(scene) before compile()");
+    render_pipeline();
+    if (ic_->enabled()) {
+        pipeline(PROGRAM_CAMERA);
+        pipeline(PROGRAM_IC_HEMISPHERE);
+        ic_finish_pipeline();
+    }
+}
+
+RayTracingPipeline& Session::pipeline(uint32_t program, bool cache_queries) {
+    const std::array<uint32_t, 5> key = pipeline_key(program, cache_queries);
+    std::shared_ptr<PipelineSlot> slot;
+    {
+        std::lock_guard<std::mutex> lock(pipelines_mutex);
+        auto& s = pipelines[{ctx_.get(), key}];
+        if (!s) s = std::make_shared<PipelineSlot>();
+        slot = s;
+    }
+    // A compile that throws leaves the flag unset: the next call tries again.
+    std::call_once(slot->once, [&] {
+        slot->pipeline = build_pipeline(program, key);
+        slot->ready = true;
+    });
+    return *slot->pipeline;
+}
+
+std::unique_ptr<RayTracingPipeline> Session::build_pipeline(uint32_t program, const std::array<uint32_t, 5>& key) {
+    const uint32_t techniques = key[3];
     // Stages, then groups: raygen | miss: MISS_SCENE, MISS_SHADOW, MISS_IC_QUERY,
     // MISS_GUIDING_QUERY | hit groups: HIT_GROUP_TRIANGLES, HIT_GROUP_IC (procedural:
     // intersection + any-hit), HIT_GROUP_GUIDING (intersection + closest-hit). A technique's
     // shaders are left out of pipelines that never use it (less to compile); guiding without
     // the cache puts copies of its groups into the cache's slots.
     std::vector<ShaderStage> stages = {
-        {VK_SHADER_STAGE_RAYGEN_BIT_KHR, program == PROGRAM_IC_HEMISPHERE ? &shader_ic_hemisphere() : &shader_raygen()},
+        {VK_SHADER_STAGE_RAYGEN_BIT_KHR, program == PROGRAM_IC_HEMISPHERE ? &shader_ic_hemisphere()
+                                         : program == PROGRAM_PREVIEW     ? &shader_preview()
+                                                                          : &shader_raygen()},
         {VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR, &shader_closesthit()},
         {VK_SHADER_STAGE_MISS_BIT_KHR, &shader_miss()},
         {VK_SHADER_STAGE_MISS_BIT_KHR, &shader_shadow_miss()},
@@ -192,6 +253,10 @@ RayTracingPipeline& Session::pipeline(uint32_t program, bool cache_queries) {
         {VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, 3},
         {VK_RAY_TRACING_SHADER_GROUP_TYPE_TRIANGLES_HIT_GROUP_KHR, VK_SHADER_UNUSED_KHR, 1},
     };
+    if (program == PROGRAM_PREVIEW) {  // traces no shadow rays: no shadow miss shader
+        stages.pop_back();
+        groups.erase(groups.begin() + 2);
+    }
     if (techniques & TECH_IC) {
         stages.push_back({VK_SHADER_STAGE_MISS_BIT_KHR, &shader_ic_query_miss()});
         stages.push_back({VK_SHADER_STAGE_INTERSECTION_BIT_KHR, &shader_ic_query_intersection()});
@@ -215,9 +280,8 @@ RayTracingPipeline& Session::pipeline(uint32_t program, bool cache_queries) {
         groups.insert(groups.begin() + 1 + MISS_GUIDING_QUERY, miss_group);
         groups.push_back(hit_group);
     }
-    auto p = std::make_unique<RayTracingPipeline>(*ctx_, set_->layout(), uint32_t(sizeof(FrameParams)), stages, groups,
-                                                  std::vector<uint32_t>(key.begin(), key.begin() + 4));
-    return *pipelines.emplace(std::make_pair(ctx_.get(), key), std::move(p)).first->second;
+    return std::make_unique<RayTracingPipeline>(*ctx_, set_->layout(), uint32_t(sizeof(FrameParams)), stages, groups,
+                                                std::vector<uint32_t>(key.begin(), key.begin() + 4));
 }
 
 ComputePipeline& Session::ic_finish_pipeline() {
@@ -373,8 +437,7 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
     auto start = std::chrono::steady_clock::now();
     const DispatchPlan plan = dispatch_plan();
     const uint64_t paths = uint64_t(width_) * height_ * params_.samples_per_frame;
-    // ADRRS alone renders from its adjoint grid: no cache queries, no cache shaders.
-    RayTracingPipeline& pipe = pipeline(PROGRAM_CAMERA, params_.ic.enabled || !params_.adrrs.enabled);
+    RayTracingPipeline& pipe = render_pipeline();
     uint32_t completed = 0;
     uint32_t rows_left = frames ? UINT32_MAX : rows;
     bool stop = false;

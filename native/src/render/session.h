@@ -24,6 +24,8 @@ struct RenderParams {
     uint32_t rr_start_depth = 3;
     uint32_t light_samples = 1;
     uint32_t seed = 0;
+    // The viewport's first frame: preview.rgen's first-hit shading, which compiles quickly.
+    uint32_t preview = 0;  // 0/1, like the other flags
     IcParams ic;  // irradiance cache (techniques/irradiance_cache.h)
     AdrrsParams adrrs;  // adjoint-driven Russian roulette and splitting (techniques/adrrs.h)
     GuidingParams guiding;  // path guiding (techniques/guiding/guiding.h)
@@ -97,6 +99,11 @@ public:
     uint32_t width() const { return width_; }
     uint32_t height() const { return height_; }
     const DeviceReport& device() const { return ctx_->report(); }
+    // Whether the pipeline the next render() needs is compiled (false: it compiles first).
+    bool pipeline_ready();
+    // Compiles the pipelines the next render() needs, without rendering (the viewport runs it
+    // on a thread of its own while its preview program renders).
+    void compile();
     size_t triangle_count() const { return scene_ ? scene_->triangle_count() : 0; }
 
 private:
@@ -133,6 +140,10 @@ private:
     // The pipeline of `program` for the current settings; without cache_queries it leaves the
     // irradiance cache's shaders (and TECH_IC) out even where the cache exists.
     RayTracingPipeline& pipeline(uint32_t program, bool cache_queries = true);
+    RayTracingPipeline& render_pipeline();
+    std::array<uint32_t, 5> pipeline_key(uint32_t program, bool cache_queries = true) const;
+    std::unique_ptr<RayTracingPipeline> build_pipeline(uint32_t program, const std::array<uint32_t, 5>& key);
+    uint32_t camera_program() const { return params_.preview ? PROGRAM_PREVIEW : PROGRAM_CAMERA; }
     ComputePipeline& ic_finish_pipeline();
     std::shared_ptr<Context> ctx_;  // first member: destroyed after everything using it
     uint32_t width_, height_;
