@@ -149,12 +149,7 @@ bool Adrrs::update_adjoint(const IrradianceCache& cache) {
 }
 
 void Adrrs::record_queue_clear(VkCommandBuffer cmd) const {
-    vkCmdFillBuffer(cmd, queue_.handle(), 0, 16, 0);
-    VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-    b.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-    b.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
-    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_RAY_TRACING_SHADER_BIT_KHR, 0, 1, &b, 0,
-                         nullptr, 0, nullptr);
+    queue_.record_fill_zero(cmd, 16);
 }
 
 void Adrrs::after_frame(const Buffer& film, uint64_t samples) {

@@ -120,4 +120,13 @@ void Buffer::fill_zero() {
     ctx_->submit_and_wait([&](VkCommandBuffer cmd) { vkCmdFillBuffer(cmd, buffer_, 0, VK_WHOLE_SIZE, 0); });
 }
 
+void Buffer::record_fill_zero(VkCommandBuffer cmd, VkDeviceSize bytes) const {
+    vkCmdFillBuffer(cmd, buffer_, 0, bytes, 0);
+    VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    b.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    b.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_RAY_TRACING_SHADER_BIT_KHR, 0, 1, &b, 0,
+                         nullptr, 0, nullptr);
+}
+
 }  // namespace px

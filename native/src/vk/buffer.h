@@ -27,6 +27,9 @@ public:
     void upload(const void* data, size_t bytes, size_t offset = 0);
     void download(void* data, size_t bytes, size_t offset = 0) const;
     void fill_zero();
+    // Records zeroing the first `bytes` (VK_WHOLE_SIZE: all) into `cmd`, made visible to the
+    // ray-tracing shaders recorded after it (queue counters cleared at a frame's start).
+    void record_fill_zero(VkCommandBuffer cmd, VkDeviceSize bytes) const;
 
     VkBuffer handle() const { return buffer_; }
     VkDeviceSize size() const { return size_; }

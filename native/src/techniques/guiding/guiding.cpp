@@ -154,12 +154,7 @@ void Guiding::upload(DescriptorSet* set) {
 }
 
 void Guiding::record_frame_start(VkCommandBuffer cmd) const {
-    vkCmdFillBuffer(cmd, samples_.handle(), 0, VK_WHOLE_SIZE, 0);
-    VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-    b.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-    b.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
-    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_RAY_TRACING_SHADER_BIT_KHR, 0, 1, &b, 0,
-                         nullptr, 0, nullptr);
+    samples_.record_fill_zero(cmd, VK_WHOLE_SIZE);
 }
 
 void Guiding::after_frame(DescriptorSet& set, double frame_milliseconds) {
