@@ -84,3 +84,12 @@ def load_scene_builder():
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+def assert_params(params, expected):
+    """Every expected setting is in `params` with the same type and value (floats to 1e-6)."""
+    import pytest
+
+    for name, value in expected.items():
+        assert type(params[name]) is type(value), name
+        assert params[name] == (pytest.approx(value, rel=1e-6) if isinstance(value, float) else value), name

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from addon.cli import CommandError, apply_settings
 from addon.properties import ADRRS_SETTINGS
-from blender_helpers import open_scene, render
+from blender_helpers import assert_params, open_scene, render
 
 import parallax_core
 
@@ -16,12 +16,6 @@ CHANGED = dict(adrrs=True, adrrs_splitting=False, adrrs_window=3.0, adrrs_rr_min
                adrrs_max_splits=4, adrrs_estimate_spp=9, adrrs_estimate="image", adrrs_ic_glossy=False)
 RANGES = dict(adrrs_window=(1.0, 1e6), adrrs_rr_min=(0.0, 1.0), adrrs_max_splits=(0, 64),
               adrrs_estimate_spp=(1, 65536))
-
-
-def assert_params(params, expected):
-    for name, value in expected.items():
-        assert type(params[name]) is type(value), name
-        assert params[name] == (pytest.approx(value, rel=1e-6) if isinstance(value, float) else value), name
 
 
 def test_adrrs_settings_defaults_and_save_load(fresh, bpy, tmp_path):

@@ -10,7 +10,7 @@ import pytest
 from addon.cli import CommandError, apply_settings
 from addon.engine import final
 from addon.properties import GUIDING_SETTINGS
-from blender_helpers import open_scene, render
+from blender_helpers import assert_params, open_scene, render
 
 import parallax_core
 
@@ -25,12 +25,6 @@ CHANGED = dict(guiding=True, guiding_prob=0.7, guiding_parallax=False, guiding_t
 RANGES = dict(guiding_prob=(0.0, 1.0), guiding_training_spp=(0, None), guiding_min_samples=(1, 2**24),
               guiding_max_components=(1, 16), guiding_region_splits=(0, 20), guiding_region_threshold=(0, None),
               guiding_probe_x=(-1, None), guiding_probe_y=(-1, None))
-
-
-def assert_params(params, expected):
-    for name, value in expected.items():
-        assert type(params[name]) is type(value), name
-        assert params[name] == (pytest.approx(value, rel=1e-6) if isinstance(value, float) else value), name
 
 
 def test_guiding_settings_defaults_and_save_load(fresh, bpy, tmp_path):

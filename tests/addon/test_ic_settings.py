@@ -9,7 +9,7 @@ import pytest
 from addon.cli import CommandError, apply_settings
 from addon.engine import final, viewport
 from addon.properties import IC_SETTINGS
-from blender_helpers import open_scene, render
+from blender_helpers import assert_params, open_scene, render
 
 import parallax_core
 
@@ -27,12 +27,6 @@ RANGES = dict(ic_accuracy=(0.0, 2.0), ic_min_radius=(0.0, None), ic_create_prob=
               ic_update_prob=(0.0, 1.0), ic_nee_samples=(1, 64), ic_gradient_max=(0.0, None),
               ic_prepare_frames=(0, 10000), ic_capacity=(1, 4_000_000),
               ic_rebuild_interval=(1, 100000))
-
-
-def assert_params(params, expected):
-    for name, value in expected.items():
-        assert type(params[name]) is type(value), name
-        assert params[name] == pytest.approx(value, rel=1e-6), name
 
 
 def test_ic_settings_defaults_and_save_load(fresh, bpy, tmp_path):
