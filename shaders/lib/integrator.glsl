@@ -78,7 +78,6 @@ struct PathResult {
     vec3 albedo;        // at the first non-delta vertex, through delta vertices
     uint segments;      // ray segments traced (camera ray included)
     uint rays;          // all rays traced (shadow rays included)
-    uint splits;        // ADRRS copies this path queued
     vec3 ic_irradiance; // cache value at the first diffuse vertex (0: no entry there)
     vec2 ic_gradients;  // its entries' mean |g_t|, |g_r|
 };
@@ -127,7 +126,6 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
     res.albedo = vec3(0.0);
     res.segments = 0u;
     res.rays = 0u;
-    res.splits = 0u;
     res.ic_irradiance = vec3(0.0);
     res.ic_gradients = vec2(0.0);
     bool ic_recorded = false;
@@ -315,7 +313,6 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
                     adrrs_queue(opt.adrrs_local, opt.adrrs_pixels,
                                 AdrrsSplit(origin, t_min, dir, t_max, throughput, seed,
                                            bounces | (discrete << 16), copies - 1u, flags, res.segments));
-                    res.splits += copies - 1u;
                 }
             }
             adrrs_decided = true;

@@ -93,3 +93,11 @@ def assert_params(params, expected):
     for name, value in expected.items():
         assert type(params[name]) is type(value), name
         assert params[name] == (pytest.approx(value, rel=1e-6) if isinstance(value, float) else value), name
+
+
+def save_and_reopen(bpy, path):
+    """Saves the open file to `path`, forgets it, opens it again; returns its scene."""
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    return bpy.context.scene

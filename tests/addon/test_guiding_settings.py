@@ -10,7 +10,7 @@ import pytest
 from addon.cli import CommandError, apply_settings
 from addon.engine import final
 from addon.properties import GUIDING_SETTINGS
-from blender_helpers import assert_params, open_scene, render
+from blender_helpers import assert_params, open_scene, render, save_and_reopen
 
 import parallax_core
 
@@ -33,11 +33,7 @@ def test_guiding_settings_defaults_and_save_load(fresh, bpy, tmp_path):
     for name, value in CHANGED.items():
         setattr(fresh.parallax, name, value)
     fresh.view_layers[0].parallax.use_pass_guiding_lobes = False
-    path = str(tmp_path / "guiding.blend")
-    bpy.ops.wm.save_as_mainfile(filepath=path)
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    bpy.ops.wm.open_mainfile(filepath=path)
-    scene = bpy.context.scene
+    scene = save_and_reopen(bpy, tmp_path / "guiding.blend")
     assert_params(scene.parallax.render_params(), CHANGED)
     assert not scene.view_layers[0].parallax.use_pass_guiding_lobes
     assert scene.view_layers[0].parallax.use_pass_guiding_regions

@@ -141,20 +141,10 @@ void IrradianceCache::rebuild() {
     aabbs_.upload(boxes.data(), boxes.size() * sizeof(VkAabbPositionsKHR));
     blas_.reset();
     blas_ = build_aabb_blas(ctx_, aabbs_, built_slots_);
-    build_tlas_over_blas();
+    tlas_ = build_tlas_over(ctx_, *blas_, HIT_GROUP_IC);
     built_count_ = count_;
     frames_since_rebuild_ = 0;
     stats_.build_milliseconds += ms_since(start);
-}
-
-void IrradianceCache::build_tlas_over_blas() {
-    TlasInstance instance{};
-    instance.transform = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
-    instance.custom_index = 0;
-    instance.mask = 0xff;
-    instance.sbt_offset = HIT_GROUP_IC;
-    instance.blas = blas_->address();
-    tlas_ = build_tlas(ctx_, {instance});
 }
 
 void IrradianceCache::bind(DescriptorSet& set) const {
@@ -277,7 +267,7 @@ void IrradianceCache::after_frame(const RayTracingPipeline& hemisphere, const Co
     } else if (created) {
         auto start = std::chrono::steady_clock::now();
         refit_aabb_blas(ctx_, *blas_, aabbs_, built_slots_);
-        build_tlas_over_blas();
+        tlas_ = build_tlas_over(ctx_, *blas_, HIT_GROUP_IC);
         stats_.build_milliseconds += ms_since(start);
     } else {
         return;

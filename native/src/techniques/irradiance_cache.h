@@ -58,7 +58,6 @@ public:
 private:
     void allocate();
     void rebuild();    // entries in Morton order, new BLAS, new TLAS
-    void build_tlas_over_blas();
     Context& ctx_;
     IcParams params_{};
     SceneInfo scene_{};

@@ -188,4 +188,14 @@ std::unique_ptr<AccelerationStructure> build_tlas(Context& ctx, const std::vecto
     return tlas;
 }
 
+std::unique_ptr<AccelerationStructure> build_tlas_over(Context& ctx, const AccelerationStructure& blas,
+                                                       uint32_t sbt_offset) {
+    TlasInstance instance{};
+    instance.transform = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+    instance.mask = 0xff;
+    instance.sbt_offset = sbt_offset;
+    instance.blas = blas.address();
+    return build_tlas(ctx, {instance});
+}
+
 }  // namespace px

@@ -50,5 +50,9 @@ void refit_aabb_blas(Context& ctx, AccelerationStructure& blas, const Buffer& aa
 
 // A TLAS over `instances` (in the given order: order them spatially first on lavapipe).
 std::unique_ptr<AccelerationStructure> build_tlas(Context& ctx, const std::vector<TlasInstance>& instances);
+// A TLAS of one untransformed instance of `blas` with hit group `sbt_offset` (the irradiance
+// cache's and the guiding regions' own structures).
+std::unique_ptr<AccelerationStructure> build_tlas_over(Context& ctx, const AccelerationStructure& blas,
+                                                       uint32_t sbt_offset);
 
 }  // namespace px

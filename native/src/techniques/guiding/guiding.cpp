@@ -77,12 +77,7 @@ void Guiding::build_placeholder() {
                                kStorageUsage | VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR);
     tlas_.reset();
     blas_ = build_aabb_blas(ctx_, aabbs_, 1);
-    TlasInstance instance{};
-    instance.transform = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
-    instance.mask = 0xff;
-    instance.sbt_offset = HIT_GROUP_GUIDING;
-    instance.blas = blas_->address();
-    tlas_ = build_tlas(ctx_, {instance});
+    tlas_ = build_tlas_over(ctx_, *blas_, HIT_GROUP_GUIDING);
 }
 
 void Guiding::configure(const GuidingParams& params, const SceneHost& scene, uint64_t scene_version, uint32_t seed,
@@ -142,12 +137,7 @@ void Guiding::upload(DescriptorSet* set) {
                                    kStorageUsage | VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR);
         tlas_.reset();
         blas_ = build_aabb_blas(ctx_, aabbs_, uint32_t(n));
-        TlasInstance instance{};
-        instance.transform = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
-        instance.mask = 0xff;
-        instance.sbt_offset = HIT_GROUP_GUIDING;
-        instance.blas = blas_->address();
-        tlas_ = build_tlas(ctx_, {instance});
+        tlas_ = build_tlas_over(ctx_, *blas_, HIT_GROUP_GUIDING);
         built_layout_ = field_->layout_version();
     }
     if (set) bind(*set);
