@@ -41,10 +41,16 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
 SCENES = ("cornell_box", "veach_mis", "cornell_dielectric", "light_behind_glass", "atrium")
 EXTRA_SCENES = ("sun_room",)  # indirect light through a window: the irradiance cache's case
+# --suite thesis: the scenes of the thesis' chapter 5 our repository can hold (bench/thesis.py
+# pairs them with its tables); thesis_* are converted from ../shared/scenes on first use.
+THESIS_SUITE = ("atrium", "thesis_veach_mis", "cornell_dielectric", "thesis_irradiance_cache")
 # ic: MIS + the irradiance cache; adrrs: MIS + ADRRS; guiding: MIS + path guiding (defaults);
 # guiding_pt: guiding without NEE; guiding_noparallax: guiding with parallax off.
-METHODS = ("pt", "nee", "mis", "ic", "adrrs", "guiding", "guiding_pt", "guiding_noparallax")
+METHODS = ("pt", "nee", "mis", "ic", "ic_noupdate", "adrrs", "guiding", "guiding_pt", "guiding_noparallax")
+# Every method row of the thesis' tables 5.1-5.4 (ic_noupdate: the cache never refreshes an entry).
+THESIS_METHODS = ("pt", "nee", "mis", "ic_noupdate", "ic", "adrrs", "guiding_pt", "guiding")
 MAX_DEPTH = 8  # Cycles' Max Bounces in every scene; Parallax with no discrete leeway
+QUICK = dict(width=64, seconds=3.0, reference_seconds=20.0)  # --quick: a smoke run, numbers not meant
 REFERENCE_SEED = 7919  # the compared runs use seed 0
 
 
@@ -88,11 +94,29 @@ class Progress:
 
 # ---- scenes ------------------------------------------------------------------------------
 
+def blend_path(name):
+    """blender_scenes/NAME.blend; a thesis_* scene is converted from the shared folder into
+    blender_scenes/generated/ the first time (blender_scenes/thesis_scenes.py, in its own
+    process: it resets Blender's file)."""
+    if not name.startswith("thesis_"):
+        return os.path.join(REPO, "blender_scenes", name + ".blend")
+    path = os.path.join(REPO, "blender_scenes", "generated", name + ".blend")
+    if not os.path.exists(path):
+        import subprocess
+
+        script = os.path.join(REPO, "blender_scenes", "thesis_scenes.py")
+        done = subprocess.run([sys.executable, script, name], capture_output=True, text=True)
+        if not os.path.exists(path):
+            raise FileNotFoundError(f"{name}: could not convert the shared scene ({path} missing):\n"
+                                    + (done.stdout + done.stderr)[-2000:])
+    return path
+
+
 def export_scene(name, width):
-    """SceneData of blender_scenes/NAME.blend at `width`, exactly as F12 would upload it."""
+    """SceneData of NAME.blend (blend_path) at `width`, exactly as F12 would upload it."""
     from parallax_blender import cli
 
-    return cli.export(os.path.join(REPO, "blender_scenes", name + ".blend"), width=width)[0]
+    return cli.export(blend_path(name), width=width)[0]
 
 
 def load_scene(name, width, npz_dir):
@@ -124,7 +148,9 @@ def method_params(method):
         return dict(off, method="pt" if method == "guiding_pt" else "mis", guiding=True,
                     guiding_parallax=method != "guiding_noparallax", guiding_training_spp=0,
                     guiding_min_samples=128)
-    return dict(off, method="mis", ic=True) if method == "ic" else dict(off, method=method)
+    if method.startswith("ic"):
+        return dict(off, method="mis", ic=True, **({"ic_update_prob": 0.0} if method == "ic_noupdate" else {}))
+    return dict(off, method=method)
 
 
 def render_parallax(scene, method, seconds, device, reference, label, seed=0):
@@ -220,7 +246,7 @@ def render_cycles(name, width, seconds, guiding, reference, label):
     bar = Progress(label, sum(marks))
     done = 0.0
     for limit in marks:
-        scene = cli.open_blend(os.path.join(REPO, "blender_scenes", name + ".blend"), "CYCLES", width)
+        scene = cli.open_blend(blend_path(name), "CYCLES", width)
         cycles = scene.cycles
         cycles.samples, cycles.time_limit, cycles.use_adaptive_sampling = 1 << 20, limit, False
         cycles.device = "CPU"
@@ -331,6 +357,11 @@ def write_outputs(out, name, rows, reference):
     lines = [f"### {name}", "", "| renderer | relMSE | spp | time (s) |", "|---|---:|---:|---:|"]
     for row in sorted(rows, key=lambda r: r["rel_mse"]):
         lines.append(f"| {row['renderer']} | {row['rel_mse']:.4g} | {row['spp']} | {row['seconds']:.1f} |")
+    # The thesis' layout (tables 5.1-5.4): a column per renderer, in the order they ran.
+    lines += ["", "| | " + " | ".join(r["renderer"] for r in rows) + " |", "|---" * (len(rows) + 1) + "|",
+              "| relMSE | " + " | ".join(f"{r['rel_mse']:.4g}" for r in rows) + " |",
+              "| SPP | " + " | ".join(str(r["spp"]) for r in rows) + " |",
+              "| time | " + " | ".join(f"{r['seconds']:.0f} s" for r in rows) + " |"]
     for row in rows:
         ic = row.get("ic")
         if ic:
@@ -448,6 +479,7 @@ def run(scenes=SCENES, seconds=120.0, device="auto", methods=("pt", "nee", "mis"
                 continue
             rows.append(dict(renderer=label, image=image, spp=spp, seconds=used, curve=curve))
         for row in rows:
+            row["pixels"] = scene.width * scene.height
             row["rel_mse"] = rel_mse(row["image"], reference)
             np.save(os.path.join(raw, f"{name}__{_slug(row['renderer'])}.npy"), row["image"].astype(np.float32))
         run_now = {r["renderer"] for r in rows}
@@ -465,40 +497,68 @@ def run(scenes=SCENES, seconds=120.0, device="auto", methods=("pt", "nee", "mis"
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--scenes", default=",".join(SCENES))
+    p.add_argument("--suite", choices=("blender", "thesis"), default="blender",
+                   help="blender: our blender_scenes, pt/nee/mis; thesis: the thesis' chapter 5 "
+                        "(THESIS_SUITE, every method of its tables, bench/results/SUMMARY.md)")
+    p.add_argument("--quick", action="store_true",
+                   help=f"smoke run: {QUICK['width']} px wide, {QUICK['seconds']:g} s per renderer, "
+                        "Cycles the only peer")
+    p.add_argument("--scenes", help="default: the suite's")
     p.add_argument("--seconds", type=float, default=120.0)
     p.add_argument("--device", default="auto")
-    p.add_argument("--methods", default="pt,nee,mis")
+    p.add_argument("--methods", help="default: pt,nee,mis (thesis: every method of its tables)")
     p.add_argument("--peers", default="cycles,cycles_guiding,mitsuba")
     p.add_argument("--width", type=int, default=320)
     p.add_argument("--reference-seconds", type=float, help="default: 10 x --seconds")
     p.add_argument("--npz", help="read (or with --export-only write) DIR/NAME.npz scenes")
     p.add_argument("--export-only", action="store_true")
     p.add_argument("--append", action="store_true", help="keep earlier rows of renderers not run now")
-    p.add_argument("--out", help="default: bench/results/cpu or bench/results/gpu")
+    p.add_argument("--out", help="default: bench/results/<cpu|gpu>[_thesis][_quick]")
     p.add_argument("--warm", action="store_true",
                    help="compile every method's pipelines before the timed runs (start-up then excludes compiling)")
     a = p.parse_args(argv)
-    scenes = [s for s in a.scenes.split(",") if s]
-    methods = [m for m in a.methods.split(",") if m]
+    thesis = a.suite == "thesis"
+    if a.quick:
+        a.width, a.seconds, a.peers = QUICK["width"], QUICK["seconds"], "cycles"
+        a.reference_seconds = a.reference_seconds or QUICK["reference_seconds"]
+    scenes = [s for s in (a.scenes or ",".join(THESIS_SUITE if thesis else SCENES)).split(",") if s]
+    methods = [m for m in (a.methods or ",".join(THESIS_METHODS if thesis else ("pt", "nee", "mis"))).split(",") if m]
     for m in methods:
         if m not in METHODS:
             p.error(f"unknown method {m!r} (methods: {', '.join(METHODS)})")
+    known = SCENES + EXTRA_SCENES + THESIS_SUITE
     for name in scenes:
-        if name not in SCENES + EXTRA_SCENES:
-            p.error(f"unknown scene {name!r} (scenes: {', '.join(SCENES + EXTRA_SCENES)})")
+        if name not in known:
+            p.error(f"unknown scene {name!r} (scenes: {', '.join(dict.fromkeys(known))})")
+    if thesis and not a.npz:
+        from bench import shared_scenes
+
+        missing = [n for n in scenes if n in shared_scenes.THESIS_SCENES
+                   and not shared_scenes.available(shared_scenes.THESIS_SCENES[n][0])]
+        for name in missing:
+            print(f"bench.converge: {name} skipped: its shared scene is not in {shared_scenes.SHARED_SCENES}",
+                  file=sys.stderr)
+        scenes = [n for n in scenes if n not in missing]
     if a.export_only:
         os.makedirs(a.npz, exist_ok=True)
         for name in scenes:
             export_scene(name, a.width).save(os.path.join(a.npz, name + ".npz"))
             print(f"{name} -> {os.path.join(a.npz, name + '.npz')}")
         return 0
+    out = a.out
+    if out is None and (thesis or a.quick):
+        kind = device_kind(a.device)[0]
+        out = os.path.join(HERE, "results", kind + ("_thesis" if thesis else "") + ("_quick" if a.quick else ""))
     results = run(scenes, a.seconds, a.device, methods, [x for x in a.peers.split(",") if x],
-                  a.width, a.reference_seconds, a.npz, a.out, append=a.append, warm=a.warm)
+                  a.width, a.reference_seconds, a.npz, out, append=a.append, warm=a.warm)
     for name, rows in results.items():
         print(f"\n{name}")
         for row in sorted(rows, key=lambda r: r["rel_mse"]):
             print(f"  {row['renderer']:28s} relMSE {row['rel_mse']:.4g}  {row['spp']:6d} spp  {row['seconds']:.1f} s")
+    if thesis and not a.quick:
+        from bench import thesis as thesis_tables
+
+        print(f"\nsummary: {thesis_tables.write_summary()}")
     return 0
 
 

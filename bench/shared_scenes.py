@@ -21,7 +21,8 @@ xml.etree and a small OBJ reader:
   ``flipNormals``; an OBJ without normals gets Mitsuba's angle-weighted vertex normals),
   ``sphere``, ``rectangle``, ``disk`` and ``cube``, baked into world space.
 - BSDFs ``diffuse`` (``reflectance``, default 0.5) and ``twosided`` around it ->
-  Material("diffuse"). Parallax's diffuse is two-sided; Mitsuba's one-sided diffuse is
+  Material("diffuse"); ``roughconductor`` -> a GGX Material("conductor") coloured by its
+  normal-incidence Fresnel reflectance, roughness sqrt(alpha) (both noted). Parallax's diffuse is two-sided; Mitsuba's one-sided diffuse is
   black from behind, which only matters where a back face is seen or lit.
 - ``area`` emitters on meshes -> the material's emission (Parallax's mesh emission is
   two-sided, Mitsuba's one-sided). An ``area`` emitter on a ``sphere`` -> a Parallax point
@@ -63,6 +64,7 @@ SHARED_SCENES = os.path.abspath(os.environ.get("PARALLAX_SHARED_SCENES")
                                 or os.path.join(REPO, "..", "shared", "scenes"))
 
 IRRADIANCE_CACHE = "thesis_irradianceCache"
+VEACH_MIS = "thesis_veachMIS"
 
 # Mitsuba (Y up) -> Blender (Z up): (x, y, z) -> (x, -z, y).
 Y_UP_TO_Z_UP = np.array([[1.0, 0.0, 0.0, 0.0],
@@ -388,28 +390,42 @@ class MitsubaScene:
 
     # -- materials ------------------------------------------------------------------------
 
-    def _bsdf_color(self, bsdf):
-        """(reflectance, name) of a diffuse BSDF (possibly in a twosided)."""
+    def _bsdf(self, bsdf):
+        """(type, colour, roughness, name) of a BSDF: ``diffuse`` (possibly in a
+        ``twosided``), or ``roughconductor`` -> a GGX conductor whose colour is the Fresnel
+        reflectance at normal incidence of its ``eta``/``k`` (Beckmann's alpha is taken as
+        GGX's, Cycles roughness = sqrt(alpha); the angular Fresnel falloff is dropped)."""
         if bsdf is None:
-            return np.full(3, 0.5), "default"
+            return "diffuse", np.full(3, 0.5), 0.5, "default"
         name = bsdf.get("id", "")
         kind = bsdf.get("type")
         if kind == "twosided":
-            inner = self._child(bsdf, "bsdf")
-            color, inner_name = self._bsdf_color(inner)
-            return color, name or inner_name
+            inner_kind, color, roughness, inner_name = self._bsdf(self._child(bsdf, "bsdf"))
+            return inner_kind, color, roughness, name or inner_name
         if kind == "diffuse":
             for c in bsdf:
                 if c.get("name") == "reflectance" and c.tag in ("texture", "ref"):
                     raise NotImplementedError(f"{self.path}: textured diffuse reflectance")
-            return self._props(bsdf).get("reflectance", np.full(3, 0.5)), name
-        raise NotImplementedError(f"{self.path}: <bsdf type='{kind}'> (only diffuse and "
-                                  "twosided are converted)")
+            return "diffuse", self._props(bsdf).get("reflectance", np.full(3, 0.5)), 0.5, name
+        if kind == "roughconductor":
+            props = self._props(bsdf)
+            eta = np.broadcast_to(np.asarray(props.get("eta", 0.0), float), (3,))
+            k = np.broadcast_to(np.asarray(props.get("k", 1.0), float), (3,))
+            f0 = ((eta - 1) ** 2 + k ** 2) / ((eta + 1) ** 2 + k ** 2)
+            alpha = float(props.get("alpha", 0.1))
+            label = name or f"roughconductor alpha {alpha:g}"
+            if props.get("distribution", "beckmann") != "ggx":
+                self.notes.append(f"{label}: Beckmann alpha {alpha:g} rendered as GGX alpha {alpha:g}")
+            self.notes.append(f"{label}: conductor Fresnel (eta {eta[0]:g}, k {k[0]:g}) as its "
+                              f"normal-incidence reflectance {f0[0]:.3f}")
+            return "conductor", f0, math.sqrt(alpha), name
+        raise NotImplementedError(f"{self.path}: <bsdf type='{kind}'> (only diffuse, twosided "
+                                  "and roughconductor are converted)")
 
     def _material(self, bsdf, emission=None):
         from parallax_core.scene import Material
 
-        color, name = self._bsdf_color(bsdf)
+        kind, color, roughness, name = self._bsdf(bsdf)
         em = (0.0, 0.0, 0.0) if emission is None else tuple(float(x) for x in emission)
         key = (id(bsdf) if bsdf is not None else None, em)
         if key not in self._material_keys:
@@ -418,7 +434,7 @@ class MitsubaScene:
                 name = f"{bsdf.get('type')}{len(self.materials)}" if bsdf is not None else "default"
             if emission is not None:
                 name += "_emitter"
-            self.materials.append(Material("diffuse", tuple(float(x) for x in color),
+            self.materials.append(Material(kind, tuple(float(x) for x in color), roughness=roughness,
                                            emission=em, emission_strength=1.0, name=name))
         return self._material_keys[key]
 
@@ -514,7 +530,7 @@ class MitsubaScene:
         peak = float(radiance.max())
         if peak <= 0:
             return
-        if bsdf is not None and np.any(self._bsdf_color(bsdf)[0] > 0):
+        if bsdf is not None and np.any(self._bsdf(bsdf)[1] > 0):
             self.notes.append(f"{label}: the sphere light's non-black BSDF is dropped "
                               "(Parallax's sphere lights do not reflect)")
         # The core's sphere light: radiance = colour * power / (4 pi^2 r^2).
@@ -649,6 +665,18 @@ def thesis_irradiance_cache(width=None, height=None):
     Resolution: the film's 1280 x 720 unless given (one of them given: the other keeps the
     aspect)."""
     return load_mitsuba(scene_path(IRRADIANCE_CACHE, "irradianceCache.xml"), width, height)[0]
+
+
+def thesis_veach_mis(width=None, height=None):
+    """The thesis' Veach MIS scene (four rough conductor plates, a red floor, four sphere lights
+    of radius 0.033-0.9) as SceneData, Z up; resolution as in thesis_irradiance_cache."""
+    return load_mitsuba(scene_path(VEACH_MIS, "veachMIS.xml"), width, height)[0]
+
+
+# The thesis' scenes under the names bench.converge --suite thesis and
+# blender_scenes/thesis_scenes.py give them: (shared folder, SceneData loader).
+THESIS_SCENES = {"thesis_veach_mis": (VEACH_MIS, thesis_veach_mis),
+                 "thesis_irradiance_cache": (IRRADIANCE_CACHE, thesis_irradiance_cache)}
 
 
 # ---- comparison with the reference ----------------------------------------------------------

@@ -45,3 +45,38 @@ def test_spp_per_frame_and_scaling_smoke(tmp_path):
     rows = json.loads((tmp_path / "scaling.json").read_text())["rows"]
     assert [r["triangles"] > 0 and r["frame_ms"] > 0 for r in rows] == [True, True]
     assert rows[1]["triangles"] > rows[0]["triangles"]
+
+
+def test_thesis_suite_quick(tmp_path):
+    """--suite thesis --quick on the thesis' Veach MIS scene: the shared scene is converted to
+    .blend (camera, lights and materials as the Mitsuba loader reads them), rendered by both
+    engines, tabled in the thesis' layout and summarised beside table 5.2."""
+    from bench import shared_scenes, thesis
+
+    if not shared_scenes.available(shared_scenes.VEACH_MIS):
+        pytest.skip(f"the shared scene {shared_scenes.VEACH_MIS} is not in {shared_scenes.SHARED_SCENES}")
+    assert converge.method_params("ic_noupdate")["ic_update_prob"] == 0.0
+    assert "ic_update_prob" not in converge.method_params("ic")
+    source = shared_scenes.thesis_veach_mis(width=converge.QUICK["width"])
+    converted = converge.export_scene("thesis_veach_mis", converge.QUICK["width"])
+    assert (converted.width, converted.height) == (source.width, source.height)
+    np.testing.assert_allclose(converted.camera.window, source.camera.window, rtol=1e-5)
+    np.testing.assert_allclose(converted.camera.camera_to_world, source.camera.camera_to_world, atol=1e-5)
+    assert sorted((round(l.power, 2), round(l.radius, 4)) for l in converted.lights) == \
+        sorted((round(l.power, 2), round(l.radius, 4)) for l in source.lights)
+    assert sorted((m.type, round(m.roughness, 4)) for m in converted.materials) == \
+        sorted((m.type, round(m.roughness, 4)) for m in source.materials)
+
+    converge.main(["--suite", "thesis", "--quick", "--scenes", "thesis_veach_mis", "--methods", "pt",
+                   "--reference-seconds", "2", "--out", str(tmp_path)])
+    table = (tmp_path / "thesis_veach_mis.md").read_text()
+    assert "| | Parallax pt | Cycles |" in table and "| SPP |" in table
+    results = json.loads((tmp_path / "results.json").read_text())
+    rows = results["scenes"]["thesis_veach_mis"]
+    assert [r["pixels"] for r in rows] == [source.width * source.height] * 2
+    (tmp_path / "gpu_thesis").mkdir()
+    (tmp_path / "gpu_thesis" / "results.json").write_text(json.dumps(results))
+    summary = Path(thesis.write_summary(str(tmp_path / "SUMMARY.md"), ("gpu_thesis",), str(tmp_path))).read_text()
+    pt = [line for line in summary.splitlines() if line.startswith("| Path Tracer |")]
+    assert "### Table 5.2 Veach MIS" in summary and len(pt) == 1
+    assert pt[0].split("|")[2].strip() == "0.1206"  # the thesis' number beside ours
