@@ -1,6 +1,6 @@
 """Parity with Cycles for the Principled BSDF (issue 14): a grid of patches, roughness x
-metallic x IOR Level x transmission, plus a coat patch and a sheen patch, each patch's mean
-radiance within 5% of Cycles'.
+metallic x IOR Level x transmission, plus coat, sheen, an F82-tinted metal and smooth
+(roughness 0) dielectric and glass patches, each patch's mean radiance within 5% of Cycles'.
 
 The patches are quads in the plane z = 0 under a uniform world and a sun, seen at 45 degrees
 by an orthographic camera (so every pixel of a patch sees it at the same angle, and a patch
@@ -14,14 +14,14 @@ import os
 import numpy as np
 from blender_helpers import load_scene_builder, render
 
-W, H, ORTHO = 80, 32, 8.0        # pixel = 0.1 m across; rows see y / sqrt(2)
+W, H, ORTHO = 90, 32, 9.0        # pixel = 0.1 m across; rows see y / sqrt(2)
 SAMPLES = int(os.environ.get("PARALLAX_PARITY_SAMPLES", 256))
 BASE = (0.8, 0.5, 0.25)
-COLUMNS, PITCH, INSIDE = 6, 1.25, 0.35  # patch centres PITCH apart; pixels within INSIDE of one
+COLUMNS, PITCH, INSIDE = 7, 1.25, 0.35  # patch centres PITCH apart; pixels within INSIDE of one
 
 
 def patches():
-    """[(label, Principled inputs)]: the 16 grid patches, then coat and sheen."""
+    """[(label, Principled inputs)]: the 16 grid patches, then the others."""
     out = []
     for roughness in (0.2, 0.5):
         for metallic in (0.0, 1.0):
@@ -34,6 +34,9 @@ def patches():
                          "Coat Tint": (0.9, 0.95, 1.0, 1.0)}))
     out.append(("sheen", {"Base Color": (0.1, 0.15, 0.4, 1.0), "Roughness": 0.5, "Sheen Weight": 1.0,
                           "Sheen Roughness": 0.5}))
+    out.append(("metal f82", {"Roughness": 0.3, "Metallic": 1.0, "Specular Tint": (0.5, 0.8, 1.0, 1.0)}))
+    out.append(("r0 dielectric", {"Roughness": 0.0}))
+    out.append(("r0 glass", {"Roughness": 0.0, "Transmission Weight": 1.0}))
     return out
 
 
