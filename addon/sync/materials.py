@@ -83,6 +83,9 @@ class MaterialTable:
         total = sum(w for w, _ in lobes)
         if np.any(emission > 0):
             self.has_emission = True
+        if abs(total - 1.0) > 1e-6 and any(lobe["type"] == "principled" for _, lobe in lobes):
+            self._warnings.add(f"material '{name}': shaders adding up to a weight of {total:.3g} "
+                               "scale a Principled BSDF's base colour only")
         Material = self._scene.Material
         materials = self._out_materials
         if not lobes:
