@@ -287,3 +287,25 @@ def test_viewport_camera_from_view_and_projection_matrices(fresh, bpy, kind):
         forward = -np.asarray(data.camera.camera_to_world)[:, 2]
         offset = ray_origin - np.asarray(data.camera.camera_to_world)[:, 3]
         np.testing.assert_allclose(np.cross(offset, forward), 0.0, atol=1e-4)
+
+
+def test_mix_shader_keeps_principled_in_its_chain(fresh, bpy):
+    material = bpy.data.materials.new("Blend")
+    tree = material.node_tree
+    tree.nodes.clear()
+    principled = tree.nodes.new("ShaderNodeBsdfPrincipled")
+    principled.inputs["Coat Weight"].default_value = 0.7
+    glossy = tree.nodes.new("ShaderNodeBsdfGlossy")
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    mix.inputs[0].default_value = 0.25
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    tree.links.new(principled.outputs[0], mix.inputs[1])
+    tree.links.new(glossy.outputs[0], mix.inputs[2])
+    tree.links.new(mix.outputs[0], out.inputs["Surface"])
+    _cube(bpy, fresh, material=material)
+    data, warnings = export_current(bpy)
+    head = data.materials[data.meshes[0].material_indices[0]]
+    assert head.type == "principled" and head.coat_weight == pytest.approx(0.7)
+    assert head.mix_weight == pytest.approx(0.75)
+    assert data.materials[head.mix_next].type == "conductor"
+    assert data.materials[head.mix_next].coat_weight == 0.0
