@@ -474,10 +474,11 @@ def principled_albedo(session, angle, ior=1.5, n=200_000, **kw):
 def test_principled_white_furnace(session, roughness):
     """White dielectric Principled (specular over diffuse, with and without a coat): the
     specular layer takes from the diffuse what it reflects, so the albedo stays near 1
-    (Cycles' layering loses a little to the specular layer's multi-bounce Fresnel); a white
+    (Cycles' layering loses up to ~3% at roughness 1: the layer's albedo estimate counts its
+    multiple scattering as lossless, the lobe does not); a white
     F82 metal keeps all of it (multiscatter GGX)."""
     for angle in (0, 45, 75):
-        for kw, low in ((dict(base=(1, 1, 1), roughness=roughness), 0.97),
+        for kw, low in ((dict(base=(1, 1, 1), roughness=roughness), 0.96),
                         (dict(base=(1, 1, 1), roughness=roughness, coat=1.0, coat_roughness=0.2), 0.95),
                         (dict(base=(1, 1, 1), metallic=1.0, roughness=roughness), 0.98)):
             a = principled_albedo(session, angle, **kw)
