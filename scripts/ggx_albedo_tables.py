@@ -6,6 +6,11 @@ Cycles' tables are (so Multiscatter GGX renders as Cycles does):
     GGX_EAVG[r]           32        2 int_0^1 E(mu) mu dmu
     GLASS_E[r][mu][z]     32^3      glass (F-weighted reflection + refraction), eta = ior
     GLASS_INV_E[r][mu][z] 32^3      the same leaving the glass, eta = 1 / ior
+    SPEC_S[r][mu][z]      16^3      Principled specular/coat layer: the E-normalised mean of
+                                    s = (F(wo.m) - F0) / (1 - F0) over the reflection lobe, so its
+                                    albedo is mix(F0 tint, 1, s) (Cycles' ggx_gen_schlick_ior_s)
+    SHEEN_E[r][mu]        32 x 32   albedo / 2 (clipped to 1) of the Principled sheen lobe
+                                    (principled.glsl's Charlie sheen), r = Sheen Roughness
 
 with z = sqrt((ior - 1) / (ior + 1)) and grid points i / (n - 1) on every axis (lookups
 interpolate linearly between them). The host uploads the words once per session into a
@@ -16,6 +21,9 @@ the glass choosing reflection with probability F; stratified m, 64^2 per entry. 
 unorm16 pairs in uints (E is in (0, 1]).
 
     .venv/bin/python scripts/ggx_albedo_tables.py     # rewrites shaders/shared/ggx_tables.h
+    .venv/bin/python scripts/ggx_albedo_tables.py --keep GGX_E,GGX_EAVG,GLASS_E,GLASS_INV_E
+        # the same, but takes the named tables' values from the current header (the glass
+        # tables take ~20 minutes; the values are deterministic, so this gives the same file)
 """
 import os
 import sys
@@ -93,21 +101,67 @@ def albedo(rough, mu, eta=None):
     return float((f * w_refl + (1.0 - f) * w_tran).mean())
 
 
+def spec_s(rough, mu, eta):
+    """Mean of s(F(wo.m)) over the GGX reflection lobe at mu, weighted as its albedo."""
+    f0 = ((eta - 1.0) / (eta + 1.0)) ** 2
+    mu = max(mu, MU_MIN)
+    if rough <= 0.0:
+        return float(np.clip((fresnel(mu, eta) - f0) / (1.0 - f0), 0.0, 1.0))
+    alpha = rough * rough
+    wo = np.array([np.sqrt(1.0 - mu * mu), 0.0, mu])
+    m = vndf(wo, alpha, U1, U2)
+    wo_m = m @ wo
+    wr = 2.0 * wo_m[:, None] * m - wo
+    w = np.where(wr[:, 2] > 0, 1.0 / (1.0 + lambda_ggx(mu, alpha) + lambda_ggx(wr[:, 2], alpha)), 0.0)
+    s = np.clip((fresnel(wo_m, eta) - f0) / (1.0 - f0), 0.0, 1.0)
+    return float((w * s).sum() / max(w.sum(), 1e-12))
+
+
+SHEEN_MIN_ALPHA = 0.01  # principled.glsl: sheen alpha = max(r^2, this)
+
+
+def sheen_albedo(rough, mu):
+    """E(mu) of the Charlie sheen D(m) V(wo, wi) cos (Estevez & Kulla 2017; visibility of
+    Neubelt & Pettineo 2013), by stratified cosine-weighted wi."""
+    alpha = max(rough * rough, SHEEN_MIN_ALPHA)
+    mu = max(mu, MU_MIN)
+    wo = np.array([np.sqrt(1.0 - mu * mu), 0.0, mu])
+    r, phi = np.sqrt(U1), 2.0 * np.pi * U2
+    wi = np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(np.maximum(0.0, 1.0 - U1))], axis=1)
+    h = wi + wo
+    h /= np.linalg.norm(h, axis=1, keepdims=True)
+    sin2 = np.maximum(0.0, 1.0 - h[:, 2] ** 2)
+    d = (2.0 + 1.0 / alpha) * sin2 ** (0.5 / alpha) / (2.0 * np.pi)
+    v = 1.0 / (4.0 * (wi[:, 2] + mu - wi[:, 2] * mu))
+    return float(np.pi * np.mean(d * v))  # f cos / (cos / pi)
+
+
 def ior_of_z(z):
     z2 = min(z * z, 1.0 - 1e-6)
     return (1.0 + z2) / (1.0 - z2)
 
 
-def tables():
+def tables(keep=()):
+    old = read_header() if keep else {}
     n = 32
     grid = np.linspace(0.0, 1.0, n)
-    ggx_e = np.array([[albedo(r, mu) for mu in grid] for r in grid])
+    if "GGX_E" in keep:
+        ggx_e = old["GGX_E"][:n * n].reshape(n, n)
+    else:
+        ggx_e = np.array([[albedo(r, mu) for mu in grid] for r in grid])
     mids = (np.arange(64) + 0.5) / 64
-    ggx_eavg = np.array([2.0 * np.mean([albedo(r, mu) * mu for mu in mids]) for r in grid])
+    if "GGX_EAVG" in keep:
+        ggx_eavg = old["GGX_EAVG"][:n]
+    else:
+        ggx_eavg = np.array([2.0 * np.mean([albedo(r, mu) * mu for mu in mids]) for r in grid])
     n = 32  # 16^3 (as Cycles) left the glass furnace up to 4% low near grazing
     grid = np.linspace(0.0, 1.0, n)
     glass = np.zeros((n, n, n))
     glass_inv = np.zeros((n, n, n))
+    if "GLASS_E" in keep and "GLASS_INV_E" in keep:
+        glass = old["GLASS_E"][:n ** 3].reshape(n, n, n)
+        glass_inv = old["GLASS_INV_E"][:n ** 3].reshape(n, n, n)
+        grid = []
     for i, r in enumerate(grid):
         print(f"glass roughness {r:.3f}", file=sys.stderr, flush=True)
         for j, mu in enumerate(grid):
@@ -115,7 +169,23 @@ def tables():
                 ior = ior_of_z(z)
                 glass[i, j, k] = albedo(r, mu, ior)
                 glass_inv[i, j, k] = albedo(r, mu, 1.0 / ior)
-    return ggx_e, ggx_eavg, glass, glass_inv
+    n = 16
+    grid = np.linspace(0.0, 1.0, n)
+    spec = np.array([[[spec_s(r, mu, ior_of_z(z)) for z in grid] for mu in grid] for r in grid])
+    grid = np.linspace(0.0, 1.0, 32)
+    sheen = np.array([[min(sheen_albedo(r, mu), 2.0) / 2.0 for mu in grid] for r in grid])
+    return ggx_e, ggx_eavg, glass, glass_inv, spec, sheen
+
+
+def read_header():
+    """{table name: float values from its offset to the end} of the current header."""
+    import re
+    text = open(OUT).read()
+    offsets = {m.group(1): int(m.group(2)) for m in re.finditer(r"PX_CONST uint (\w+)_OFFSET = (\d+)u;", text)}
+    body = text[text.index("GGX_TABLE_WORDS[GGX_TABLE_WORD_COUNT] = {"):]
+    words = np.array([int(w, 16) for w in re.findall(r"0x([0-9a-f]{8})u", body)], np.uint32)
+    values = np.stack([words & 0xffff, words >> 16], axis=1).ravel() / 65535.0
+    return {name: values[o:] for name, o in offsets.items()}
 
 
 def pack(values):
@@ -126,8 +196,12 @@ def pack(values):
 
 
 def main():
-    ggx_e, ggx_eavg, glass, glass_inv = tables()
-    parts = [("GGX_E", ggx_e), ("GGX_EAVG", ggx_eavg), ("GLASS_E", glass), ("GLASS_INV_E", glass_inv)]
+    keep = ()
+    if len(sys.argv) > 2 and sys.argv[1] == "--keep":
+        keep = tuple(sys.argv[2].split(","))
+    ggx_e, ggx_eavg, glass, glass_inv, spec, sheen = tables(keep)
+    parts = [("GGX_E", ggx_e), ("GGX_EAVG", ggx_eavg), ("GLASS_E", glass), ("GLASS_INV_E", glass_inv),
+             ("SPEC_S", spec), ("SHEEN_E", sheen)]
     lines = ["// Generated by scripts/ggx_albedo_tables.py: do not edit. Directional albedos of the",
              "// single-scatter GGX lobes (see the script), unorm16 pairs; offsets in values.",
              "// Polyglot (C++/GLSL): the shaders read the words from BINDING_GGX_TABLES, which the",

@@ -3,17 +3,18 @@
 A node tree is reduced to weighted BSDF lobes plus one emission colour:
   Diffuse BSDF -> diffuse; Glossy BSDF -> GGX conductor (colour = reflectance, like Cycles);
   Glass BSDF -> GGX dielectric; Emission -> emission;
-  Principled BSDF -> metallic * conductor + (1 - metallic) * (transmission * dielectric +
-      (1 - transmission) * diffuse), plus emission colour * strength;
+  Principled BSDF -> one principled material (Cycles' Principled v2: sheen, coat, F82-tint
+      metal, glass, specular layer and diffuse base; shaders/lib/principled.glsl), plus
+      emission colour * strength;
   Mix Shader (constant factor) and Add Shader -> weighted sums of their inputs;
   Image Texture (UV mapped) into a colour input -> that lobe's sRGB base-colour texture.
 Several lobes become a chain of core materials picked stochastically per hit with
 probability weight / total (``Material.mix_next``/``mix_weight``); the total weight scales the
 lobes' colours. Multiscatter GGX (the default of Glossy, Glass and Principled) is GGX with
 Cycles' energy compensation. Documented approximations, each warned about once: Beckmann is
-rendered as single-scatter GGX; Principled's dielectric specular layer over the
-diffuse base, coat, sheen, subsurface and alpha are ignored; its metal uses the base colour
-as a constant Fresnel; linked factors and colours other than an Image Texture use the
+rendered as single-scatter GGX; Principled's sheen is a Charlie sheen lobe (Cycles' is a
+fitted microfibre LTC), its subsurface renders as diffuse, its anisotropy, thin film, normal
+inputs and alpha are ignored, and its emission is not dimmed by coat and sheen; linked factors and colours other than an Image Texture use the
 socket's own value; any other shader node renders as a diffuse surface of its colour.
 """
 import numpy as np
@@ -82,6 +83,9 @@ class MaterialTable:
         total = sum(w for w, _ in lobes)
         if np.any(emission > 0):
             self.has_emission = True
+        if abs(total - 1.0) > 1e-6 and any(lobe["type"] == "principled" for _, lobe in lobes):
+            self._warnings.add(f"material '{name}': shaders adding up to a weight of {total:.3g} "
+                               "scale a Principled BSDF's base colour only")
         Material = self._scene.Material
         materials = self._out_materials
         if not lobes:
@@ -99,7 +103,7 @@ class MaterialTable:
                 roughness=lobe["roughness"], ior=lobe["ior"],
                 emission=tuple(emission) if i == 0 else (0.0, 0.0, 0.0),
                 base_color_texture=lobe["texture"], name=name if i == 0 else f"{name} (lobe {i})",
-                multiscatter=lobe["multiscatter"],
+                multiscatter=lobe["multiscatter"], **lobe["principled"],
                 mix_next=None if last else next_index,
                 mix_weight=1.0 if last else min(1.0, p / remaining))
             if i == 0:
@@ -138,10 +142,11 @@ def node_tree(id_block):
     return id_block.node_tree
 
 
-def _lobe(type, base_color, roughness=0.5, ior=1.45, texture=None, multiscatter=False):
+def _lobe(type, base_color, roughness=0.5, ior=1.45, texture=None, multiscatter=False, principled=None):
     return dict(type=type, base_color=np.asarray(base_color[:3], dtype=np.float64),
                 roughness=float(roughness), ior=float(ior), texture=texture,
-                multiscatter=bool(multiscatter) and type in ("conductor", "dielectric"))
+                multiscatter=bool(multiscatter) and type in ("conductor", "dielectric", "principled"),
+                principled=principled or {})
 
 
 class _NodeReader:
@@ -283,24 +288,52 @@ class _NodeReader:
         return [(1.0, _lobe("dielectric", color, roughness, ior, texture, ms))], np.zeros(3)
 
     def _bsdf_principled(self, node):
+        """Blender 4.x/5.0 inputs; Cycles clamps them as parallax_core.scene.PRINCIPLED_FIELDS."""
         def first(*names):
             return next((n for n in names if n in node.inputs), names[0])
 
+        def colour(name):
+            rgb, texture = self.color(node, name, (1.0, 1.0, 1.0))
+            if texture is not None:
+                self.warn(f"'{node.name}': a texture on {name} is not supported; using white")
+            return tuple(float(x) for x in rgb)
+
         color, texture = self.color(node, "Base Color")
-        metallic = min(max(self.value(node, "Metallic", 0.0), 0.0), 1.0)
-        transmission = min(max(self.value(node, first("Transmission Weight", "Transmission"), 0.0), 0.0), 1.0)
         roughness, ms = self._distribution(node, self.value(node, "Roughness", 0.5))
-        ior = self.ior(node, 1.45)
-        for name in ("Coat Weight", "Clearcoat", "Sheen Weight", "Sheen", "Subsurface Weight", "Subsurface"):
+        ior = self.ior(node, 1.5)
+        if "Specular IOR Level" not in node.inputs:
+            self.warn(f"'{node.name}': a Principled BSDF older than Blender 4.0; only its base "
+                      "colour, metallic, roughness, IOR and transmission are read")
+        principled = dict(
+            metallic=self.value(node, "Metallic", 0.0),
+            transmission=self.value(node, first("Transmission Weight", "Transmission"), 0.0),
+            specular_ior_level=self.value(node, "Specular IOR Level", 0.5),
+            specular_tint=colour("Specular Tint") if "Specular Tint" in node.inputs and
+            getattr(node.inputs["Specular Tint"], "type", "RGBA") == "RGBA" else (1.0, 1.0, 1.0),
+            coat_weight=self.value(node, "Coat Weight", 0.0),
+            coat_roughness=self.value(node, "Coat Roughness", 0.03),
+            coat_ior=self.value(node, "Coat IOR", 1.5),
+            coat_tint=colour("Coat Tint") if "Coat Tint" in node.inputs else (1.0, 1.0, 1.0),
+            sheen_weight=self.value(node, "Sheen Weight", 0.0),
+            sheen_roughness=self.value(node, "Sheen Roughness", 0.5),
+            sheen_tint=colour("Sheen Tint") if "Sheen Tint" in node.inputs else (1.0, 1.0, 1.0),
+        )
+        if principled["sheen_weight"] > 0.0:
+            self.warn(f"'{node.name}': Sheen is approximated (a Charlie sheen lobe, not Cycles' "
+                      "microfibre LTC)")
+        for name in ("Subsurface Weight", "Subsurface"):
             if name in node.inputs and self.value(node, name, 0.0) > 0.0:
-                self.warn(f"'{node.name}': {name} is ignored")
+                self.warn(f"'{node.name}': {name} is rendered as diffuse")
+        if "Anisotropic" in node.inputs and self.value(node, "Anisotropic", 0.0) > 0.0:
+            self.warn(f"'{node.name}': Anisotropic is ignored")
+        if "Thin Film Thickness" in node.inputs and self.value(node, "Thin Film Thickness", 0.0) > 0.0:
+            self.warn(f"'{node.name}': Thin Film is ignored")
+        for name in ("Normal", "Coat Normal"):
+            if name in node.inputs and self._source(node.inputs[name]) is not None:
+                self.warn(f"'{node.name}': the {name} input is ignored")
         if self.value(node, "Alpha", 1.0) < 1.0:
             self.warn(f"'{node.name}': Alpha is ignored (rendered opaque)")
-        lobes = [
-            (metallic, _lobe("conductor", color, roughness, ior, texture, ms)),
-            ((1.0 - metallic) * transmission, _lobe("dielectric", color, roughness, ior, texture, ms)),
-            ((1.0 - metallic) * (1.0 - transmission), _lobe("diffuse", color, roughness, ior, texture)),
-        ]
+        lobes = [(1.0, _lobe("principled", color, roughness, ior, texture, ms, principled))]
         emission_color, emission_texture = self.color(node, first("Emission Color", "Emission"), (0.0, 0.0, 0.0))
         if emission_texture is not None:
             self.warn(f"'{node.name}': textured emission is not supported; using white")

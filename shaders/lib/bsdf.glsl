@@ -4,19 +4,12 @@
 //   conductor   GGX microfacet, alpha = roughness^2, Fresnel = colour (Cycles Glossy BSDF),
 //               height-correlated Smith G2, visible-normal sampling (Heitz 2018)
 //   dielectric  smooth or rough GGX glass (Walter et al. 2007), colour tints both lobes
+//   principled  Cycles' Principled BSDF v2, a layered mixture of lobes (principled.glsl)
 // Either GGX lobe may carry Cycles' multiscatter energy compensation (Surface.ms).
 
 #include "../shared/ggx_tables.h"
 
 const float DELTA_ALPHA = 1e-4;  // alpha below this: a perfect mirror / smooth glass
-
-struct Surface {
-    uint type;
-    vec3 albedo;  // base colour (x texture)
-    float alpha;  // GGX roughness
-    float eta;    // dielectric: IOR on the far side / IOR on the side of wo (after flip)
-    vec3 ms;      // multiscatter energy compensation factor of the whole lobe (1: single scatter)
-};
 
 struct BsdfSample {
     vec3 wi;
@@ -25,9 +18,6 @@ struct BsdfSample {
     bool delta;
 };
 
-bool surface_is_delta(Surface s) {
-    return s.type != MATERIAL_DIFFUSE && s.alpha < DELTA_ALPHA;
-}
 
 // ---- GGX ------------------------------------------------------------------------------
 float ggx_d(vec3 m, float alpha) {
@@ -110,6 +100,21 @@ float ggx_table_3d(uint offset, uint n, float x, float y, float z) {  // table[x
     return mix(ggx_table_2d(offset + ix * n * n, n, y, z), ggx_table_2d(offset + (ix + 1u) * n * n, n, y, z), fx);
 }
 
+#include "principled.glsl"
+
+struct Surface {
+    uint type;
+    vec3 albedo;  // base colour (x texture)
+    float alpha;  // GGX roughness
+    float eta;    // dielectric: IOR on the far side / IOR on the side of wo (after flip)
+    vec3 ms;      // multiscatter energy compensation factor of the whole lobe (1: single scatter)
+    Principled pr;  // MATERIAL_PRINCIPLED: its lobes (principled_setup)
+};
+
+bool surface_is_delta(Surface s) {
+    return s.type != MATERIAL_DIFFUSE && s.type != MATERIAL_PRINCIPLED && s.alpha < DELTA_ALPHA;
+}
+
 // Multiscatter GGX as Cycles does it (Kulla & Conty 2017, "Revisiting Physically Based
 // Shading at Imageworks"; Turquin 2019): the single-scatter lobe times
 // 1 + F_ms (1 - E) / E, E = E(mu_o) its albedo with F = 1, F_ms = F E_avg / (1 - F (1 - E_avg))
@@ -117,7 +122,8 @@ float ggx_table_3d(uint offset, uint n, float x, float y, float z) {  // table[x
 // the albedo of reflection + refraction at its relative IOR. Call once wo is known.
 void surface_multiscatter(inout Surface s, float mu) {
     s.ms = vec3(1.0);
-    if (s.alpha < DELTA_ALPHA || s.type == MATERIAL_DIFFUSE || s.type == MATERIAL_EMISSION) return;
+    if (s.alpha < DELTA_ALPHA || s.type == MATERIAL_DIFFUSE || s.type == MATERIAL_EMISSION ||
+        s.type == MATERIAL_PRINCIPLED) return;  // principled_setup handles its own lobes
     float rough = sqrt(s.alpha);
     if (s.type == MATERIAL_CONDUCTOR) {
         float e = max(ggx_table_2d(GGX_E_OFFSET, 32u, rough, mu), 1e-3);
@@ -142,6 +148,7 @@ vec3 bsdf_eval(Surface s, vec3 wo, vec3 wi, out float pdf) {
         pdf = wi.z * INV_PI;
         return s.albedo * (wi.z * INV_PI);
     }
+    if (HAS(FEATURE_PRINCIPLED) && s.type == MATERIAL_PRINCIPLED) return principled_eval(s.pr, wo, wi, pdf);
     if (s.type == MATERIAL_EMISSION || s.alpha < DELTA_ALPHA) return vec3(0.0);
     if (HAS(FEATURE_CONDUCTOR) && s.type == MATERIAL_CONDUCTOR) {
         if (wi.z <= 0.0) return vec3(0.0);
@@ -180,6 +187,7 @@ bool bsdf_sample(Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
     bs.weight = vec3(0.0);
     bs.wi = vec3(0.0, 0.0, 1.0);
     if (s.type == MATERIAL_EMISSION) return false;
+    if (HAS(FEATURE_PRINCIPLED) && s.type == MATERIAL_PRINCIPLED) return principled_sample(s.pr, wo, u, bs);
     if (s.type == MATERIAL_DIFFUSE) {
         bs.wi = cosine_hemisphere(u.xy);
         bs.pdf = bs.wi.z * INV_PI;

@@ -213,6 +213,8 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         vec3 wo_local = vec3(dot(wo, tangent), dot(wo, bitangent), dot(wo, ns));
         surf.ms = vec3(1.0);
         if ((mat.flags & MATERIAL_FLAG_MULTISCATTER) != 0u) surface_multiscatter(surf, wo_local.z);
+        if (HAS(FEATURE_PRINCIPLED) && mat.type == MATERIAL_PRINCIPLED)
+            surf.pr = principled_setup(mat, surf.albedo, surf.eta, wo_local.z, (mat.flags & MATERIAL_FLAG_MULTISCATTER) != 0u);
         bool delta = surface_is_delta(surf);
         if (USES(TECH_GUIDING) && g_open != NO_INDEX) {
             if (delta) g_travelled += hit.t;  // through specular chains to the next real vertex

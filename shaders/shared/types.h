@@ -97,6 +97,7 @@ PX_CONST uint MATERIAL_DIFFUSE = 0;     // Lambert, two-sided
 PX_CONST uint MATERIAL_CONDUCTOR = 1;   // GGX, colour = reflectance (Cycles Glossy BSDF)
 PX_CONST uint MATERIAL_DIELECTRIC = 2;  // smooth or rough GGX glass (Cycles Glass BSDF)
 PX_CONST uint MATERIAL_EMISSION = 3;    // emits only, no scattering (Cycles Emission)
+PX_CONST uint MATERIAL_PRINCIPLED = 4;  // Cycles' Principled BSDF v2 (shaders/lib/principled.glsl)
 
 PX_CONST uint LIGHT_TRIANGLE = 0;  // emissive mesh triangle, world-space vertices
 PX_CONST uint LIGHT_SPHERE = 1;    // point light, radius 0 = delta
@@ -129,6 +130,7 @@ PX_CONST uint FEATURE_SUN = 1u << 8;
 PX_CONST uint FEATURE_ENV = 1u << 9;            // constant world or map
 PX_CONST uint FEATURE_ENV_MAP = 1u << 10;
 PX_CONST uint FEATURE_MIX = 1u << 11;           // some used material has mix_next >= 0
+PX_CONST uint FEATURE_PRINCIPLED = 1u << 12;
 PX_CONST uint FEATURE_ALL = 0xffffffffu;
 
 // ---- scene records --------------------------------------------------------------------
@@ -160,6 +162,20 @@ struct Material {
     int mix_next;
     float mix_weight;  // in [0,1]
     uint flags;        // MATERIAL_FLAG_*
+    // MATERIAL_PRINCIPLED only (Blender's Principled BSDF inputs, clamped as Cycles does);
+    // base_color, roughness and ior above are its Base Color, Roughness and IOR.
+    vec3 specular_tint;  // dielectric F0 tint; the metal's F82 tint
+    float metallic;
+    vec3 coat_tint;
+    float coat_weight;
+    vec3 sheen_tint;
+    float sheen_weight;
+    float transmission;
+    float specular_ior_level;  // 0.5: F0 of ior; scales F0 by 2x this
+    float coat_roughness;
+    float coat_ior;
+    float sheen_roughness;
+    uint pad0, pad1, pad2;
 };
 
 // Conductor/dielectric: Cycles' Multiscatter GGX, the single-scatter lobe scaled by
@@ -252,6 +268,12 @@ PX_CONST uint TEST_GUIDING_PACK = 7;  // guiding_pack_direction / guiding_unpack
 PX_CONST uint TEST_ADRRS = 8;         // ADRRS' weight window and expected-value split
 PX_CONST uint TEST_CONDUCTOR_MS = 9;  // TEST_CONDUCTOR / TEST_DIELECTRIC with Multiscatter GGX
 PX_CONST uint TEST_DIELECTRIC_MS = 10;
+// Principled BSDF: the Material follows the samples in the test buffer (PRINCIPLED_TEST_VEC4S
+// vec4s: base_color+roughness, specular_tint+metallic, coat_tint+coat_weight,
+// sheen_tint+sheen_weight, (transmission, specular_ior_level, coat_roughness, coat_ior),
+// (sheen_roughness, multiscatter, 0, 0)); test_param0 = ior, test_params = (wo, unused).
+PX_CONST uint TEST_PRINCIPLED = 11;
+PX_CONST uint PRINCIPLED_TEST_VEC4S = 6;
 
 #include "techniques.h"
 

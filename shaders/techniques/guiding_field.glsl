@@ -40,9 +40,12 @@ uint guiding_region_at(vec3 p) {
 
 // Vertices that are guided and record training samples: diffuse, or rough enough that the
 // incident light matters more than the BSDF lobe (the reference skips roughness <= 0.3).
+// A Principled BSDF is guided when rough or when it has a diffuse base.
 bool guiding_surface(Surface s, float roughness) {
     return s.type == MATERIAL_DIFFUSE ||
-           ((s.type == MATERIAL_CONDUCTOR || s.type == MATERIAL_DIELECTRIC) && roughness > GUIDING_MIN_ROUGHNESS);
+           ((s.type == MATERIAL_CONDUCTOR || s.type == MATERIAL_DIELECTRIC) && roughness > GUIDING_MIN_ROUGHNESS) ||
+           (HAS(FEATURE_PRINCIPLED) && s.type == MATERIAL_PRINCIPLED &&
+            (roughness > GUIDING_MIN_ROUGHNESS || max3(s.pr.w[5]) > 0.0));
 }
 
 // Heat colour for a direction density, on a log scale relative to the uniform sphere:

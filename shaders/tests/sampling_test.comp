@@ -145,6 +145,41 @@ void main() {
         return;
     }
 
+    if (routine == TEST_PRINCIPLED) {  // the Material follows the samples (types.h)
+        uint b = 2u * params.test_count;
+        vec4 v0 = io[b], v1 = io[b + 1u], v2 = io[b + 2u], v3 = io[b + 3u], v4 = io[b + 4u], v5 = io[b + 5u];
+        Material m;
+        m.base_color = v0.xyz;
+        m.roughness = v0.w;
+        m.ior = params.test_param0 >= 1.0 ? params.test_param0 : 1.0 / params.test_param0;
+        m.specular_tint = v1.xyz;
+        m.metallic = v1.w;
+        m.coat_tint = v2.xyz;
+        m.coat_weight = v2.w;
+        m.sheen_tint = v3.xyz;
+        m.sheen_weight = v3.w;
+        m.transmission = v4.x;
+        m.specular_ior_level = v4.y;
+        m.coat_roughness = v4.z;
+        m.coat_ior = v4.w;
+        m.sheen_roughness = v5.x;
+        vec3 wo = normalize(params.test_params.xyz);
+        Principled p = principled_setup(m, m.base_color, params.test_param0, wo.z, v5.y > 0.5);
+        if (eval_mode) {  // (f cos) summed over rgb / 3 and the pdf
+            float pdf;
+            vec3 f = principled_eval(p, wo, normalize(io[2u * i].xyz), pdf);
+            io[2u * i + 1u] = vec4(avg3(f), pdf, 0.0, 0.0);
+            return;
+        }
+        BsdfSample bs;
+        bool ok = principled_sample(p, wo, vec3(rnd(rng), rnd(rng), rnd(rng)), bs);
+        float eval_pdf = 0.0;
+        vec3 f = ok ? principled_eval(p, wo, bs.wi, eval_pdf) : vec3(0.0);
+        io[2u * i] = vec4(bs.wi, ok ? bs.pdf : 0.0);
+        io[2u * i + 1u] = vec4(avg3(bs.weight), avg3(f), eval_pdf, ok ? 1.0 : 0.0);
+        return;
+    }
+
     Surface s;
     s.type = routine == TEST_DIFFUSE ? MATERIAL_DIFFUSE
            : (routine == TEST_CONDUCTOR || routine == TEST_CONDUCTOR_MS) ? MATERIAL_CONDUCTOR : MATERIAL_DIELECTRIC;

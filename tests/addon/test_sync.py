@@ -74,26 +74,36 @@ def test_smooth_normals_uvs_and_material_slots(fresh, bpy):
     assert set(names[top]) == {"Blue"} and set(names[~top]) == {"Red"}
 
 
-def test_principled_becomes_a_weighted_lobe_chain(fresh, bpy):
-    material, _ = _material(bpy, "Mixed", "ShaderNodeBsdfPrincipled", **{
+def test_principled_exports_every_layer(fresh, bpy):
+    material, _ = _material(bpy, "Layered", "ShaderNodeBsdfPrincipled", **{
         "Base Color": (0.5, 0.4, 0.3, 1.0), "Metallic": 0.25, "Transmission Weight": 0.5,
-        "Roughness": 0.3, "IOR": 1.33, "Emission Color": (1.0, 0.5, 0.0, 1.0),
-        "Emission Strength": 2.0, "distribution": "GGX"})
+        "Roughness": 0.3, "IOR": 1.33, "Specular IOR Level": 0.7, "Specular Tint": (1.0, 0.9, 0.8, 1.0),
+        "Coat Weight": 0.6, "Coat Roughness": 0.2, "Coat IOR": 1.6, "Coat Tint": (0.9, 1.0, 0.7, 1.0),
+        "Sheen Weight": 0.4, "Sheen Roughness": 0.35, "Sheen Tint": (0.2, 0.3, 1.0, 1.0),
+        "Emission Color": (1.0, 0.5, 0.0, 1.0), "Emission Strength": 2.0, "distribution": "GGX"})
+    plain, _ = _material(bpy, "Plain", "ShaderNodeBsdfPrincipled", **{"Metallic": 1.5})
     _cube(bpy, fresh, material=material)
+    _cube(bpy, fresh, "B", plain, location=(3, 0, 0))
     data, warnings = export_current(bpy)
-    head = data.materials[data.meshes[0].material_indices[0]]
-    chain = [head]
-    while chain[-1].mix_next is not None:
-        chain.append(data.materials[chain[-1].mix_next])
-    assert [m.type for m in chain] == ["conductor", "dielectric", "diffuse"]
-    # P(conductor) = metallic, P(dielectric) = (1 - metallic) transmission, rest diffuse.
-    np.testing.assert_allclose([m.mix_weight for m in chain], [0.25, 0.5, 1.0], rtol=1e-6)
-    for m in chain:
-        np.testing.assert_allclose(m.base_color, (0.5, 0.4, 0.3), rtol=1e-6)
-        assert m.roughness == pytest.approx(0.3) and m.ior == pytest.approx(1.33)
-    np.testing.assert_allclose(head.emission, (2.0, 1.0, 0.0))
-    assert all(m.emission == (0.0, 0.0, 0.0) for m in chain[1:])
-    assert not any("Mixed" in w for w in warnings)
+    by_name = {m.name: m for m in data.materials}
+    m = by_name["Layered"]
+    assert m.type == "principled" and m.mix_next is None and not m.multiscatter
+    np.testing.assert_allclose(m.base_color, (0.5, 0.4, 0.3), rtol=1e-6)
+    assert (m.roughness, m.ior, m.metallic, m.transmission, m.specular_ior_level) == pytest.approx(
+        (0.3, 1.33, 0.25, 0.5, 0.7))
+    assert (m.coat_weight, m.coat_roughness, m.coat_ior, m.sheen_weight, m.sheen_roughness) == pytest.approx(
+        (0.6, 0.2, 1.6, 0.4, 0.35))
+    np.testing.assert_allclose([m.specular_tint, m.coat_tint, m.sheen_tint],
+                               [(1.0, 0.9, 0.8), (0.9, 1.0, 0.7), (0.2, 0.3, 1.0)], rtol=1e-6)
+    np.testing.assert_allclose(m.emission, (2.0, 1.0, 0.0))
+    assert any("Layered" in w and "Sheen" in w for w in warnings)
+    # Blender's defaults, Multiscatter GGX; Cycles clamps Metallic to 1 (so does the export).
+    p = by_name["Plain"]
+    assert p.type == "principled" and p.multiscatter and p.coat_weight == 0.0 and p.sheen_weight == 0.0
+    assert not any("Plain" in w for w in warnings)
+    flat = data.flatten()
+    k = [x.name for x in data.materials].index("Plain")
+    assert flat["material_principled"][k][3] == pytest.approx(1.0)  # metallic column, clamped
 
 
 def test_mix_shader_with_emission_scales_the_bsdf(fresh, bpy):
@@ -277,3 +287,25 @@ def test_viewport_camera_from_view_and_projection_matrices(fresh, bpy, kind):
         forward = -np.asarray(data.camera.camera_to_world)[:, 2]
         offset = ray_origin - np.asarray(data.camera.camera_to_world)[:, 3]
         np.testing.assert_allclose(np.cross(offset, forward), 0.0, atol=1e-4)
+
+
+def test_mix_shader_keeps_principled_in_its_chain(fresh, bpy):
+    material = bpy.data.materials.new("Blend")
+    tree = material.node_tree
+    tree.nodes.clear()
+    principled = tree.nodes.new("ShaderNodeBsdfPrincipled")
+    principled.inputs["Coat Weight"].default_value = 0.7
+    glossy = tree.nodes.new("ShaderNodeBsdfGlossy")
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    mix.inputs[0].default_value = 0.25
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    tree.links.new(principled.outputs[0], mix.inputs[1])
+    tree.links.new(glossy.outputs[0], mix.inputs[2])
+    tree.links.new(mix.outputs[0], out.inputs["Surface"])
+    _cube(bpy, fresh, material=material)
+    data, warnings = export_current(bpy)
+    head = data.materials[data.meshes[0].material_indices[0]]
+    assert head.type == "principled" and head.coat_weight == pytest.approx(0.7)
+    assert head.mix_weight == pytest.approx(0.75)
+    assert data.materials[head.mix_next].type == "conductor"
+    assert data.materials[head.mix_next].coat_weight == 0.0

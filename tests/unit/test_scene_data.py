@@ -680,3 +680,30 @@ def test_cli_scene(tmp_path, capsys):
     assert abs(sum(len(m.indices) for m in SceneData.load(out).meshes) - 2002) < 40
     assert cli.main(["render", str(tmp_path / "missing.npz"), "-o", str(tmp_path / "x.exr")]) == 2
     assert "parallax: error:" in capsys.readouterr().err
+
+
+def test_principled_npz_round_trip_and_validation(tmp_path):
+    s = rich_scene()
+    s.materials.append(Material("principled", (0.7, 0.5, 0.3), roughness=0.4, ior=1.6, metallic=1.3,
+                                transmission=0.2, specular_ior_level=0.8, specular_tint=(1.0, 0.9, -0.5),
+                                coat_weight=0.5, coat_roughness=0.1, coat_ior=0.7, coat_tint=(0.9, 1.0, 0.8),
+                                sheen_weight=0.3, sheen_roughness=1.4, sheen_tint=(0.2, 0.4, 1.0),
+                                multiscatter=True, name="layered"))
+    flat = s.flatten()
+    # Cycles' clamps: metallic, roughnesses to [0, 1], tints >= 0, coat IOR >= 1.
+    np.testing.assert_allclose(flat["material_principled"][-1],
+                               [1.0, 0.9, 0.0, 1.0, 0.9, 1.0, 0.8, 0.5, 0.2, 0.4, 1.0, 0.3,
+                                0.2, 0.8, 0.1, 1.0, 1.0], rtol=1e-6)
+    s.save(tmp_path / "principled.npz")
+    loaded = SceneData.load(tmp_path / "principled.npz")
+    m = loaded.materials[-1]
+    assert m.type == "principled" and m.multiscatter and m.sheen_tint == pytest.approx((0.2, 0.4, 1.0))
+    assert_flat_equal(flat, loaded.flatten())
+    # Files from before the principled type load with zero rows.
+    old = {k: v for k, v in rich_scene().flatten().items() if k != "material_principled"}
+    np.savez(tmp_path / "old.npz", **old)
+    assert SceneData.load(tmp_path / "old.npz").flatten()["material_principled"].shape == (4, 17)
+    expect_error(scene_with(materials=[Material("principled", coat_weight=float("nan"))]),
+                 "material 0: coat_weight is NaN/Inf")
+    expect_error(scene_with(materials=[Material("principled", sheen_tint=(1.0, 1.0))]),
+                 "material 0: sheen_tint has shape (2,)")

@@ -21,7 +21,7 @@ __all__ = [
     "direction_to_equirectangular", "equirectangular_to_direction",
 ]
 
-MATERIAL_TYPES = {"diffuse": 0, "conductor": 1, "dielectric": 2, "emission": 3}
+MATERIAL_TYPES = {"diffuse": 0, "conductor": 1, "dielectric": 2, "emission": 3, "principled": 4}
 LIGHT_TYPES = {"point": 1, "spot": 2, "sun": 3, "area": 4}
 AREA_SHAPES = {"square": 4, "rectangle": 4, "disk": 5, "ellipse": 5}
 CAMERA_TYPES = {"perspective": 0, "orthographic": 1}
@@ -49,6 +49,7 @@ FLAT_KEYS = {
     "material_mix_next": (np.int32, "(K,)"),
     "material_mix_weight": (np.float32, "(K,)"),
     "material_multiscatter": (np.uint32, "(K,)"),
+    "material_principled": (np.float32, "(K,17)"),  # PRINCIPLED_FIELDS, in that order
     "texture_texels": (np.uint8, "(N,4)"),
     "texture_info": (np.uint32, "(X,3)"),
     "light_type": (np.uint32, "(L,)"),
@@ -105,7 +106,18 @@ def parts_set(parts):
 # Keys added after version 1 files were written, with the value a missing key stands for.
 # Keys newer than some saved files, with their defaults (and the array they follow in length).
 _OPTIONAL_KEY_DEFAULTS = {"material_mix_next": -1, "material_mix_weight": 1.0, "material_multiscatter": 0,
+                          "material_principled": 0.0,
                           "light_camera_visible": 1, "light_soft_falloff": 0}
+
+# Principled material inputs (Blender's Principled BSDF), their sizes, and the clamps Cycles
+# applies (low, high; None: open): the columns of material_principled in this order.
+PRINCIPLED_FIELDS = (
+    ("specular_tint", 3, 0.0, None), ("metallic", 1, 0.0, 1.0),
+    ("coat_tint", 3, 0.0, None), ("coat_weight", 1, 0.0, None),
+    ("sheen_tint", 3, 0.0, None), ("sheen_weight", 1, 0.0, None),
+    ("transmission", 1, 0.0, 1.0), ("specular_ior_level", 1, 0.0, None),
+    ("coat_roughness", 1, 0.0, 1.0), ("coat_ior", 1, 1.0, None), ("sheen_roughness", 1, 0.0, 1.0),
+)
 
 # Most materials one mix chain may hold, head included (MIX_CHAIN_MAX in shared/types.h).
 MIX_CHAIN_MAX = 16
@@ -252,8 +264,14 @@ class Material:
     must be acyclic and hold at most MIX_CHAIN_MAX materials; ``mix_next=None`` (no mix)
     ignores ``mix_weight``.
 
-    multiscatter (conductor, dielectric): Cycles' Multiscatter GGX, the single-scatter lobe
-    scaled to conserve the energy lost to masking (Kulla & Conty 2017, as Cycles does it).
+    multiscatter (conductor, dielectric, principled): Cycles' Multiscatter GGX, the
+    single-scatter lobe scaled to conserve the energy lost to masking (Kulla & Conty 2017, as
+    Cycles does it).
+
+    "principled": Cycles' Principled BSDF v2 (shaders/lib/principled.glsl): base_color,
+    roughness, ior and the fields from ``metallic`` on are the node's inputs of those names
+    (transmission = Transmission Weight, coat_* = Coat *, sheen_* = Sheen *), clamped as
+    Cycles clamps them; other types ignore them.
     """
     type: str = "diffuse"
     base_color: tuple = (0.8, 0.8, 0.8)
@@ -266,6 +284,17 @@ class Material:
     mix_next: int | None = None
     mix_weight: float = 1.0
     multiscatter: bool = False
+    metallic: float = 0.0
+    transmission: float = 0.0
+    specular_ior_level: float = 0.5
+    specular_tint: tuple = (1.0, 1.0, 1.0)
+    coat_weight: float = 0.0
+    coat_roughness: float = 0.03
+    coat_ior: float = 1.5
+    coat_tint: tuple = (1.0, 1.0, 1.0)
+    sheen_weight: float = 0.0
+    sheen_roughness: float = 0.5
+    sheen_tint: tuple = (1.0, 1.0, 1.0)
 
 
 @dataclass
@@ -494,6 +523,13 @@ class SceneData:
                 if not _finite(v):
                     raise ValueError(f"{lbl}: {attr} is NaN/Inf")
                 _check_f32(v, f"{lbl}: {attr}")
+            for attr, size, _, _ in PRINCIPLED_FIELDS:
+                v = _floats(getattr(mat, attr), f"{lbl}: {attr}")
+                if v.shape != (() if size == 1 else (size,)):
+                    raise ValueError(f"{lbl}: {attr} has shape {v.shape}")
+                if not _finite(v):
+                    raise ValueError(f"{lbl}: {attr} is NaN/Inf")
+                _check_f32(v, f"{lbl}: {attr}")
             if not IOR_RANGE[0] <= float(mat.ior) <= IOR_RANGE[1]:
                 raise ValueError(f"{lbl}: ior must be positive, in {IOR_RANGE[0]:g}.."
                                  f"{IOR_RANGE[1]:g} (got {float(mat.ior):g})")
@@ -660,6 +696,10 @@ class SceneData:
             [1.0 if m.mix_next is None else min(max(float(m.mix_weight), 0.0), 1.0)
              for m in mats], np.float32)
         out["material_multiscatter"] = np.array([int(bool(m.multiscatter)) for m in mats], np.uint32)
+        out["material_principled"] = np.array(
+            [np.concatenate([np.clip(np.asarray(getattr(m, a), np.float64).reshape(n), lo, hi)
+                             for a, n, lo, hi in PRINCIPLED_FIELDS]) for m in mats],
+            np.float32).reshape(-1, 17)
         texels, info, first = [], [], 0
         for tex in self.textures:
             rgba = _texture_rgba(tex.pixels, "texture")
@@ -787,7 +827,8 @@ class SceneData:
                      mix_next=(None if a["material_mix_next"][k] < 0
                                else int(a["material_mix_next"][k])),
                      mix_weight=float(a["material_mix_weight"][k]),
-                     multiscatter=bool(a["material_multiscatter"][k]))
+                     multiscatter=bool(a["material_multiscatter"][k]),
+                     **_principled_fields(a["material_principled"][k]))
             for k in range(len(a["material_type"]))]
         tnames = meta.get("texture_names") or [""] * len(a["texture_info"])
         textures = [Texture(a["texture_texels"][o:o + w * h].reshape(h, w, 4).copy(), tnames[x])
@@ -957,8 +998,18 @@ def _with_optional_defaults(flat):
         if k not in flat:
             like = "light_type" if k.startswith("light_") else "material_type"
             n = len(flat[like]) if like in flat and np.ndim(flat[like]) == 1 else 0
-            flat[k] = np.full(n, default, dtype=FLAT_KEYS[k][0])
+            trailing = tuple(int(d) for d in FLAT_KEYS[k][1].strip("()").split(",")[1:] if d)
+            flat[k] = np.full((n,) + trailing, default, dtype=FLAT_KEYS[k][0])
     return flat
+
+
+def _principled_fields(row):
+    """Material keyword arguments from one row of material_principled."""
+    out, i = {}, 0
+    for attr, n, _, _ in PRINCIPLED_FIELDS:
+        out[attr] = float(row[i]) if n == 1 else tuple(float(x) for x in row[i:i + n])
+        i += n
+    return out
 
 
 def _check_mix_chains(materials):

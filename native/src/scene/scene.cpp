@@ -221,6 +221,7 @@ uint scene_features(const SceneHost& s) {
         const Material& m = materials[k];
         if (m.type == MATERIAL_CONDUCTOR) f |= FEATURE_CONDUCTOR;
         if (m.type == MATERIAL_DIELECTRIC) f |= FEATURE_DIELECTRIC;
+        if (m.type == MATERIAL_PRINCIPLED) f |= FEATURE_PRINCIPLED;
         if (m.base_color_texture >= 0) f |= FEATURE_TEXTURES;
     }
     for (const auto& l : s.lights->lights) {
@@ -348,6 +349,8 @@ std::shared_ptr<const SceneMaterials> prepare_materials(const SceneArrays& a, co
     auto mix_next = get<int32_t>(a, "material_mix_next", 'i', {}, true);
     auto mix_weight = get<float>(a, "material_mix_weight", 'f', {}, true);
     auto multiscatter = get<uint32_t>(a, "material_multiscatter", 'u', {}, true);  // optional: off
+    // Principled inputs (Material from specular_tint on, in struct order); optional: none.
+    auto principled = get<float>(a, "material_principled", 'f', {17}, true);
     auto texels = get<uint8_t>(a, "texture_texels", 'u', {4});
     auto tex_info = get<uint32_t>(a, "texture_info", 'u', {3});
     if (base_color.rows != K || roughness.rows != K || ior.rows != K || emission.rows != K || texture.rows != K)
@@ -355,6 +358,7 @@ std::shared_ptr<const SceneMaterials> prepare_materials(const SceneArrays& a, co
     if ((mix_next.data && mix_next.rows != K) || (mix_weight.data && mix_weight.rows != K))
         bad("material_mix_* arrays differ in length from material_type");
     if (multiscatter.data && multiscatter.rows != K) bad("material_multiscatter differs in length from material_type");
+    if (principled.data && principled.rows != K) bad("material_principled differs in length from material_type");
     if (!mix_next.data != !mix_weight.data) bad("material_mix_next and material_mix_weight must be given together");
     for (size_t x = 0; x < tex_info.rows; ++x) {
         const uint32_t* ti = tex_info.data + 3 * x;
@@ -372,7 +376,7 @@ std::shared_ptr<const SceneMaterials> prepare_materials(const SceneArrays& a, co
     for (size_t k = 0; k < K; ++k) {
         Material& m = s.materials[k];
         std::string id = "material " + std::to_string(k);
-        if (materials_type.data[k] > MATERIAL_EMISSION) bad(id + ": unknown type " + std::to_string(materials_type.data[k]));
+        if (materials_type.data[k] > MATERIAL_PRINCIPLED) bad(id + ": unknown type " + std::to_string(materials_type.data[k]));
         if (!finite3(base_color.data + 3 * k) || !finite3(emission.data + 3 * k) || !std::isfinite(roughness.data[k]) ||
             !std::isfinite(ior.data[k]))
             bad(id + ": NaN or infinite value");
@@ -396,6 +400,24 @@ std::shared_ptr<const SceneMaterials> prepare_materials(const SceneArrays& a, co
         m.mix_next = -1;
         m.mix_weight = 1.0f;
         m.flags = (multiscatter.data && multiscatter.data[k] != 0) ? MATERIAL_FLAG_MULTISCATTER : 0u;
+        if (m.type == MATERIAL_PRINCIPLED && !principled.data) bad(id + ": principled material without material_principled");
+        if (principled.data) {
+            const float* p = principled.data + 17 * k;
+            for (int j = 0; j < 17; ++j)
+                if (!std::isfinite(p[j])) bad(id + ": NaN or infinite principled input");
+            auto clamp01 = [](float x) { return std::min(std::max(x, 0.0f), 1.0f); };
+            m.specular_tint = vmax(v3(p), {0, 0, 0});
+            m.metallic = clamp01(p[3]);
+            m.coat_tint = vmax(v3(p + 4), {0, 0, 0});
+            m.coat_weight = std::max(p[7], 0.0f);
+            m.sheen_tint = vmax(v3(p + 8), {0, 0, 0});
+            m.sheen_weight = std::max(p[11], 0.0f);
+            m.transmission = clamp01(p[12]);
+            m.specular_ior_level = std::max(p[13], 0.0f);
+            m.coat_roughness = clamp01(p[14]);
+            m.coat_ior = std::min(std::max(p[15], 1.0f), float(SceneLimits::ior_max));
+            m.sheen_roughness = clamp01(p[16]);
+        }
         if (mix_next.data) {
             int32_t next = mix_next.data[k];
             float w = mix_weight.data[k];
