@@ -188,7 +188,7 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
             float lp = 0.0;
             if (METHOD == METHOD_MIS && !prev_delta) {
                 uint light = instances[sh.instance].light_offset + sh.primitive;
-                lp = triangle_light_pdf(light, hit.t, dot(sh.ng, dir));
+                lp = triangle_light_pdf(light, origin, hit.t, dot(sh.ng, dir));
             }
             res.radiance += throughput * mat.emission * emission_weight(prev_delta, prev_pdf, lp, opt.light_samples);
         }

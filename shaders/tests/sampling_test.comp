@@ -57,7 +57,7 @@ float light_pdf_all(vec3 p, vec3 wi, out vec3 radiance) {
             float bv = dot(wi, qv) / det;
             float t = dot(l.axis_v, qv) / det;
             if (bu < 0.0 || bv < 0.0 || bu + bv > 1.0 || t <= 0.0) continue;
-            pdf += triangle_light_pdf(i, t, dot(l.direction, wi));
+            pdf += triangle_light_pdf(i, p, t, dot(l.direction, wi));
             radiance += l.radiance;
         } else if (l.type != LIGHT_SUN && l.type != LIGHT_ENV) {
             float t, lp;
