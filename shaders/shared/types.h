@@ -205,6 +205,7 @@ struct LightTreeNode {
     float theta_e;   // emission within theta_e of a normal (pi/2: a diffuse emitter)
     float power;     // summed selection weight of the lights below
     uint leaf;       // 1 for a leaf
+    uint two_sided;  // 1: the lights emit on both sides: the cone bounds the normals up to sign
 };
 
 // Point/spot with a radius: Cycles' Soft Falloff (Blender's default). The light is a disk of

@@ -292,24 +292,27 @@ def lights_scene(lights=(), meshes=(), materials=(), world=None):
                      world=world or World(color=(0.0, 0.0, 0.0)))
 
 
-def sample_lights(session, scene, p, n=N, seed=0):
+def sample_lights(session, scene, p, n=N, seed=0, normal=False):
+    """Light samples from p; normal: with a surface normal +z at p (the light tree's
+    receiver term), else none."""
     session.update(scene)
-    r = session.test_sampling(TEST_LIGHT, [*p, 0.0, 0.0], n, seed=seed)
+    r = session.test_sampling(TEST_LIGHT, [*p, float(normal), 0.0], n, seed=seed)
     return r
 
 
-def light_pdf(session, p):
+def light_pdf(session, p, normal=False):
     """Eval mode: the summed light pdf of directions from p (triangle_light_pdf,
     analytic_light_hit and distant_radiance: what MIS uses when a BSDF ray hits a light)."""
-    return lambda d: session.test_sampling(TEST_LIGHT + EVAL, [*p, 0.0, 0.0], len(d), directions=d)[:, 1, 1]
+    return lambda d: session.test_sampling(TEST_LIGHT + EVAL, [*p, float(normal), 0.0], len(d),
+                                           directions=d)[:, 1, 1]
 
 
-def check_light_hits(session, p, r, fraction=1e-4):
+def check_light_hits(session, p, r, fraction=1e-4, normal=False):
     """With one light, a BSDF ray along a light sample's direction must see the radiance and
     pdf NEE reported (the sampler's pdf is the samples' density). A sample on the very edge
     of a light may miss it in eval: `fraction` of them may differ."""
     ok = r[:, 1, 2] > 0.5
-    e = session.test_sampling(TEST_LIGHT + EVAL, [*p, 0.0, 0.0], int(ok.sum()), directions=r[ok, 0, :3])
+    e = session.test_sampling(TEST_LIGHT + EVAL, [*p, float(normal), 0.0], int(ok.sum()), directions=r[ok, 0, :3])
     assert_close_mostly("light hit pdf vs sampler pdf", e[:, 1, 1], r[ok, 0, 3], loose=np.inf, fraction=fraction)
     assert_close_mostly("light hit radiance vs sampled radiance", e[:, 1, 0], r[ok, 1, 0], loose=np.inf,
                         fraction=fraction)
@@ -574,8 +577,8 @@ def test_spherical_triangle(session, case):
 def test_light_tree(session, light_tree):
     """Many lights of every local kind through the light tree: each picked with the
     probability light_pick_pdf evaluates when a BSDF ray hits it (the hit's pdf equals the
-    sampler's), chi-square over the sphere; and a light next to p is picked far more often
-    than its share of the power."""
+    sampler's), chi-square over the sphere, with and without a surface normal at p; and a
+    light next to p is picked far more often than its share of the power."""
     rng = np.random.default_rng(7)
     # 27 Fibonacci directions around p, 0.68 rad apart: no two lights overlap as seen from p.
     fib = [np.array([math.sqrt(1 - z * z) * math.cos(2.39996 * k), math.sqrt(1 - z * z) * math.sin(2.39996 * k), z])
@@ -598,11 +601,13 @@ def test_light_tree(session, light_tree):
               Light("spot", power=80.0, position=tuple(3.5 * fib[22]), direction=tuple(-fib[22]),
                     radius=0.15, spot_size=math.radians(40), spot_blend=0.3)]
     scene = lights_scene(lights, meshes, materials)
-    r = sample_lights(session, scene, P0, seed=SEED + 50)
-    ok = r[:, 1, 2] > 0.5
-    assert ok.mean() > 0.999
-    check_light_hits(session, P0, r)
-    check_fit("light tree", SphereGrid.sphere(), r[ok, 0, :3], N, light_pdf(session, P0))
+    for normal in (False, True):  # without and with the receiver term (normal +z)
+        r = sample_lights(session, scene, P0, seed=SEED + 50 + 2 * normal, normal=normal)
+        ok = r[:, 1, 2] > 0.5
+        assert ok.mean() > 0.999
+        check_light_hits(session, P0, r, normal=normal)
+        check_fit(f"light tree{' with a normal' if normal else ''}", SphereGrid.sphere(), r[ok, 0, :3], N,
+                  light_pdf(session, P0, normal))
     # The near triangle holds < 0.1 % of the power; seen from 0.2 away the tree picks it often.
     picked = (r[ok, 1, 1] < 0.5).mean()
     pc._native.set_light_tree_min_lights(2**32 - 1)  # the power CDF (the fixture restores)

@@ -29,20 +29,24 @@ double at(D3 a, int k) { return k == 0 ? a.x : k == 1 ? a.y : a.z; }
 D3 dmin(D3 a, D3 b) { return {std::min(a.x, b.x), std::min(a.y, b.y), std::min(a.z, b.z)}; }
 D3 dmax(D3 a, D3 b) { return {std::max(a.x, b.x), std::max(a.y, b.y), std::max(a.z, b.z)}; }
 
-// Normals within theta_o of axis, each emitting within theta_e of itself.
+// Normals within theta_o of axis, each emitting within theta_e of itself; two-sided: the
+// normals up to sign (emitters lit on both faces).
 struct Cone {
     D3 axis{0, 0, 1};
     double theta_o = kPi, theta_e = 0.5 * kPi;
+    bool two_sided = false;
 };
 
 // Smallest cone holding both (Conty Estevez & Kulla 2018, algorithm 1).
-Cone merge(const Cone& a, const Cone& b) {
+Cone merge(const Cone& a, Cone b) {
     Cone r;
     r.theta_e = std::max(a.theta_e, b.theta_e);
-    if (a.theta_o >= kPi || b.theta_o >= kPi) return r;  // theta_o = pi: any direction
+    if (a.theta_o >= kPi || b.theta_o >= kPi || a.two_sided != b.two_sided) return r;  // any direction
+    r.two_sided = a.two_sided;
+    if (b.two_sided && dot(a.axis, b.axis) < 0) b.axis = -1.0 * b.axis;  // the nearer sign
     const double d = std::acos(std::clamp(dot(a.axis, b.axis), -1.0, 1.0));
-    if (std::min(d + b.theta_o, kPi) <= a.theta_o) return {a.axis, a.theta_o, r.theta_e};
-    if (std::min(d + a.theta_o, kPi) <= b.theta_o) return {b.axis, b.theta_o, r.theta_e};
+    if (std::min(d + b.theta_o, kPi) <= a.theta_o) return {a.axis, a.theta_o, r.theta_e, r.two_sided};
+    if (std::min(d + a.theta_o, kPi) <= b.theta_o) return {b.axis, b.theta_o, r.theta_e, r.two_sided};
     const double o = 0.5 * (a.theta_o + d + b.theta_o);
     if (o >= kPi) return r;
     const D3 perp = b.axis - dot(a.axis, b.axis) * a.axis;  // towards b, orthogonal to a
@@ -66,9 +70,10 @@ Item item_of(const Light& l, double power, uint32_t index) {
     it.light = index;
     const D3 p = d3(l.position), u = d3(l.axis_u), v = d3(l.axis_v), n = unit(d3(l.direction));
     switch (l.type) {
-        case LIGHT_TRIANGLE:  // two-sided: every direction
+        case LIGHT_TRIANGLE:  // two-sided, diffuse around +-normal
             it.lo = dmin(p, dmin(p + u, p + v));
             it.hi = dmax(p, dmax(p + u, p + v));
+            it.cone = {n, 0.0, 0.5 * kPi, true};
             break;
         case LIGHT_RECT:
         case LIGHT_DISK: {  // one-sided, diffuse around the normal
@@ -119,6 +124,7 @@ void build(std::vector<LightTreeNode>& nodes, std::vector<Item>& items, size_t b
     node.theta_o = float(cone.theta_o);
     node.theta_e = float(cone.theta_e);
     node.power = float(power / total);
+    node.two_sided = cone.two_sided && cone.theta_o < kPi ? 1u : 0u;
     if (e - b == 1) {
         node.leaf = 1;
         node.child = items[b].light;
