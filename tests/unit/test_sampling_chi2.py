@@ -849,7 +849,7 @@ def test_constant_world(session):
 
 # ---- delta lights -------------------------------------------------------------------------
 
-def test_point_light_delta(session):
+def test_point_light_delta(session, power_cdf):
     """Point light next to a rect light: delta samples along the axis with radiance
     P / (4 pi d^2), pdf = selection probability = P_point / (P_point + P_rect) (both W)."""
     pos, p_point, p_rect = np.array([0.5, -0.4, 1.8]), 30.0, 10.0
@@ -898,7 +898,7 @@ def test_sun_and_spot_delta(session):
 
 # ---- several lights together --------------------------------------------------------------
 
-def test_mixed_lights(session):
+def test_mixed_lights(session, power_cdf):
     """Triangles, sphere, spot, rect, sun, a point light and a constant world in one scene:
     chi-square of the non-delta samples against the summed pdf, and selection by power among
     the lights whose power is defined in Watts (triangles, sphere, rect, point)."""

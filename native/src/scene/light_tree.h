@@ -16,7 +16,8 @@ namespace px {
 std::vector<LightTreeNode> build_light_tree(std::vector<Light>& lights, const std::vector<uint32_t>& local,
                                             const std::vector<double>& power);
 
-// Local lights below this count are picked from the power CDF alone (set_light_tree_min_lights).
+// Scenes with fewer local lights pick them from the power CDF (default 0: never; a test and
+// benchmark knob).
 uint32_t light_tree_min_lights();
 void set_light_tree_min_lights(uint32_t n);
 
