@@ -3,8 +3,8 @@
 
     python bench/light_tree.py [--resolution 48] [--rounds 3] [--frames 4] [--json OUT.json]
 
-For each scene (many_emitters: 1000 emissive triangles; cornell_box: 2; veach_mis: 4 spheres
-and 2 triangles ... as scenes.py builds them) and each mode it renders, alternating the modes
+For each scene (many_emitters: 1000 emissive triangles; cornell_box: 2; veach_mis: 4 sphere
+lights) and each mode it renders, alternating the modes
 round by round so both see the same machine load: samples per CPU-second (time.process_time,
 where lavapipe renders) and per wall second, and the relMSE at equal samples estimated from
 8 seeded batches (mean of se^2 / (mean^2 + 1e-3), unbiased estimators: no reference needed).
