@@ -1,12 +1,14 @@
 // Light sampling for next event estimation, and the matching densities for MIS when a
-// BSDF-sampled ray hits a light. A light is chosen from light_cdf (weights ~ emitted
-// power), or, in scenes with many lights, local lights through the light tree (importance
-// at the shading point) and distant ones from light_cdf; emissive triangles are sampled uniformly within the solid angle they subtend
-// (spherical triangles, Arvo 1995) where that is large, by area where it is small (the choice
-// depends on the shading point and the triangle only, so MIS re-derives it), spheres uniformly within the
-// cone they subtend (Soft Falloff: a disk facing the point, by area), rectangles/disks by area, the sun within its cone, the environment
-// map by its luminance * sin(theta) table. All pdfs are per solid angle and include the
-// selection probability; delta lights report pdf = selection probability.
+// BSDF-sampled ray hits a light. Local lights (emissive triangles, sphere, spot, rect, disk)
+// are picked through the light tree by their importance at the shading point, distant ones
+// (sun, env) from light_cdf by power (without a tree, light_cdf holds every light). Emissive
+// triangles are sampled uniformly within the solid angle they subtend (spherical triangles,
+// Arvo 1995) where that is large, by area where it is small (the choice depends on the
+// shading point and the triangle only, so MIS re-derives it); spheres uniformly within the
+// cone they subtend (Soft Falloff: a disk facing the point, by area), rectangles/disks by
+// area, the sun within its cone, the environment map by its luminance * sin(theta) table.
+// All pdfs are per solid angle and include the selection probability; delta lights report
+// pdf = selection probability.
 
 struct LightSample {
     vec3 wi;

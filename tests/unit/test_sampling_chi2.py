@@ -14,7 +14,9 @@ must also match the fraction of samples the routine accepted.
 Besides the chi-square tests: sampler pdf == eval pdf and weight == eval / pdf for every BSDF
 sample; for lights, a BSDF ray along a light sample sees the radiance and pdf that NEE
 reported (eval mode uses the integrator's own MIS functions); light selection proportional
-to power; uniform area sampling of emitters; radiance and delta-light values in Cycles'
+to power (the power CDF) and through the light tree; spherical-triangle sampling of close
+emitters (solid angle 1/omega in float64, sub-triangle counts, slivers, grazing views, both
+sides of the threshold) and area sampling of far ones; radiance and delta-light values in Cycles'
 units; the irradiance of a sphere and a sun light and the integral of an environment map.
 Everything is seeded (PARALLAX_CHI2_SEED shifts all seeds): the same build gives the same
 p-values, and over seeds they are uniform (checked over 16 seeds x 35 tests).
