@@ -1,6 +1,7 @@
 // nanobind bindings: the only place the core meets Python. C++ exceptions become Python
 // exceptions (std::invalid_argument -> ValueError, others -> RuntimeError).
 #include "render/session.h"
+#include "scene/light_tree.h"
 
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
@@ -86,6 +87,13 @@ NB_MODULE(_native, m) {
           "Device memory the core may hold on the device, over all its sessions (0: the default, "
           "PARALLAX_MEMORY_BUDGET or a share of the heap). Past it, allocations raise "
           "DeviceMemoryError and the session keeps its previous scene.");
+
+    m.def("light_tree_min_lights", &px::light_tree_min_lights,
+          "Scenes with at least this many local lights (emissive triangles, point, spot and area "
+          "lights) pick them through the light tree, fewer from the power CDF alone.");
+    m.def("set_light_tree_min_lights", &px::set_light_tree_min_lights, "n"_a,
+          "Sets light_tree_min_lights for scenes updated from now on (0 or 1: always the tree; "
+          "2**32 - 1: never); a benchmark and test knob.");
 
     nb::dict limits;  // px::SceneLimits: what update() accepts (README "Limits")
     limits["radiance"] = px::SceneLimits::radiance;

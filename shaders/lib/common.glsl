@@ -20,6 +20,7 @@ layout(set = 0, binding = BINDING_TEXTURE_INFO, scalar) readonly buffer TextureI
 layout(set = 0, binding = BINDING_TEXELS, scalar) readonly buffer TexelBuffer { uint texels[]; };
 layout(set = 0, binding = BINDING_LIGHTS, scalar) readonly buffer LightBuffer { Light lights[]; };
 layout(set = 0, binding = BINDING_LIGHT_CDF, scalar) readonly buffer LightCdfBuffer { float light_cdf[]; };
+layout(set = 0, binding = BINDING_LIGHT_TREE, scalar) readonly buffer LightTreeBuffer { LightTreeNode light_tree[]; };
 layout(set = 0, binding = BINDING_ENV_TEXELS, scalar) readonly buffer EnvTexelBuffer { vec3 env_texels[]; };
 layout(set = 0, binding = BINDING_ENV_MARGINAL, scalar) readonly buffer EnvMarginalBuffer { float env_marginal[]; };
 layout(set = 0, binding = BINDING_ENV_CONDITIONAL, scalar) readonly buffer EnvConditionalBuffer { float env_conditional[]; };

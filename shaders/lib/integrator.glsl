@@ -134,6 +134,7 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
     bool albedo_done = false;
     bool prev_delta = true;  // the camera ray counts as delta: nothing to weigh it against
     float prev_pdf = 0.0;
+    vec3 prev_ng = vec3(0.0);  // geometric normal at the segment's origin (the light tree's receiver)
     uint bounces = opt.bounces, discrete = opt.discrete;
     // Guiding training records (thesis 4.6.2) of this path's first guided vertices: the
     // direction sampled there, its pdf, and what the rest of the path brings in along it,
@@ -163,7 +164,7 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         for (uint i = scene.analytic_first; HAS(FEATURE_SPHERE_LIGHTS | FEATURE_AREA_LIGHTS) && i < analytic_end(camera_ray); ++i) {
             float t_light, light_pdf;
             vec3 light_radiance;
-            if (!analytic_light_hit(i, origin, dir, t_surface, t_light, light_radiance, light_pdf)) continue;
+            if (!analytic_light_hit(i, origin, prev_ng, dir, t_surface, t_light, light_radiance, light_pdf)) continue;
             res.radiance += throughput * light_radiance * (emission_scale * emission_weight(prev_delta, prev_pdf, light_pdf, opt.light_samples));
             if (res.segments == 1u) res.first_t = min(res.first_t, t_light);
         }
@@ -188,7 +189,7 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
             float lp = 0.0;
             if (METHOD == METHOD_MIS && !prev_delta) {
                 uint light = instances[sh.instance].light_offset + sh.primitive;
-                lp = triangle_light_pdf(light, hit.t, dot(sh.ng, dir));
+                lp = triangle_light_pdf(light, origin, prev_ng, hit.t, dot(sh.ng, dir));
             }
             res.radiance += throughput * mat.emission * emission_weight(prev_delta, prev_pdf, lp, opt.light_samples);
         }
@@ -269,7 +270,7 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
             for (uint k = 0u; k < opt.light_samples; ++k) {
                 LightSample ls;
                 vec3 u = vec3(rnd(rng), rnd(rng), rnd(rng));
-                if (!sample_light(sh.p, u, ls)) continue;
+                if (!sample_light(sh.p, sh.ng, u, ls)) continue;
                 vec3 wi_local = vec3(dot(ls.wi, tangent), dot(ls.wi, bitangent), dot(ls.wi, ns));
                 float bsdf_pdf;
                 vec3 f = bsdf_eval(surf, wo_local, wi_local, bsdf_pdf);
@@ -360,6 +361,7 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
             g_travelled = 0.0;
         }
         origin = offset_ray(sh.p, dot(dir, ng) > 0.0 ? ng : -ng);
+        prev_ng = sh.ng;
         t_min = 0.0;
         t_max = INFINITY_F;
         if (max3(throughput) <= 0.0) break;

@@ -1,9 +1,14 @@
 // Light sampling for next event estimation, and the matching densities for MIS when a
-// BSDF-sampled ray hits a light. A light is chosen from light_cdf (weights ~ emitted
-// power); emissive triangles are sampled uniformly by area, spheres uniformly within the
-// cone they subtend (Soft Falloff: a disk facing the point, by area), rectangles/disks by area, the sun within its cone, the environment
-// map by its luminance * sin(theta) table. All pdfs are per solid angle and include the
-// selection probability; delta lights report pdf = selection probability.
+// BSDF-sampled ray hits a light. Local lights (emissive triangles, sphere, spot, rect, disk)
+// are picked through the light tree by their importance at the shading point, distant ones
+// (sun, env) from light_cdf by power (without a tree, light_cdf holds every light). Emissive
+// triangles are sampled uniformly within the solid angle they subtend (spherical triangles,
+// Arvo 1995) where that is large, by area where it is small (the choice depends on the
+// shading point and the triangle only, so MIS re-derives it); spheres uniformly within the
+// cone they subtend (Soft Falloff: a disk facing the point, by area), rectangles/disks by
+// area, the sun within its cone, the environment map by its luminance * sin(theta) table.
+// All pdfs are per solid angle and include the selection probability; delta lights report
+// pdf = selection probability.
 
 struct LightSample {
     vec3 wi;
@@ -13,7 +18,106 @@ struct LightSample {
     bool delta;
 };
 
-float light_select_pdf(uint index) { return light_cdf[index + 1u] - light_cdf[index]; }
+// ---- light selection --------------------------------------------------------------------
+// Light tree (Conty Estevez & Kulla 2018, sec. 4-5): a node's importance from p is its power
+// times a bound of its emitters' cosine towards p over the squared distance to the node's
+// centre, clamped to half the node's bounding radius (no 1/d^2 peak at its centre; a clamp at
+// the full radius made every node around p look alike: 4-8x more variance on many_emitters). The
+// angle to p, less the normal cone's theta_o and the bounding sphere's angular radius
+// theta_u, bounds the emission angle from below; past theta_e no emitter of the node can
+// reach p. Two-sided emitters (triangles) bound their normals up to sign, and the angle is
+// taken from the nearer of +-axis. The receiver term bounds |cos| at p's surface (normal n,
+// either side: it may transmit; n = 0: none). The importance depends on (p, n) alone, and
+// MIS re-derives it from the previous vertex's position and geometric normal.
+float light_tree_importance(uint node, vec3 p, vec3 n_p) {
+    LightTreeNode n = light_tree[node];
+    vec3 h = 0.5 * (n.bounds_max - n.bounds_min);
+    float r2 = dot(h, h);
+    vec3 pc = p - 0.5 * (n.bounds_min + n.bounds_max);
+    float d2 = dot(pc, pc);
+    float cos_factor = 1.0;
+    if (n.theta_o < PI && d2 > r2) {
+        float c = dot(n.axis, pc) * inversesqrt(d2);
+        float theta = acos(clamp(n.two_sided != 0u ? abs(c) : c, -1.0, 1.0));  // two-sided: from +-axis
+        float theta_u = asin(min(sqrt(r2 / d2), 1.0));
+        // 1e-3: lavapipe's acos/asin are approximate; the bound must stay conservative
+        float t = max(0.0, theta - n.theta_o - theta_u - 1e-3);
+        if (t >= n.theta_e) return 0.0;
+        cos_factor = cos(t);
+    }
+    float nn = dot(n_p, n_p);
+    if (nn > 0.0 && d2 > r2) {
+        float theta_r = acos(clamp(abs(dot(n_p, pc)) * inversesqrt(d2 * nn), 0.0, 1.0));
+        cos_factor *= cos(max(0.0, theta_r - asin(min(sqrt(r2 / d2), 1.0)) - 1e-3));
+    }
+    return n.power * cos_factor / max(max(d2, 0.25 * r2), 1e-30);
+}
+
+// Probability of stepping from `parent` into its child `node`, as light_tree_sample does.
+float light_tree_step(uint parent, uint node, vec3 p, vec3 n) {
+    uint c = light_tree[parent].child;
+    float il = light_tree_importance(c, p, n), ir = light_tree_importance(c + 1u, p, n);
+    if (!(il + ir > 0.0)) return 0.0;
+    float pl = il / (il + ir);
+    return node == c ? pl : 1.0 - pl;
+}
+
+// One root-to-leaf walk choosing each child with probability proportional to its
+// importance (u is rescaled and reused at every level): the light index, or NO_INDEX when
+// no light can reach p, and the walk's probability.
+uint light_tree_sample(vec3 p, vec3 n_p, float u, out float prob) {
+    uint n = 0u;
+    prob = 1.0;
+    while (light_tree[n].leaf == 0u) {
+        uint c = light_tree[n].child;
+        float il = light_tree_importance(c, p, n_p), ir = light_tree_importance(c + 1u, p, n_p);
+        if (!(il + ir > 0.0)) {
+            prob = 0.0;
+            return NO_INDEX;
+        }
+        float pl = il / (il + ir);  // as light_tree_step
+        if (u < pl) {
+            u /= pl;
+            prob *= pl;
+            n = c;
+        } else {
+            u = (u - pl) / (1.0 - pl);
+            prob *= 1.0 - pl;
+            n = c + 1u;
+        }
+        u = min(u, 0.99999994);
+    }
+    return light_tree[n].child;
+}
+
+// Probability that light_tree_sample from p returns light `index` (its leaf's walk).
+float light_tree_pdf(uint index, vec3 p, vec3 n_p) {
+    uint n = lights[index].tree_node;
+    if (n == NO_INDEX) return 0.0;
+    float prob = 1.0;
+    while (n != 0u && prob > 0.0) {
+        uint parent = light_tree[n].parent;
+        prob *= light_tree_step(parent, n, p, n_p);
+        n = parent;
+    }
+    return prob;
+}
+
+bool light_tree_on() { return scene.light_tree_nodes > 0u; }
+
+// Probability of picking light `index` from light_cdf: all lights, or with the tree the
+// distant ones (sun, env) after the tree was not chosen.
+float light_cdf_pick_pdf(uint index) {
+    float p = light_cdf[index + 1u] - light_cdf[index];
+    return light_tree_on() ? (1.0 - scene.light_tree_prob) * p : p;
+}
+
+// Probability that sample_light from p (surface normal n) picks light `index`.
+float light_pick_pdf(uint index, vec3 p, vec3 n) {
+    if (light_tree_on() && lights[index].tree_node != NO_INDEX)
+        return scene.light_tree_prob * light_tree_pdf(index, p, n);
+    return light_cdf_pick_pdf(index);
+}
 
 // Cycles' spot cone: smoothstep over the blend region, no extra cosine (Cycles >= 4.0).
 float spot_attenuation(Light l, vec3 from_light) {
@@ -86,6 +190,66 @@ vec3 env_sample(vec2 u, out float pdf) {
     return d;
 }
 
+// ---- emissive triangles -----------------------------------------------------------------
+// Solid angles below this are sampled by area: the spherical construction loses precision in
+// float (1 - q^2 below cancels) and the area density is nearly uniform in solid angle there.
+// Above TRI_SPHERICAL_MAX the triangle nearly fills the hemisphere and its angles approach pi.
+const float TRI_SPHERICAL_MIN = 1e-3;
+const float TRI_SPHERICAL_MAX = 6.2;
+
+bool triangle_sampled_spherical(float omega) { return omega >= TRI_SPHERICAL_MIN && omega <= TRI_SPHERICAL_MAX; }
+
+// Solid angle of triangle light l seen from p: Van Oosterom & Strackee 1983,
+// tan(omega / 2) = |a . (b x c)| / (1 + a.b + b.c + c.a) for unit vectors a, b, c.
+float triangle_solid_angle(Light l, vec3 p) {
+    vec3 a = normalize(l.position - p);
+    vec3 b = normalize(l.position + l.axis_u - p);
+    vec3 c = normalize(l.position + l.axis_v - p);
+    float num = abs(dot(a, cross(b, c)));
+    float den = 1.0 + dot(a, b) + dot(b, c) + dot(c, a);
+    float omega = 2.0 * atan2_accurate(num, den);
+    return omega > 0.0 ? omega : 0.0;  // NaN (p on a vertex) -> 0: area sampling
+}
+
+// A direction uniformly distributed in the spherical triangle abc of solid angle omega
+// (Arvo 1995, "Stratified sampling of spherical triangles", fig. 2): u.x picks the area of
+// the sub-triangle a b c' (c' on arc ac), u.y a point on arc b c'. The cosines that would
+// cancel for small triangles are written as products of sines (cos(x - al) - cos(al) =
+// 2 sin(x/2) sin(al - x/2), 1 - cos c = |a - b|^2 / 2).
+vec3 sample_spherical_triangle(vec3 a0, vec3 b0, vec3 c0, float omega, vec2 u) {
+    // c' moves along arc ac: make that the longest arc (b the vertex of the largest angle),
+    // where 1 - q^2 cancels least. For thin triangles (slivers, grazing views) other labels
+    // put a few % too few samples near a sharp vertex (measured in float32).
+    float dab = dot(a0, b0), dbc = dot(b0, c0), dca = dot(c0, a0);
+    vec3 a = a0, b = b0, c = c0;
+    if (dab <= min(dbc, dca)) { a = b0; b = c0; c = a0; }
+    else if (dbc < dca) { a = c0; b = a0; c = b0; }
+    vec3 nab = cross(a, b), nac = cross(a, c);
+    float inv = inversesqrt(dot(nab, nab) * dot(nac, nac));
+    float cos_al = dot(nab, nac) * inv;
+    float sin_al = abs(dot(a, cross(b, c))) * inv;  // |nab x nac| = |det(a, b, c)|
+    float area = u.x * omega;
+    float al = atan2_accurate(sin_al, cos_al);
+    float s = sin(area - al);
+    float t = cos(area - al);
+    float h = sin(0.5 * area);
+    float uu = 2.0 * h * sin(al - 0.5 * area);              // t - cos(al)
+    vec3 ab = a - b;
+    float v = sin(area) * cos_al + sin_al * (2.0 * h * h - 0.5 * dot(ab, ab));  // s + sin(al) cos(c)
+    float q = ((v * t - uu * s) * cos_al - v) / ((v * s + uu * t) * sin_al);  // cos of arc a c'
+    q = clamp(q, -1.0, 1.0);
+    vec3 c_perp = normalize(c - dot(c, a) * a);
+    vec3 c2 = q * a + sqrt(max(0.0, (1.0 - q) * (1.0 + q))) * c_perp;
+    // uniform in the sub-triangle: cos of the arc from b, linear in u.y (1 - cos as |.|^2 / 2)
+    vec3 bc2 = b - c2;
+    float omz = u.y * 0.5 * dot(bc2, bc2);  // 1 - z
+    float z = 1.0 - omz;
+    vec3 w = c2 - dot(c2, b) * b;
+    float wl = length(w);
+    if (!(wl > 0.0)) return b;
+    return normalize(z * b + sqrt(max(0.0, omz * (2.0 - omz))) * (w / wl));
+}
+
 // ---- sampling -------------------------------------------------------------------------
 bool sample_one_light(uint index, vec3 p, vec2 u, out LightSample ls) {
     Light l = lights[index];
@@ -95,6 +259,32 @@ bool sample_one_light(uint index, vec3 p, vec2 u, out LightSample ls) {
     ls.pdf = 0.0;
     ls.wi = vec3(0.0, 0.0, 1.0);
     if (HAS(FEATURE_TRIANGLE_LIGHTS) && l.type == LIGHT_TRIANGLE) {
+        float omega = triangle_solid_angle(l, p);
+        if (triangle_sampled_spherical(omega)) {
+            vec3 a = normalize(l.position - p);
+            vec3 b = normalize(l.position + l.axis_u - p);
+            vec3 c = normalize(l.position + l.axis_v - p);
+            ls.wi = sample_spherical_triangle(a, b, c, omega, u);
+            vec3 n = cross(l.axis_u, l.axis_v);
+            float t = dot(n, l.position - p) / dot(n, ls.wi);  // onto the triangle's plane
+            if (!(t > 0.0) || isinf(t) || any(isnan(ls.wi))) return false;
+            // The construction loses a few ulps of its arcs (more for slivers): clamp the
+            // point's barycentrics into the triangle so the shadow ray aims at the emitter.
+            vec3 q = p + t * ls.wi - l.position;
+            float uu = dot(l.axis_u, l.axis_u), uv = dot(l.axis_u, l.axis_v), vv = dot(l.axis_v, l.axis_v);
+            float qu = dot(q, l.axis_u), qv = dot(q, l.axis_v);
+            float det = uu * vv - uv * uv;
+            // (1e-6 inside: a point exactly on an edge may miss the triangle in a hit test)
+            vec2 bc = max(vec2(vv * qu - uv * qv, uu * qv - uv * qu) / det, vec2(1e-6));
+            bc *= (1.0 - 1e-6) / max(1.0 - 1e-6, bc.x + bc.y);
+            vec3 to = l.position + bc.x * l.axis_u + bc.y * l.axis_v - p;
+            ls.dist = length(to);
+            ls.wi = to / ls.dist;
+            if (!(ls.dist > 0.0)) return false;
+            ls.pdf = 1.0 / omega;
+            ls.radiance = l.radiance;
+            return true;
+        }
         float su = sqrt(u.x);
         vec3 q = l.position + (1.0 - su) * l.axis_u + (u.y * su) * l.axis_v;
         vec3 to = q - p;
@@ -192,27 +382,42 @@ bool sample_one_light(uint index, vec3 p, vec2 u, out LightSample ls) {
     return ls.pdf > 0.0;
 }
 
-// Picks a light by power and samples it; ls.pdf includes the selection probability.
-bool sample_light(vec3 p, vec3 u, out LightSample ls) {
+// Picks a light (by power, or through the tree) and samples it; ls.pdf includes the
+// selection probability.
+// n: the geometric normal at p (either sign), or 0 (the tree then ignores the receiver).
+bool sample_light(vec3 p, vec3 n, vec3 u, out LightSample ls) {
     if (scene.light_count == 0u) return false;
-    uint index = sample_light_cdf(0u, scene.light_count, u.z);
-    float select = light_select_pdf(index);
-    if (select <= 0.0 || !sample_one_light(index, p, u.xy, ls)) return false;
+    uint index;
+    float select;
+    float tree = light_tree_on() ? scene.light_tree_prob : 0.0;
+    if (u.z < tree) {
+        index = light_tree_sample(p, n, u.z / tree, select);
+        if (index == NO_INDEX) return false;
+        select *= tree;
+    } else {
+        float v = tree > 0.0 ? min((u.z - tree) / (1.0 - tree), 0.99999994) : u.z;
+        index = sample_light_cdf(0u, scene.light_count, v);
+        select = light_cdf_pick_pdf(index);
+    }
+    if (!(select > 0.0) || !sample_one_light(index, p, u.xy, ls)) return false;
     ls.pdf *= select;
     return ls.pdf > 0.0;
 }
 
 // ---- BSDF rays hitting lights ---------------------------------------------------------
-// Density with which sample_light would have produced the direction that hit triangle
-// light `index` at distance t with cosine cos_l at the light.
-float triangle_light_pdf(uint index, float t, float cos_l) {
+// Density with which sample_light from o (normal n) would have produced the direction that hit
+// triangle light `index` at distance t with cosine cos_l at the light (the same spherical/area
+// choice).
+float triangle_light_pdf(uint index, vec3 o, vec3 n, float t, float cos_l) {
     Light l = lights[index];
-    return light_select_pdf(index) * t * t / (l.area * max(abs(cos_l), 1e-8));
+    float omega = triangle_solid_angle(l, o);
+    if (triangle_sampled_spherical(omega)) return light_pick_pdf(index, o, n) / omega;
+    return light_pick_pdf(index, o, n) * t * t / (l.area * max(abs(cos_l), 1e-8));
 }
 
 // Analytic light `index` (sphere, spot, rect, disk; not the sun) along the ray o + t d,
-// 0 < t < t_max: true with t, radiance and pdf (incl. selection) as seen from o.
-bool analytic_light_hit(uint index, vec3 o, vec3 d, float t_max, out float t, out vec3 radiance, out float pdf) {
+// 0 < t < t_max: true with t, radiance and pdf (incl. selection) as seen from o (normal n).
+bool analytic_light_hit(uint index, vec3 o, vec3 n, vec3 d, float t_max, out float t, out vec3 radiance, out float pdf) {
     Light l = lights[index];
     t = t_max;
     radiance = vec3(0.0);
@@ -231,7 +436,7 @@ bool analytic_light_hit(uint index, vec3 o, vec3 d, float t_max, out float t, ou
             if (t <= 0.0 || t >= t_max || dot(q, q) > l.radius * l.radius) return false;
             float att = l.type == LIGHT_SPOT ? spot_attenuation(l, -d) : 1.0;
             radiance = l.radiance * att;
-            pdf = att > 0.0 ? light_select_pdf(index) * t * t / (l.area * -denom) : 0.0;
+            pdf = att > 0.0 ? light_pick_pdf(index, o, n) * t * t / (l.area * -denom) : 0.0;
             return true;
         }
         float b = dot(oc, d);
@@ -245,7 +450,7 @@ bool analytic_light_hit(uint index, vec3 o, vec3 d, float t_max, out float t, ou
         radiance = l.radiance * att;
         // outside a spot's cone sample_one_light gives up: NEE's density there is 0
         float omc = one_minus_cos_from_sin2(l.radius * l.radius / dot(oc, oc));
-        pdf = att > 0.0 ? light_select_pdf(index) / (2.0 * PI * omc) : 0.0;
+        pdf = att > 0.0 ? light_pick_pdf(index, o, n) / (2.0 * PI * omc) : 0.0;
         return true;
     }
     if (HAS(FEATURE_AREA_LIGHTS) && (l.type == LIGHT_RECT || l.type == LIGHT_DISK)) {
@@ -259,7 +464,7 @@ bool analytic_light_hit(uint index, vec3 o, vec3 d, float t_max, out float t, ou
         bool inside = l.type == LIGHT_RECT ? (abs(su) <= 0.5 && abs(sv) <= 0.5) : (su * su + sv * sv <= 0.25);
         if (!inside) return false;
         radiance = l.radiance;
-        pdf = light_select_pdf(index) * t * t / (l.area * -denom);
+        pdf = light_pick_pdf(index, o, n) * t * t / (l.area * -denom);
         return true;
     }
     return false;
@@ -278,14 +483,14 @@ vec3 distant_radiance(vec3 d, bool camera_ray, out float pdf) {
     pdf = 0.0;
     if (HAS(FEATURE_ENV) && scene.env_light != NO_INDEX) {
         radiance += env_radiance(d);
-        pdf += light_select_pdf(scene.env_light) * env_pdf(d);
+        pdf += light_cdf_pick_pdf(scene.env_light) * env_pdf(d);
     }
     for (uint i = scene.analytic_first; HAS(FEATURE_SUN) && i < analytic_end(camera_ray); ++i) {
         Light l = lights[i];
         if (l.type != LIGHT_SUN || l.cos_half_angle >= 1.0) continue;
         if (dot(d, l.direction) >= l.cos_half_angle) {
             radiance += l.radiance;
-            pdf += light_select_pdf(i) / (2.0 * PI * (1.0 - l.cos_half_angle));
+            pdf += light_cdf_pick_pdf(i) / (2.0 * PI * (1.0 - l.cos_half_angle));
         }
     }
     return radiance;

@@ -57,7 +57,8 @@ PX_CONST uint BINDING_GUIDING_ORDER = 33;   // uint per region-BLAS primitive: i
 PX_CONST uint BINDING_GUIDING_SAMPLES = 34; // GuidingSample[recording paths * GUIDING_PATH_VERTICES]
 PX_CONST uint BINDING_ADRRS_ADJOINT = 35;  // vec4 per grid cell and axis direction: mean E (rgb), entries
 PX_CONST uint BINDING_GGX_TABLES = 36;     // uint unorm16 pairs: multiscatter GGX albedos (ggx_tables.h)
-PX_CONST uint BINDING_COUNT = 37;
+PX_CONST uint BINDING_LIGHT_TREE = 37;     // LightTreeNode[], root first (SceneInfo.light_tree_nodes)
+PX_CONST uint BINDING_COUNT = 38;
 
 // ---- shader binding table: miss shaders and hit groups (RayTracingPipeline group order) -
 PX_CONST uint MISS_SCENE = 0;         // miss.rmiss: the world
@@ -203,6 +204,24 @@ struct Light {
     vec3 axis_v;     // rect/disk full extent along v; triangle edge p2 - p0
     float area;      // rect/disk/triangle area; sphere/spot: pi radius^2
     uint flags;      // LIGHT_FLAG_*
+    uint tree_node;  // its leaf in the light tree, or NO_INDEX (not in the tree)
+};
+
+// A node of the light tree (Conty Estevez & Kulla 2018): a binary BVH over the local lights
+// (emissive triangles, sphere, spot, rect, disk) with, per node, the bounds of its lights'
+// positions, of their emission directions (a cone of normals: axis, theta_o, plus the spread
+// theta_e of emission around a normal) and their summed power. Children are adjacent.
+struct LightTreeNode {
+    vec3 bounds_min;
+    uint child;      // interior: the first child (the second is child + 1); leaf: the light index
+    vec3 bounds_max;
+    uint parent;     // NO_INDEX at the root
+    vec3 axis;       // normal cone axis
+    float theta_o;   // normals within theta_o of the axis (pi: any direction)
+    float theta_e;   // emission within theta_e of a normal (pi/2: a diffuse emitter)
+    float power;     // summed selection weight of the lights below
+    uint leaf;       // 1 for a leaf
+    uint two_sided;  // 1: the lights emit on both sides: the cone bounds the normals up to sign
 };
 
 // Point/spot with a radius: Cycles' Soft Falloff (Blender's default). The light is a disk of
@@ -226,6 +245,9 @@ struct SceneInfo {
     vec3 scene_center;        // bounding sphere of the geometry (sun/env sampling)
     float scene_radius;
     uint analytic_camera_count;  // the first ones of the analytic lights are visible to the camera
+    uint light_tree_nodes;    // nodes in BINDING_LIGHT_TREE; 0: lights are picked from light_cdf alone
+    float light_tree_prob;    // probability of picking a local light through the tree (the rest
+                              // picks a distant light from light_cdf, which then holds them alone)
 };
 
 // Per-frame parameters (push constants).

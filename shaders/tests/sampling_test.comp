@@ -6,7 +6,8 @@
 //   routine >= TEST_EVAL: evaluate at io[2i].xyz. io[2i+1] = (f cos .x, pdf, 0, 0) for BSDFs,
 //                         (radiance.x, light pdf, 0, 0) for lights (sums over all lights)
 // BSDFs: test_params = (wo, roughness), test_param0 = ior, albedo 1.
-// Lights: test_params.xyz = shading point; sampling includes light selection.
+// Lights: test_params.xyz = shading point, w != 0: surface normal +z there (else none);
+// sampling includes light selection.
 #include "../lib/common.glsl"
 #include "../lib/rng.glsl"
 #include "../lib/sampling.glsl"
@@ -42,7 +43,7 @@ const uint TEST_EVAL = 16u;
 // and of the radiance arriving along wi (every light, occluded or not). Built from the
 // functions the integrator uses for MIS when a BSDF ray hits a light, so the chi-square
 // tests cover those too (triangle_light_pdf, analytic_light_hit, distant_radiance).
-float light_pdf_all(vec3 p, vec3 wi, out vec3 radiance) {
+float light_pdf_all(vec3 p, vec3 n, vec3 wi, out vec3 radiance) {
     float pdf = 0.0;
     radiance = vec3(0.0);
     for (uint i = 0u; i < scene.light_count; ++i) {
@@ -57,12 +58,12 @@ float light_pdf_all(vec3 p, vec3 wi, out vec3 radiance) {
             float bv = dot(wi, qv) / det;
             float t = dot(l.axis_v, qv) / det;
             if (bu < 0.0 || bv < 0.0 || bu + bv > 1.0 || t <= 0.0) continue;
-            pdf += triangle_light_pdf(i, t, dot(l.direction, wi));
+            pdf += triangle_light_pdf(i, p, n, t, dot(l.direction, wi));
             radiance += l.radiance;
         } else if (l.type != LIGHT_SUN && l.type != LIGHT_ENV) {
             float t, lp;
             vec3 le;
-            if (analytic_light_hit(i, p, wi, INFINITY_F, t, le, lp)) {
+            if (analytic_light_hit(i, p, n, wi, INFINITY_F, t, le, lp)) {
                 pdf += lp;
                 radiance += le;
             }
@@ -82,14 +83,15 @@ void main() {
 
     if (routine == TEST_LIGHT) {
         vec3 p = params.test_params.xyz;
+        vec3 n = params.test_params.w != 0.0 ? vec3(0.0, 0.0, 1.0) : vec3(0.0);  // receiver normal
         if (eval_mode) {
             vec3 radiance;
-            float pdf = light_pdf_all(p, normalize(io[2u * i].xyz), radiance);
+            float pdf = light_pdf_all(p, n, normalize(io[2u * i].xyz), radiance);
             io[2u * i + 1u] = vec4(radiance.x, pdf, 0.0, 0.0);
             return;
         }
         LightSample ls;
-        bool ok = sample_light(p, vec3(rnd(rng), rnd(rng), rnd(rng)), ls);
+        bool ok = sample_light(p, n, vec3(rnd(rng), rnd(rng), rnd(rng)), ls);
         io[2u * i] = vec4(ls.wi, ok ? ls.pdf : 0.0);
         io[2u * i + 1u] = vec4(ls.radiance.x, ls.dist, ok ? 1.0 : 0.0, ls.delta ? 1.0 : 0.0);
         return;

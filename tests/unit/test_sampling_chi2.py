@@ -14,7 +14,9 @@ must also match the fraction of samples the routine accepted.
 Besides the chi-square tests: sampler pdf == eval pdf and weight == eval / pdf for every BSDF
 sample; for lights, a BSDF ray along a light sample sees the radiance and pdf that NEE
 reported (eval mode uses the integrator's own MIS functions); light selection proportional
-to power; uniform area sampling of emitters; radiance and delta-light values in Cycles'
+to power (the power CDF) and through the light tree; spherical-triangle sampling of close
+emitters (solid angle 1/omega in float64, sub-triangle counts, slivers, grazing views, both
+sides of the threshold) and area sampling of far ones; radiance and delta-light values in Cycles'
 units; the irradiance of a sphere and a sun light and the integral of an environment map.
 Everything is seeded (PARALLAX_CHI2_SEED shifts all seeds): the same build gives the same
 p-values, and over seeds they are uniform (checked over 16 seeds x 35 tests).
@@ -37,7 +39,7 @@ IC_THETA, IC_PHI = 10, 20  # shaders/shared/techniques.h
 EVAL = 16                 # routine + EVAL: evaluate at given directions
 N = 300_000               # samples per chi-square test
 DISTANT = 1e29            # sample distance at or above this: a light at infinity
-CHI2_TESTS = 49           # upper bound on the chi-square tests below (Sidak correction)
+CHI2_TESTS = 59           # upper bound on the chi-square tests below (Sidak correction)
 ALPHA = 1.0 - (1.0 - 0.01) ** (1.0 / CHI2_TESTS)
 # Added to every seed; set PARALLAX_CHI2_SEED to check the p-values are uniform over seeds.
 SEED = int(os.environ.get("PARALLAX_CHI2_SEED", "0"))
@@ -292,26 +294,30 @@ def lights_scene(lights=(), meshes=(), materials=(), world=None):
                      world=world or World(color=(0.0, 0.0, 0.0)))
 
 
-def sample_lights(session, scene, p, n=N, seed=0):
+def sample_lights(session, scene, p, n=N, seed=0, normal=False):
+    """Light samples from p; normal: with a surface normal +z at p (the light tree's
+    receiver term), else none."""
     session.update(scene)
-    r = session.test_sampling(TEST_LIGHT, [*p, 0.0, 0.0], n, seed=seed)
+    r = session.test_sampling(TEST_LIGHT, [*p, float(normal), 0.0], n, seed=seed)
     return r
 
 
-def light_pdf(session, p):
+def light_pdf(session, p, normal=False):
     """Eval mode: the summed light pdf of directions from p (triangle_light_pdf,
     analytic_light_hit and distant_radiance: what MIS uses when a BSDF ray hits a light)."""
-    return lambda d: session.test_sampling(TEST_LIGHT + EVAL, [*p, 0.0, 0.0], len(d), directions=d)[:, 1, 1]
+    return lambda d: session.test_sampling(TEST_LIGHT + EVAL, [*p, float(normal), 0.0], len(d),
+                                           directions=d)[:, 1, 1]
 
 
-def check_light_hits(session, p, r):
+def check_light_hits(session, p, r, fraction=1e-4, normal=False):
     """With one light, a BSDF ray along a light sample's direction must see the radiance and
     pdf NEE reported (the sampler's pdf is the samples' density). A sample on the very edge
-    of a light may miss it in eval: 1e-4 of them may differ."""
+    of a light may miss it in eval: `fraction` of them may differ."""
     ok = r[:, 1, 2] > 0.5
-    e = session.test_sampling(TEST_LIGHT + EVAL, [*p, 0.0, 0.0], int(ok.sum()), directions=r[ok, 0, :3])
-    assert_close_mostly("light hit pdf vs sampler pdf", e[:, 1, 1], r[ok, 0, 3], loose=np.inf)
-    assert_close_mostly("light hit radiance vs sampled radiance", e[:, 1, 0], r[ok, 1, 0], loose=np.inf)
+    e = session.test_sampling(TEST_LIGHT + EVAL, [*p, float(normal), 0.0], int(ok.sum()), directions=r[ok, 0, :3])
+    assert_close_mostly("light hit pdf vs sampler pdf", e[:, 1, 1], r[ok, 0, 3], loose=np.inf, fraction=fraction)
+    assert_close_mostly("light hit radiance vs sampled radiance", e[:, 1, 0], r[ok, 1, 0], loose=np.inf,
+                        fraction=fraction)
 
 
 def smoothstep(x):
@@ -517,9 +523,28 @@ def emission_mesh(corners, material):
     return Mesh(np.asarray(corners, np.float64), np.asarray(idx), material_indices=np.full(len(idx), material))
 
 
-def test_triangle_lights(session):
+@pytest.fixture
+def power_cdf():
+    """Lights picked by the power CDF alone (no light tree) for scenes updated in the test."""
+    before = pc._native.light_tree_min_lights()
+    pc._native.set_light_tree_min_lights(2**32 - 1)
+    yield
+    pc._native.set_light_tree_min_lights(before)
+
+
+@pytest.fixture
+def light_tree():
+    """Lights picked through the light tree, however few, for scenes updated in the test."""
+    before = pc._native.light_tree_min_lights()
+    pc._native.set_light_tree_min_lights(0)
+    yield
+    pc._native.set_light_tree_min_lights(before)
+
+
+def test_triangle_lights(session, power_cdf):
     """An emissive quad and an emissive triangle of other area and emission: selection by
-    power (2 pi L A, two-sided), uniform area sampling, radiance, chi-square."""
+    power (2 pi L A, two-sided), radiance, chi-square (close by: spherical triangles); seen
+    from far away (below TRI_SPHERICAL_MIN), uniform area sampling."""
     quad = np.array([[-0.6, 0.3, 1.5], [0.2, 0.3, 1.7], [0.2, 0.8, 1.7], [-0.6, 0.8, 1.5]])
     tri = np.array([[0.3, -0.9, 1.2], [0.9, -0.6, 1.0], [0.4, -0.2, 1.4]])
     em_q, em_t = 5.0, 2.0
@@ -536,19 +561,155 @@ def test_triangle_lights(session):
     area_t = 0.5 * np.linalg.norm(np.cross(tri[1] - tri[0], tri[2] - tri[0]))
     check_multinomial("triangles: selection by power", [on_quad.sum(), (~on_quad).sum()],
                       [em_q * area_q, em_t * area_t])
-    # points lie on their emitter; uniform over the quad (both of its triangles)
+    # points lie on their emitter
     eu, ev = quad[1] - quad[0], quad[3] - quad[0]
-    uv = np.linalg.lstsq(np.stack([eu, ev], 1), (q[on_quad] - quad[0]).T, rcond=None)[0].T
-    back = quad[0] + uv @ np.stack([eu, ev])
-    assert np.abs(back - q[on_quad]).max() < 1e-4
-    assert uv.min() > -1e-4 and uv.max() < 1 + 1e-4
-    hist = np.histogram2d(uv[:, 0], uv[:, 1], bins=8, range=[[0, 1], [0, 1]])[0]
-    check_multinomial("triangles: uniform over the quad", hist.ravel(), np.ones(64))
+    n_q = unit(np.cross(eu, ev))
+    assert np.abs((q[on_quad] - quad[0]) @ n_q).max() < 1e-4
     n_t = unit(np.cross(tri[1] - tri[0], tri[2] - tri[0]))
     assert np.abs((q[~on_quad] - tri[0]) @ n_t).max() < 1e-4
     grid = SphereGrid.bounding(P0, np.concatenate([quad, tri]))
     check_light_hits(session, P0, r)
     check_fit("triangle lights", grid, r[ok, 0, :3], N, light_pdf(session, P0))
+    # far away: uniform over the quad (both of its triangles), by area
+    far = np.array([0.0, 0.0, -40.0])
+    r = session.test_sampling(TEST_LIGHT, [*far, 0.0, 0.0], 100_000, seed=SEED + 30)
+    check_light_hits(session, far, r)
+    on_quad = np.isclose(r[:, 1, 0], em_q, rtol=1e-6)
+    q = far + r[on_quad, 0, :3].astype(np.float64) * r[on_quad, 1, 1:2].astype(np.float64)
+    uv = np.linalg.lstsq(np.stack([eu, ev], 1), (q - quad[0]).T, rcond=None)[0].T
+    back = quad[0] + uv @ np.stack([eu, ev])
+    assert np.abs(back - q).max() < 2e-3
+    assert uv.min() > -1e-3 and uv.max() < 1 + 1e-3
+    hist = np.histogram2d(uv[:, 0], uv[:, 1], bins=8, range=[[0, 1], [0, 1]])[0]
+    check_multinomial("triangles: uniform over the quad from afar", hist.ravel(), np.ones(64))
+
+
+# ---- spherical triangles (Arvo 1995) --------------------------------------------------------
+
+TRI_SPHERICAL_MIN, TRI_SPHERICAL_MAX = 1e-3, 6.2  # shaders/lib/lights.glsl
+
+
+def solid_angle(p, a, b, c):
+    """Van Oosterom & Strackee 1983, in float64."""
+    a, b, c = (unit(np.asarray(x, np.float64) - p) for x in (a, b, c))
+    return 2.0 * math.atan2(abs(a @ np.cross(b, c)), 1.0 + a @ b + b @ c + c @ a)
+
+
+def sub_triangles(t, k=4):
+    """The k^2 triangles of t's k-fold midpoint subdivision, and a function giving the one
+    each barycentric (b1, b2) falls in."""
+    pt = lambda i, j: t[0] + (i / k) * (t[1] - t[0]) + (j / k) * (t[2] - t[0])
+    tris = [(pt(i, j), pt(i + 1, j), pt(i, j + 1)) for i in range(k) for j in range(k - i)]
+    tris += [(pt(i + 1, j), pt(i + 1, j + 1), pt(i, j + 1)) for i in range(k - 1) for j in range(k - 1 - i)]
+    index = {}
+    for n, (i, j) in enumerate([(i, j) for i in range(k) for j in range(k - i)]):
+        index[(i, j, 0)] = n
+    for n, (i, j) in enumerate([(i, j) for i in range(k - 1) for j in range(k - 1 - i)]):
+        index[(i, j, 1)] = k * (k + 1) // 2 + n
+
+    def which(b1, b2):
+        x, y = np.clip(b1 * k, 0, k - 1e-9), np.clip(b2 * k, 0, k - 1e-9)
+        i, j = np.floor(x).astype(int), np.floor(y).astype(int)
+        up = ((x - i) + (y - j) > 1.0).astype(int)
+        j = np.minimum(j, k - 1 - i)  # rounding at the hypotenuse
+        up = np.where(i + j == k - 1, 0, up)
+        return np.array([index[(a, b, u)] for a, b, u in zip(i, j, up)])
+    return tris, which
+
+
+# name: (triangle, chi-square over a cap as well). Solid angles from the origin in comments.
+SPHERICAL_CASES = {
+    "large close": ([[-1.0, -1.0, 0.5], [1.5, -0.5, 0.6], [0.0, 1.2, 0.4]], True),      # 3.2 sr
+    "nearly a hemisphere": ([[-30.0, -30.0, 0.4], [30.0, -30.0, 0.4], [0.0, 40.0, 0.4]], False),  # 6.1 sr
+    "filling the hemisphere": ([[-30.0, -30.0, 0.05], [30.0, -30.0, 0.05], [0.0, 40.0, 0.05]], False),  # area
+    "sliver": ([[0.2, -1.0, 0.5], [0.2, 1.0, 0.5], [0.203, 0.0, 0.52]], False),          # thin needle
+    "grazing": ([[1.0, -0.5, 0.02], [3.0, -0.4, 0.03], [2.0, 0.6, 0.025]], False),       # p near its plane
+    "just above the threshold": ([[0.0, 0.0, 3.0], [0.17, 0.0, 3.0], [0.0, 0.14, 3.0]], False),
+    "just below the threshold": ([[0.0, 0.0, 3.0], [0.1, 0.0, 3.0], [0.0, 0.08, 3.0]], False),
+}
+
+
+@pytest.mark.parametrize("case", list(SPHERICAL_CASES))
+def test_spherical_triangle(session, case):
+    """One emissive triangle close to p: directions uniform over its solid angle (16
+    sub-triangles get samples in proportion to their solid angles), on the triangle, with
+    the pdf 1/omega in float64 -- or by area below TRI_SPHERICAL_MIN / above TRI_SPHERICAL_MAX,
+    16 sub-triangles in proportion to their areas; the pdf MIS evaluates for a BSDF ray
+    along each sample (triangle_light_pdf) equals the sampler's."""
+    corners, chi2_cap = SPHERICAL_CASES[case]
+    t = np.asarray(corners, np.float64)
+    omega = solid_angle(P0, *t)
+    spherical = TRI_SPHERICAL_MIN <= omega <= TRI_SPHERICAL_MAX
+    assert spherical == (case not in ("filling the hemisphere", "just below the threshold")), omega
+    scene = lights_scene(meshes=[emission_mesh(t, 0)], materials=[Material("emission", emission=(3.0,) * 3)])
+    n = 100_000
+    r = sample_lights(session, scene, P0, n=n, seed=SEED + 40 + list(SPHERICAL_CASES).index(case))
+    ok = r[:, 1, 2] > 0.5
+    assert ok.mean() > 0.9999, f"{case}: {(~ok).sum()} samples rejected"
+    wi, dist = r[ok, 0, :3].astype(np.float64), r[ok, 1, 1].astype(np.float64)
+    q = P0 + wi * dist[:, None]
+    e1, e2 = t[1] - t[0], t[2] - t[0]
+    b = np.linalg.lstsq(np.stack([e1, e2], 1), (q - t[0]).T, rcond=None)[0]
+    scale = np.linalg.norm(q - P0, axis=1).max()
+    assert np.abs(t[0] + b.T @ np.stack([e1, e2]) - q).max() < 1e-4 * scale, f"{case}: points off the plane"
+    tol = 2e-3 if case == "sliver" else 1e-4
+    assert b.min() > -tol and b.sum(0).max() < 1 + tol, f"{case}: points outside the triangle"
+    # the sampler's pdf: 1/omega or the area density
+    cos_l = np.abs(wi @ unit(np.cross(e1, e2)))
+    area = 0.5 * np.linalg.norm(np.cross(e1, e2))
+    want = np.full(len(wi), 1.0 / omega) if spherical else dist ** 2 / (area * cos_l)
+    assert_close_mostly(f"{case}: sampler pdf", r[ok, 0, 3], want, rtol=2e-3, loose=np.inf, fraction=1e-3)
+    # the eval's Moller-Trumbore test misses points near a 1:600 sliver's long edges more often
+    check_light_hits(session, P0, r, fraction=3e-3 if case == "sliver" else 1e-4)
+    tris, which = sub_triangles(t)
+    mass = [solid_angle(P0, *x) for x in tris] if spherical else [1.0] * len(tris)
+    counts = np.bincount(which(b[0], b[1]), minlength=len(tris))
+    check_multinomial(f"spherical triangle {case}: sub-triangles", counts, mass)
+    if chi2_cap:
+        check_fit(f"spherical triangle {case}", SphereGrid.bounding(P0, t), wi, n, light_pdf(session, P0))
+
+
+def test_light_tree(session, light_tree):
+    """Many lights of every local kind through the light tree: each picked with the
+    probability light_pick_pdf evaluates when a BSDF ray hits it (the hit's pdf equals the
+    sampler's), chi-square over the sphere, with and without a surface normal at p; and a
+    light next to p is picked far more often than its share of the power."""
+    rng = np.random.default_rng(7)
+    # 27 Fibonacci directions around p, 0.68 rad apart: no two lights overlap as seen from p.
+    fib = [np.array([math.sqrt(1 - z * z) * math.cos(2.39996 * k), math.sqrt(1 - z * z) * math.sin(2.39996 * k), z])
+           for k, z in ((k, 1.0 - (k + 0.5) / 13.5) for k in range(27))]
+    analytic, near_k = (4, 13, 22), 26
+    meshes, materials = [], []
+    for k in (k for k in range(27) if k not in analytic and k != near_k):  # 23 triangles facing p, 2-3 away
+        c = fib[k] * rng.uniform(2.0, 3.0)
+        a, b2 = frame_around(c)[:2]
+        size = 0.5
+        t = [c + size * a, c - 0.5 * size * a + 0.8 * size * b2, c - 0.5 * size * a - 0.8 * size * b2]
+        meshes.append(emission_mesh(t, len(materials)))
+        materials.append(Material("emission", emission=(float(rng.uniform(1.0, 6.0)),) * 3))
+    c = 0.2 * fib[near_k]  # a small triangle 0.2 from p
+    a, b2 = frame_around(c)[:2]
+    meshes.append(emission_mesh([c + 0.06 * a, c - 0.03 * a + 0.05 * b2, c - 0.03 * a - 0.05 * b2], len(materials)))
+    materials.append(Material("emission", emission=(1.0,) * 3))
+    lights = [Light("area", power=40.0, position=tuple(3.0 * fib[4]), direction=tuple(-fib[4]), size=0.6),
+              Light("point", power=60.0, position=tuple(3.5 * fib[13]), radius=0.2),
+              Light("spot", power=80.0, position=tuple(3.5 * fib[22]), direction=tuple(-fib[22]),
+                    radius=0.15, spot_size=math.radians(40), spot_blend=0.3)]
+    scene = lights_scene(lights, meshes, materials)
+    for normal in (False, True):  # without and with the receiver term (normal +z)
+        r = sample_lights(session, scene, P0, seed=SEED + 50 + 2 * normal, normal=normal)
+        ok = r[:, 1, 2] > 0.5
+        assert ok.mean() > 0.999
+        check_light_hits(session, P0, r, normal=normal)
+        check_fit(f"light tree{' with a normal' if normal else ''}", SphereGrid.sphere(), r[ok, 0, :3], N,
+                  light_pdf(session, P0, normal))
+    # The near triangle holds < 0.1 % of the power; seen from 0.2 away the tree picks it often.
+    picked = (r[ok, 1, 1] < 0.5).mean()
+    pc._native.set_light_tree_min_lights(2**32 - 1)  # the power CDF (the fixture restores)
+    r = sample_lights(session, scene, P0, n=100_000, seed=SEED + 51)
+    picked_cdf = (r[:, 1, 1] < 0.5).mean()
+    assert picked_cdf < 1e-3 and picked > 0.01, (
+        f"the light next to p: picked for {picked:.4f} of the samples by the tree, {picked_cdf:.5f} by power")
 
 
 def test_sphere_light(session):
@@ -783,7 +944,7 @@ def test_constant_world(session):
 
 # ---- delta lights -------------------------------------------------------------------------
 
-def test_point_light_delta(session):
+def test_point_light_delta(session, power_cdf):
     """Point light next to a rect light: delta samples along the axis with radiance
     P / (4 pi d^2), pdf = selection probability = P_point / (P_point + P_rect) (both W)."""
     pos, p_point, p_rect = np.array([0.5, -0.4, 1.8]), 30.0, 10.0
@@ -832,7 +993,7 @@ def test_sun_and_spot_delta(session):
 
 # ---- several lights together --------------------------------------------------------------
 
-def test_mixed_lights(session):
+def test_mixed_lights(session, power_cdf):
     """Triangles, sphere, spot, rect, sun, a point light and a constant world in one scene:
     chi-square of the non-delta samples against the summed pdf, and selection by power among
     the lights whose power is defined in Watts (triangles, sphere, rect, point)."""

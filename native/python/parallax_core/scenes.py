@@ -15,7 +15,7 @@ from .scene import (Camera, Light, Material, Mesh, SceneData, World,
 __all__ = [
     "quad", "box", "uv_sphere", "merge",
     "cornell_box", "veach_mis", "furnace_sphere", "closed_emitter_box",
-    "triangle_soup_scene", "env_map_scene", "sun_room", "lamp_in_glass", "SCENES",
+    "triangle_soup_scene", "many_emitters", "env_map_scene", "sun_room", "lamp_in_glass", "SCENES",
 ]
 
 
@@ -229,6 +229,28 @@ def triangle_soup_scene(n_triangles=100_000, width=256, height=256, shuffle=Fals
                             width=width, height=height)
     return SceneData(meshes, [], materials, [], [light], World((0.05, 0.05, 0.05), 1.0),
                      camera, width, height)
+
+
+def many_emitters(n_emitters=1000, width=64, height=64, seed=0):
+    """Light-selection scene: a diffuse floor under ``n_emitters`` small emissive triangles
+    (8 strengths from 1 to 128, log-spaced; random orientations) scattered 0.3-1 m above
+    it over 8 x 8 m, seen from above (the floor alone: see clip_start). Each floor point is lit
+    mostly by the few emitters near it: where a light tree beats picking lights by power."""
+    rng = np.random.default_rng(seed)
+    centres = np.column_stack([rng.uniform(-4.0, 4.0, n_emitters), rng.uniform(-4.0, 4.0, n_emitters),
+                               rng.uniform(0.3, 1.0, n_emitters)])
+    corners = centres[:, None, :] + np.clip(0.06 * rng.normal(size=(n_emitters, 3, 3)), -0.2, 0.2)
+    emitters = _mesh(corners.reshape(-1, 3), np.arange(3 * n_emitters).reshape(-1, 3), 0, "emitters")
+    emitters.material_indices = rng.integers(1, 9, n_emitters)
+    materials = [Material("diffuse", (0.7, 0.7, 0.7), name="floor")]
+    materials += [Material("emission", emission=(2.0**k,) * 3, name=f"emission {2**k}") for k in range(8)]
+    meshes = [quad([(-4.5, -4.5, 0), (4.5, -4.5, 0), (4.5, 4.5, 0), (-4.5, 4.5, 0)], 0, "floor"), emitters]
+    # The camera sees the floor alone: the emitters (corners above z = 0.05) are nearer than
+    # clip_start (depth 6.95 is z = 0.05), so pixel noise is the light sampling's, not that of
+    # emitters partly covering pixels.
+    camera = Camera.look_at((0.0, 0.0, 7.0), (0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_y_degrees=60.0,
+                            width=width, height=height, clip_start=6.95)
+    return SceneData(meshes, [], materials, [], [], World((0.0, 0.0, 0.0), 1.0), camera, width, height)
 
 
 def sky_map(map_width=512, sun_elevation=35.0, sun_azimuth=-50.0, sun_radiance=500.0,

@@ -1,5 +1,7 @@
 #include "scene/scene.h"
 
+#include "scene/light_tree.h"
+
 #include "vk/pipeline.h"
 
 #include <algorithm>
@@ -697,6 +699,26 @@ void prepare_lights(const SceneArrays& a, bool new_environment, SceneHost& s) {
         lights.push_back(l);
         power.push_back(env_lum * kPi * 4 * kPi * radius * radius);
     }
+    // Many local lights: a light tree picks among them by their importance at the shading
+    // point, with probability light_tree_prob = their share of the power; the CDF then holds
+    // the distant lights (sun, env) alone.
+    for (Light& l : lights) l.tree_node = NO_INDEX;
+    std::vector<uint32_t> local;
+    double local_power = 0;
+    for (uint32_t i = 0; i < uint32_t(lights.size()); ++i)
+        if (lights[i].type != LIGHT_SUN && lights[i].type != LIGHT_ENV && power[i] > 0) {
+            local.push_back(i);
+            local_power += power[i];
+        }
+    s.info.light_tree_nodes = 0;
+    s.info.light_tree_prob = 0;
+    if (local.size() >= light_tree_min_lights() && local_power > 0) {
+        out->light_tree = build_light_tree(lights, local, power);
+        s.info.light_tree_nodes = uint(out->light_tree.size());
+        s.info.light_tree_prob = float(local_power / std::accumulate(power.begin(), power.end(), 0.0));
+        for (uint32_t i : local) power[i] = 0;
+    }
+    if (out->light_tree.empty()) out->light_tree.resize(1);  // a buffer needs an element
     // Every weight is finite and >= 0; with a total of 0 (zero-area emitters only) every
     // selection probability is 0, and NEE samples nothing.
     const double power_total = std::accumulate(power.begin(), power.end(), 0.0);
@@ -891,11 +913,12 @@ Scene::Scene(Context& ctx, SceneHost host, const Scene* previous) : host_(std::m
         put(BINDING_TEXELS, host_.materials->texels);
     }
     if (old && old->lights == host_.lights) {
-        reuse({BINDING_INSTANCES, BINDING_LIGHTS, BINDING_LIGHT_CDF});
+        reuse({BINDING_INSTANCES, BINDING_LIGHTS, BINDING_LIGHT_CDF, BINDING_LIGHT_TREE});
     } else {
         put(BINDING_INSTANCES, host_.lights->instances);
         put(BINDING_LIGHTS, host_.lights->lights);
         put(BINDING_LIGHT_CDF, host_.lights->light_cdf);
+        put(BINDING_LIGHT_TREE, host_.lights->light_tree);
     }
     if (old && old->environment == host_.environment) {
         reuse({BINDING_ENV_TEXELS, BINDING_ENV_MARGINAL, BINDING_ENV_CONDITIONAL});

@@ -112,7 +112,8 @@ struct SceneEnvironment {  // the world map's texels and sampling tables ("light
 struct SceneLights {  // depends on geometry, instances, materials and lights
     std::vector<InstanceInfo> instances;  // the placement with light offsets: the INSTANCES buffer
     std::vector<Light> lights;
-    std::vector<float> light_cdf;
+    std::vector<float> light_cdf;         // by power; with a tree, over the distant lights alone
+    std::vector<LightTreeNode> light_tree; // over the local lights (light_tree.h); one unused node if none
     double reach = 0;  // largest |world coordinate| of an analytic light
     std::vector<std::string> warnings;  // skipped lights
 };
