@@ -57,7 +57,8 @@ PX_CONST uint BINDING_GUIDING_ORDER = 33;   // uint per region-BLAS primitive: i
 PX_CONST uint BINDING_GUIDING_SAMPLES = 34; // GuidingSample[recording paths * GUIDING_PATH_VERTICES]
 PX_CONST uint BINDING_ADRRS_ADJOINT = 35;  // vec4 per grid cell and axis direction: mean E (rgb), entries
 PX_CONST uint BINDING_GGX_TABLES = 36;     // uint unorm16 pairs: multiscatter GGX albedos (ggx_tables.h)
-PX_CONST uint BINDING_COUNT = 37;
+PX_CONST uint BINDING_GUIDING_NODES = 37;  // GuidingNode[]: the region tree, walked by guiding_region_at
+PX_CONST uint BINDING_COUNT = 38;
 
 // ---- shader binding table: miss shaders and hit groups (RayTracingPipeline group order) -
 PX_CONST uint MISS_SCENE = 0;         // miss.rmiss: the world

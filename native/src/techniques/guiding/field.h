@@ -74,8 +74,11 @@ public:
     void write_regions(std::vector<GuidingRegion>& out) const;
     void write_lobes(std::vector<GuidingLobe>& out) const;
     void write_aabbs(std::vector<float>& out) const;
+    void write_nodes(std::vector<GuidingNode>& out) const { tree_.write_nodes(out); }
+    // GPU bytes per region: its record, its lobes, its AABB and the tree's two nodes per leaf.
     static size_t gpu_bytes_per_region() {
-        return sizeof(GuidingRegion) + GUIDING_MAX_COMPONENTS * sizeof(GuidingLobe) + 6 * sizeof(float);
+        return sizeof(GuidingRegion) + GUIDING_MAX_COMPONENTS * sizeof(GuidingLobe) + 6 * sizeof(float) +
+               2 * sizeof(GuidingNode);
     }
 
     const Vmm& mixture(uint32_t r) const { return regions_.at(r).state.vmm; }
