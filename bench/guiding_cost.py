@@ -1,13 +1,14 @@
 """Path guiding's cost per frame and per training iteration (issue 12).
 
     .venv/bin/python -m bench.guiding_cost [--scenes light_behind_glass,clocks] [--width 160]
-        [--npz bench/npz/w160] [--frames 6] [--spp-per-frame 2] [--device auto] [--json OUT]
+        [--npz bench/npz/w160] [--frames 6] [--spp-per-frame 2] [--training-spp 32] [--device auto]
+        [--json OUT]
 
 Per scene, three sessions with the same samples per frame, each timed over `--frames` frames
 after a first one (pipeline compile, training frames):
   mis        MIS without guiding: the baseline frame;
-  guided     MIS + guiding after 8 training frames, recording nothing: the guided frame's
-             own cost (region lookup and mixture evaluation at every vertex);
+  guided     MIS + guiding after --training-spp training frames, recording nothing: the
+             guided frame's own cost (region lookup and mixture evaluation at every vertex);
   training   MIS + guiding, keep training: every frame also records samples, reads them back,
              fits (on a worker thread, overlapped with the next frame) and uploads.
 For `training`, the session's guiding stats per iteration: frame (submission to completion),
@@ -23,18 +24,20 @@ from bench.converge import MAX_DEPTH, load_scene
 
 VARIANTS = {
     "mis": dict(method="mis", guiding=False),
-    "guided": dict(method="mis", guiding=True, guiding_training_spp=8),
+    "guided": dict(method="mis", guiding=True),  # guiding_training_spp: --training-spp
     "training": dict(method="mis", guiding=True, guiding_training_spp=0),
 }
 COSTS = ("frame", "readback", "fit", "fit_wait", "upload")
 
 
-def measure(scene, variant, frames, spp_per_frame, device):
+def measure(scene, variant, frames, spp_per_frame, training_spp, device):
     import parallax_core as pc
 
     session = pc.Session(scene.width, scene.height, device)
-    session.set_params(**VARIANTS[variant], samples_per_frame=spp_per_frame, max_depth=MAX_DEPTH, depth_leeway=0,
-                       seed=0)
+    params = dict(VARIANTS[variant], samples_per_frame=spp_per_frame, max_depth=MAX_DEPTH, depth_leeway=0, seed=0)
+    if variant == "guided":
+        params["guiding_training_spp"] = training_spp
+    session.set_params(**params)
     session.update(scene)
     session.render(1)  # the pipeline compile and the training frames
     before = session.stats()
@@ -44,6 +47,8 @@ def measure(scene, variant, frames, spp_per_frame, device):
     wall = (time.perf_counter() - start) / frames
     after = session.stats()
     row = {"variant": variant, "frame_ms": round(1e3 * wall, 2)}
+    if variant == "guided":
+        row.update(trained_regions=after["guiding_trained_regions"], lobes=after["guiding_lobes"])
     if variant == "training":
         iterations = after["guiding_training_frames"] - before["guiding_training_frames"]
         for c in COSTS:
@@ -55,11 +60,11 @@ def measure(scene, variant, frames, spp_per_frame, device):
     return row
 
 
-def run(scenes, width=160, npz=None, frames=6, spp_per_frame=2, device="auto"):
+def run(scenes, width=160, npz=None, frames=6, spp_per_frame=2, training_spp=32, device="auto"):
     out = {}
     for name in scenes:
         scene = load_scene(name, width, npz)
-        out[name] = [measure(scene, v, frames, spp_per_frame, device) for v in VARIANTS]
+        out[name] = [measure(scene, v, frames, spp_per_frame, training_spp, device) for v in VARIANTS]
         for row in out[name]:
             print(name, json.dumps(row), file=sys.stderr)
     return out
@@ -85,10 +90,11 @@ def main(argv=None):
     p.add_argument("--npz", default=None, help="folder of exported .npz scenes (default: export the .blend)")
     p.add_argument("--frames", type=int, default=6)
     p.add_argument("--spp-per-frame", type=int, default=2)
+    p.add_argument("--training-spp", type=int, default=32)
     p.add_argument("--device", default="auto")
     p.add_argument("--json", default=None)
     a = p.parse_args(argv)
-    results = run(a.scenes.split(","), a.width, a.npz, a.frames, a.spp_per_frame, a.device)
+    results = run(a.scenes.split(","), a.width, a.npz, a.frames, a.spp_per_frame, a.training_spp, a.device)
     print(markdown(results))
     if a.json:
         with open(a.json, "w") as f:
