@@ -58,7 +58,7 @@ struct GuidingLobe {
     float cdf;        // weight of lobes 0..k of the region (selection; the last one is 1)
 };
 
-// One guiding region: an AABB of the region TLAS (same index) and its mixture.
+// One guiding region: its box (also in the region TLAS of the lobes pass) and its mixture.
 struct GuidingRegion {
     vec3 aabb_min;
     uint lobe_count;  // active lobes; 0: not trained yet (sample the BSDF only)
@@ -85,7 +85,7 @@ struct GuidingSample {
     uint region;      // its guiding region (NO_INDEX: the host looks it up from the position)
     uint direction;   // sampled direction, octahedral, packSnorm2x16 (guiding_pack_direction)
     float pdf;        // density the direction was sampled with (solid angle, MIS mixture)
-    float weight;     // luminance of the incident radiance along it / pdf (>= 0; NEE-credited)
+    float weight;     // incident luminance along it (weighted by the path colour) / pdf (>= 0; NEE-credited)
     float distance;   // to the next non-specular vertex; >= GUIDING_DISTANCE_INFINITE: none
 };
 

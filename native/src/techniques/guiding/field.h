@@ -3,7 +3,7 @@
 //   after a frame:  field.add_samples(records read back from the GPU sample buffer)
 //                   field.fit()                      (multithreaded; may refine regions)
 //                   field.write_regions/write_lobes  (upload), and when layout_version()
-//                   changed, field.write_aabbs       (rebuild the region BLAS/TLAS)
+//                   changed, field.write_nodes/aabbs (the region tree, the BLAS/TLAS)
 // Robust training: a region's samples accumulate across frames (a reservoir per region)
 // until it has guiding.min_samples of non-zero weight, then it fits (the thesis' clocks
 // scene failed because regions trained on one frame's samples only, sec. 5.3.4).
@@ -65,7 +65,7 @@ public:
     const Aabb& region_bounds(uint32_t r) const { return tree_.bounds(r); }
     // Regions in a spatially coherent order (input order for lavapipe's BVH builder).
     std::vector<uint32_t> spatial_order() const { return tree_.spatial_order(); }
-    // Bumped whenever regions change (build, reset, refinement): rebuild the region TLAS.
+    // Bumped whenever regions change (build, reset, refinement): rebuild the region tree and TLAS.
     uint64_t layout_version() const { return layout_version_; }
 
     // GPU records: one GuidingRegion per region; GUIDING_MAX_COMPONENTS lobes per region;
