@@ -189,7 +189,7 @@ class ParallaxRenderSettings(bpy.types.PropertyGroup):
         default=32, min=0, max=65536)
     guiding_min_samples: IntProperty(
         name="Min Samples", description="A region fits its mixture once it has accumulated this "
-        "many lit samples (across frames, so rarely lit regions train too)", default=512, min=1,
+        "many lit samples (across frames, so rarely lit regions train too)", default=128, min=1,
         max=2**24)
     guiding_max_components: IntProperty(
         name="Max Components", description="Most lobes per region's mixture", default=16, min=1,

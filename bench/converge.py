@@ -40,10 +40,11 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
 SCENES = ("cornell_box", "veach_mis", "cornell_dielectric", "light_behind_glass", "atrium")
-EXTRA_SCENES = ("sun_room",)  # indirect light through a window: the irradiance cache's case
+EXTRA_SCENES = ("sun_room", "clocks")  # sun_room: indirect light through a window (the irradiance
+# cache's case); clocks: caustic light through a doorway (path guiding's case, issue 12)
 # --suite thesis: the scenes of the thesis' chapter 5 our repository can hold (bench/thesis.py
 # pairs them with its tables); thesis_* are converted from ../shared/scenes on first use.
-THESIS_SUITE = ("atrium", "thesis_veach_mis", "cornell_dielectric", "thesis_irradiance_cache")
+THESIS_SUITE = ("atrium", "thesis_veach_mis", "cornell_dielectric", "clocks", "thesis_irradiance_cache")
 # ic: MIS + the irradiance cache; adrrs: MIS + ADRRS; guiding: MIS + path guiding (defaults);
 # guiding_pt: guiding without NEE; guiding_noparallax: guiding with parallax off.
 METHODS = ("pt", "nee", "mis", "ic", "ic_noupdate", "adrrs", "guiding", "guiding_pt", "guiding_noparallax")
@@ -135,19 +136,16 @@ def method_params(method):
     measured time; the throughput roulette stays where ADRRS has no adjoint)."""
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r} (methods: {', '.join(METHODS)})")
-    off = dict(ic=False, adrrs=False, guiding=False, guiding_parallax=True, guiding_training_spp=32,
-               guiding_min_samples=512)
+    off = dict(ic=False, adrrs=False, guiding=False, guiding_parallax=True, guiding_training_spp=32)
     if method == "adrrs":
         return dict(off, method="mis", adrrs=True)
     if method.startswith("guiding"):
         # Keep training (guiding_training_spp 0): every frame accumulates into the image and
         # trains the field, whose fits run inside the measured time. Training frames first (the
         # default, 32) would spend most of a short lavapipe budget (10-60 s at 1-3 spp/s) on
-        # frames that are thrown away; regions fit from 128 lit samples on (the default 512
-        # is rarely reached where light comes through glass).
+        # frames that are thrown away.
         return dict(off, method="pt" if method == "guiding_pt" else "mis", guiding=True,
-                    guiding_parallax=method != "guiding_noparallax", guiding_training_spp=0,
-                    guiding_min_samples=128)
+                    guiding_parallax=method != "guiding_noparallax", guiding_training_spp=0)
     if method.startswith("ic"):
         return dict(off, method="mis", ic=True, **({"ic_update_prob": 0.0} if method == "ic_noupdate" else {}))
     return dict(off, method=method)

@@ -378,6 +378,48 @@ def build_light_behind_glass():
     set_world()
 
 
+def add_glass_shell(name, outer, inner, location, material, segments=48, rings=24):
+    """A hollow glass ball: an outward UV sphere of radius `outer` and an inward one of
+    radius `inner` in one mesh (the walls a closed solid of thickness outer - inner)."""
+    bm = bmesh.new()
+    bmesh.ops.create_uvsphere(bm, u_segments=segments, v_segments=rings, radius=outer)
+    inner_verts = bmesh.ops.create_uvsphere(bm, u_segments=segments, v_segments=rings, radius=inner)["verts"]
+    bmesh.ops.reverse_faces(bm, faces=list({f for v in inner_verts for f in v.link_faces}))
+    mesh = bpy.data.meshes.new(name)
+    bm.to_mesh(mesh)
+    bm.free()
+    mesh.materials.append(material)
+    mesh.polygons.foreach_set("use_smooth", [True] * len(mesh.polygons))
+    return add_object(name, mesh, location)
+
+
+def build_clocks():
+    """In the spirit of the thesis' clocks scene (sec. 5.3.4), harder than light_behind_glass:
+    a closed room split by a 2 m wall with a 1.6 m gap; the only light is a small emitter
+    inside a glass ball on the far side, so the camera's side is lit by caustic light that
+    bounced off the far side's walls and came over the wall or through the gap."""
+    white = diffuse("White", (0.78, 0.78, 0.76))
+    add_room("Room", (-2.5, -2, 0), (2.5, 2, 2.6), {
+        "-z": diffuse("Floor", (0.55, 0.45, 0.35)),
+        "+z": white, "-x": white, "+x": white, "-y": white, "+y": white,
+    })
+    # The divider at x = 0.6 from the -y wall to y = 0.4: a 1.6 m gap along the +y wall.
+    add_box("Divider", (0.1, 2.4, 2.0), white, (0.6, -0.8, 1.0))
+    add_box("Table", (1.0, 0.6, 0.75), diffuse("Table", (0.45, 0.30, 0.20)), (-1.2, 0.6, 0.375),
+            math.radians(10))
+    # The "clocks": three dials on the +y wall of the camera's side.
+    dial = diffuse("Dial", (0.85, 0.82, 0.70))
+    for i, x in enumerate((-2.0, -1.3, -0.6)):
+        add_box(f"Clock{i + 1}", (0.3, 0.04, 0.3), dial, (x, 1.98, 1.6))
+    # The lamp: a 5 cm emissive ball inside a glass ball (15 cm, 1 cm walls): no shadow ray
+    # reaches it, every path to it is a caustic.
+    lamp = (1.8, -1.2, 1.9)
+    add_glass_shell("GlassBall", 0.15, 0.14, lamp, glass("Glass"))
+    add_uv_sphere("Emitter", 0.05, lamp, emission("Lamp", (1.0, 0.9, 0.75), 400.0), 24, 12)
+    add_camera((-2.3, -1.8, 1.4), (0.4, 1.3, 1.0), 70.0)
+    set_world()
+
+
 def arch_geometry(span, thickness, depth, stones=7):
     """A semicircular arch of `stones` boxes over `span`, springing from the origin level."""
     inner = span / 2
@@ -508,6 +550,7 @@ SCENES = {  # name: (builder, resolution)
     "light_behind_glass": (build_light_behind_glass, (512, 512)),
     "atrium": (build_atrium, (640, 480)),
     "sun_room": (build_sun_room, (512, 512)),
+    "clocks": (build_clocks, (640, 480)),
 }
 
 

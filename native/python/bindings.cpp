@@ -263,6 +263,7 @@ NB_MODULE(_native, m) {
                  d["guiding_frame_milliseconds"] = g.frame_milliseconds;
                  d["guiding_readback_milliseconds"] = g.readback_milliseconds;
                  d["guiding_fit_milliseconds"] = g.fit_milliseconds;
+                 d["guiding_fit_wait_milliseconds"] = g.fit_wait_milliseconds;
                  d["guiding_upload_milliseconds"] = g.upload_milliseconds;
                  d["guiding_bytes_per_region"] = g.bytes_per_region;
                  d["guiding_sample_buffer_bytes"] = g.sample_buffer_bytes;

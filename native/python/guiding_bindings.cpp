@@ -400,6 +400,14 @@ void bind_guiding(nb::module_& parent) {
             f.write_lobes(l);
             return lobe_array(l);
         }, "GuidingLobe records (R * 16, 12) float32.")
+        .def("nodes", [](const GuidingField& f) {
+            static_assert(sizeof(px::GuidingNode) == 2 * sizeof(uint32_t), "GuidingNode is 2 words");
+            std::vector<px::GuidingNode> n;
+            f.write_nodes(n);
+            std::vector<uint32_t> words(n.size() * 2);
+            std::memcpy(words.data(), n.data(), words.size() * sizeof(uint32_t));
+            return owned(std::move(words), {n.size(), 2});
+        }, "GuidingNode records (N, 2) uint32: the split's float32 bits, the link (the shaders' region tree).")
         .def("aabbs", [](const GuidingField& f) {
             std::vector<float> a;
             f.write_aabbs(a);

@@ -138,15 +138,20 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
     uint bounces = opt.bounces, discrete = opt.discrete;
     // Guiding training records (thesis 4.6.2) of this path's first guided vertices: the
     // direction sampled there, its pdf, and what the rest of the path brings in along it,
-    // (radiance at the end - radiance when it was sampled) / throughput after its sampling
-    // weight. With NEE that is the MIS-weighted emission the next segment finds plus the
-    // light (NEE and beyond) of the later vertices: the next vertex's NEE is credited, the
-    // emission NEE already sampled here counts only with its BSDF-side MIS weight.
-    GuidingSample g_rec[GUIDING_PATH_VERTICES];
-    vec3 g_throughput[GUIDING_PATH_VERTICES], g_radiance[GUIDING_PATH_VERTICES];
+    // luminance(radiance at the end - radiance when it was sampled) / luminance(throughput
+    // after its sampling weight), the incident luminance weighted by the path's colour. With
+    // NEE that is the MIS-weighted emission the next segment finds plus the light (NEE and
+    // beyond) of the later vertices: the next vertex's NEE is credited, the emission NEE
+    // already sampled here counts only with its BSDF-side MIS weight. A record goes to the
+    // sample buffer at its vertex and gets its distance and weight there later: only two
+    // floats per record stay in registers (whole records kept across the trace calls made a
+    // GPU's ray-tracing stack, and every path, much larger).
+    vec4 g_base = vec4(0.0);  // luminance of the radiance when each record was sampled
+    vec4 g_norm = vec4(0.0);  // luminance of the throughput after its sampling weight * pdf
     uint g_count = 0u;
     uint g_open = NO_INDEX;  // the record whose next non-specular vertex is not reached yet
     float g_travelled = 0.0; // path length from that record's vertex to this segment's origin
+    uint g_slot = opt.guiding_slot * GUIDING_PATH_VERTICES;
 
     for (;;) {
         traceRayEXT(tlas, gl_RayFlagsOpaqueEXT, 0xff, 0, 0, MISS_SCENE, origin, t_min, dir, t_max, 0);
@@ -169,7 +174,7 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
             if (res.segments == 1u) res.first_t = min(res.first_t, t_light);
         }
         if (hit.t < 0.0) {  // escaped: its record keeps the infinite distance
-            if (USES(TECH_GUIDING) && g_open != NO_INDEX) g_rec[g_open].distance = GUIDING_DISTANCE_INFINITE;
+            if (USES(TECH_GUIDING) && g_open != NO_INDEX) guiding_samples[g_slot + g_open].distance = GUIDING_DISTANCE_INFINITE;
             float light_pdf;
             vec3 le = distant_radiance(dir, camera_ray, light_pdf);
             res.radiance += throughput * le * (emission_scale * emission_weight(prev_delta, prev_pdf, light_pdf, opt.light_samples));
@@ -180,7 +185,7 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         Material mat = materials[sh.material];
         vec3 wo = -dir;
         // The open record's distance, final unless this vertex turns out delta (below).
-        if (USES(TECH_GUIDING) && g_open != NO_INDEX) g_rec[g_open].distance = g_travelled + hit.t;
+        if (USES(TECH_GUIDING) && g_open != NO_INDEX) guiding_samples[g_slot + g_open].distance = g_travelled + hit.t;
         if (res.segments == 1u) {
             res.first_t = min(res.first_t, hit.t);  // a light in front keeps its distance
             res.first_normal = dot(sh.ns, wo) >= 0.0 ? sh.ns : -sh.ns;
@@ -353,10 +358,10 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         prev_pdf = bs.pdf;
         dir = normalize(bs.wi.x * tangent + bs.wi.y * bitangent + bs.wi.z * ns);
         if (USES(TECH_GUIDING) && opt.guiding_record && g_vertex && g_count < GUIDING_PATH_VERTICES) {
-            g_rec[g_count] = GuidingSample(sh.p, g_region, guiding_pack_direction(dir), bs.pdf, 0.0,
-                                           GUIDING_DISTANCE_INFINITE);
-            g_throughput[g_count] = throughput;
-            g_radiance[g_count] = res.radiance;
+            guiding_samples[g_slot + g_count] = GuidingSample(sh.p, g_region, guiding_pack_direction(dir), bs.pdf, 0.0,
+                                                              GUIDING_DISTANCE_INFINITE);
+            g_base[g_count] = luminance(res.radiance);
+            g_norm[g_count] = luminance(throughput) * bs.pdf;
             g_open = g_count++;
             g_travelled = 0.0;
         }
@@ -373,13 +378,9 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         }
     }
     if (USES(TECH_GUIDING)) {
-        for (uint k = 0u; k < g_count; ++k) {
-            vec3 gathered = res.radiance - g_radiance[k], t = g_throughput[k];
-            vec3 incident = vec3(t.x > 0.0 ? gathered.x / t.x : 0.0, t.y > 0.0 ? gathered.y / t.y : 0.0,
-                                 t.z > 0.0 ? gathered.z / t.z : 0.0);
-            g_rec[k].weight = max(luminance(incident), 0.0) / g_rec[k].pdf;  // non-finite: the host drops it
-            guiding_samples[opt.guiding_slot * GUIDING_PATH_VERTICES + k] = g_rec[k];
-        }
+        float end = luminance(res.radiance);
+        for (uint k = 0u; k < g_count; ++k)  // non-finite: the host drops it
+            guiding_samples[g_slot + k].weight = g_norm[k] > 0.0 ? max(end - g_base[k], 0.0) / g_norm[k] : 0.0;
     }
     return res;
 }

@@ -23,7 +23,7 @@ struct GuidingParams {
     float prob PX_DEFAULT(0.5f);             // guiding_prob: one-sample MIS, P(sample the VMM)
     uint parallax PX_DEFAULT(1);             // guiding_parallax: lobes aim at their targets
     uint training_spp PX_DEFAULT(32);        // guiding_training_spp (GUIDING_KEEP_TRAINING: always)
-    uint min_samples PX_DEFAULT(512);        // guiding_min_samples: a region fits once it has these
+    uint min_samples PX_DEFAULT(128);        // guiding_min_samples: a region fits once it has these
     uint max_components PX_DEFAULT(16);      // guiding_max_components, <= GUIDING_MAX_COMPONENTS
     uint split_merge PX_DEFAULT(1);          // guiding_split_merge
     uint region_splits PX_DEFAULT(8);        // guiding_region_splits: 2^k initial regions
@@ -42,7 +42,6 @@ PX_CONST uint GUIDING_MAX_RECORD_PATHS = 1u << 18;
 // Guided (and recording) vertices: diffuse, or glossy with roughness above this (the
 // reference's 0.3; sharper lobes are left to the BSDF).
 PX_CONST float GUIDING_MIN_ROUGHNESS = 0.3;
-PX_CONST float GUIDING_QUERY_T = 1e-6;  // t_max of the zero-length region query ray
 
 // One vMF lobe as the sampling shader reads it (thesis eq. 3.27, Jakob 2012):
 // v(w) = norm * exp(kappa (dot(mu, w) - 1)), norm = kappa / (2 pi (1 - exp(-2 kappa))).
@@ -59,7 +58,7 @@ struct GuidingLobe {
     float cdf;        // weight of lobes 0..k of the region (selection; the last one is 1)
 };
 
-// One guiding region: an AABB of the region TLAS (same index) and its mixture.
+// One guiding region: its box (also in the region TLAS of the lobes pass) and its mixture.
 struct GuidingRegion {
     vec3 aabb_min;
     uint lobe_count;  // active lobes; 0: not trained yet (sample the BSDF only)
@@ -69,13 +68,24 @@ struct GuidingRegion {
     uint samples;     // training samples received (saturating)
 };
 
+// One node of the region tree (regions.h), in a storage buffer: the shaders find a point's
+// region by walking it from node 0 (a handful of loads; cheaper than a ray query). Inner
+// node: link = first child << 2 | axis, the child holding p is first + (p[axis] >= split);
+// leaf: link = region << 2 | GUIDING_NODE_LEAF. Points outside the scene box walk to the
+// nearest region.
+PX_CONST uint GUIDING_NODE_LEAF = 3;
+struct GuidingNode {
+    float split;
+    uint link;
+};
+
 // One training sample, written by the trace loop at a non-specular vertex (thesis 4.6.2).
 struct GuidingSample {
     vec3 position;    // the vertex
     uint region;      // its guiding region (NO_INDEX: the host looks it up from the position)
     uint direction;   // sampled direction, octahedral, packSnorm2x16 (guiding_pack_direction)
     float pdf;        // density the direction was sampled with (solid angle, MIS mixture)
-    float weight;     // luminance of the incident radiance along it / pdf (>= 0; NEE-credited)
+    float weight;     // incident luminance along it (weighted by the path colour) / pdf (>= 0; NEE-credited)
     float distance;   // to the next non-specular vertex; >= GUIDING_DISTANCE_INFINITE: none
 };
 

@@ -13,7 +13,7 @@
 // Technique bits: specialization constant TECHNIQUES (constant_id 3), part of the pipeline key.
 PX_CONST uint TECH_IC = 1u << 0;     // the irradiance cache exists (built for shading or for ADRRS)
 PX_CONST uint TECH_ADRRS = 1u << 1;  // adjoint-driven Russian roulette and splitting
-PX_CONST uint TECH_GUIDING = 1u << 2;  // path guiding (region TLAS, VMM sampling, training samples)
+PX_CONST uint TECH_GUIDING = 1u << 2;  // path guiding (region tree, VMM sampling, training samples)
 
 // Programs: which ray-generation shader a ray-tracing pipeline starts (part of its key).
 PX_CONST uint PROGRAM_CAMERA = 0;         // raygen.rgen: camera paths into the film

@@ -58,7 +58,8 @@ PX_CONST uint BINDING_GUIDING_SAMPLES = 34; // GuidingSample[recording paths * G
 PX_CONST uint BINDING_ADRRS_ADJOINT = 35;  // vec4 per grid cell and axis direction: mean E (rgb), entries
 PX_CONST uint BINDING_GGX_TABLES = 36;     // uint unorm16 pairs: multiscatter GGX albedos (ggx_tables.h)
 PX_CONST uint BINDING_LIGHT_TREE = 37;     // LightTreeNode[], root first (SceneInfo.light_tree_nodes)
-PX_CONST uint BINDING_COUNT = 38;
+PX_CONST uint BINDING_GUIDING_NODES = 38;  // GuidingNode[]: the region tree, walked by guiding_region_at
+PX_CONST uint BINDING_COUNT = 39;
 
 // ---- shader binding table: miss shaders and hit groups (RayTracingPipeline group order) -
 PX_CONST uint MISS_SCENE = 0;         // miss.rmiss: the world

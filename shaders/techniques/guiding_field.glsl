@@ -3,11 +3,10 @@
 // sample records and the visualisation passes. The maths (vMF, VMM, packing) is in
 // guiding.glsl; the host side in native/src/techniques/guiding/guiding.cpp.
 //
-// Regions are AABBs in their own TLAS (BINDING_GUIDING_TLAS, primitive i = region
-// guiding_order[i]). A point's region is found by a zero-length ray that terminates on its
-// first hit: guiding_query.rint accepts the box holding the origin, guiding_query.rchit
-// reports it. The lobes pass sends camera rays through the same TLAS without that flag; the
-// intersection shader then reports the sphere drawn at each trained region's centre.
+// A point's region is found by walking the region tree (BINDING_GUIDING_NODES). The regions
+// are also AABBs in their own TLAS (BINDING_GUIDING_TLAS, primitive i = region
+// guiding_order[i]): the lobes pass sends camera rays through it, and the intersection shader
+// reports the sphere drawn at each trained region's centre.
 //
 // Entry points that cannot trace rays (intersection, closest-hit) define PX_NO_TRACE and get
 // only the buffers.
@@ -15,6 +14,7 @@
 layout(set = 0, binding = BINDING_GUIDING_REGIONS, scalar) readonly buffer GuidingRegionBuffer { GuidingRegion guiding_regions[]; };
 layout(set = 0, binding = BINDING_GUIDING_LOBES, scalar) readonly buffer GuidingLobeBuffer { GuidingLobe guiding_lobes[]; };
 layout(set = 0, binding = BINDING_GUIDING_ORDER, scalar) readonly buffer GuidingOrderBuffer { uint guiding_order[]; };
+layout(set = 0, binding = BINDING_GUIDING_NODES, scalar) readonly buffer GuidingNodeBuffer { GuidingNode guiding_nodes[]; };
 #define GUIDING_FETCH_LOBE(i) guiding_lobes[i]
 #include "guiding.glsl"
 
@@ -29,13 +29,16 @@ layout(set = 0, binding = BINDING_GUIDING_TLAS) uniform accelerationStructureEXT
 layout(set = 0, binding = BINDING_GUIDING_SAMPLES, scalar) writeonly buffer GuidingSampleBuffer { GuidingSample guiding_samples[]; };
 layout(location = 3) rayPayloadEXT GuidingQuery guiding_query;
 
-// The region holding p (thesis 4.6.1: a zero-length ray into the region TLAS, terminating on
-// its first hit); NO_INDEX outside every region.
+// The region holding p (thesis 4.6.1): a walk down the region tree (GuidingNode); points
+// outside the scene box land in the nearest region, non-finite ones in none (NO_INDEX). The
+// thesis queries the region TLAS with a zero-length ray instead; on lavapipe that ray costs
+// about as much as a path segment, the walk a few loads (the TLAS stays for the lobes pass).
 uint guiding_region_at(vec3 p) {
-    guiding_query.region = NO_INDEX;
-    traceRayEXT(guiding_tlas, gl_RayFlagsOpaqueEXT | gl_RayFlagsTerminateOnFirstHitEXT, 0xff, 0, 0,
-                MISS_GUIDING_QUERY, p, 0.0, vec3(0.0, 0.0, 1.0), GUIDING_QUERY_T, 3);
-    return guiding_query.region;
+    if (any(isnan(p)) || any(isinf(p))) return NO_INDEX;
+    GuidingNode node = guiding_nodes[0];
+    for (uint depth = 0u; depth < 256u && (node.link & 3u) != GUIDING_NODE_LEAF; ++depth)
+        node = guiding_nodes[(node.link >> 2) + (p[node.link & 3u] >= node.split ? 1u : 0u)];
+    return (node.link & 3u) == GUIDING_NODE_LEAF ? node.link >> 2 : NO_INDEX;
 }
 
 // Vertices that are guided and record training samples: diffuse, or rough enough that the

@@ -15,7 +15,7 @@ from blender_helpers import assert_params, open_scene, render, save_and_reopen
 import parallax_core
 
 DEFAULTS = dict(guiding=False, guiding_prob=0.5, guiding_parallax=True, guiding_training_spp=32,
-                guiding_min_samples=512, guiding_max_components=16, guiding_split_merge=True,
+                guiding_min_samples=128, guiding_max_components=16, guiding_split_merge=True,
                 guiding_region_splits=8, guiding_region_threshold=10000, guiding_max_regions=4096,
                 guiding_probe_x=-1, guiding_probe_y=-1)
 CHANGED = dict(guiding=True, guiding_prob=0.7, guiding_parallax=False, guiding_training_spp=0,

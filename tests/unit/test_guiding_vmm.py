@@ -442,6 +442,45 @@ def test_adaptive_refinement_inherits_the_mixture():
     assert f2.region_info(0)["pending"] + f2.region_info(2)["pending"] == 100
 
 
+def walk_nodes(nodes, pts):
+    """guiding_region_at (shaders/techniques/guiding_field.glsl) in numpy, in float32."""
+    split, link = nodes[:, 0].view(np.float32), nodes[:, 1]
+    pts = np.asarray(pts, np.float32)
+    rows = np.arange(len(pts))
+    node = np.zeros(len(pts), np.int64)
+    for _ in range(64):
+        l = link[node]
+        inner = (l & 3) != 3
+        if not inner.any():
+            return l >> 2
+        axis = np.where(inner, l & 3, 0)
+        upper = pts[rows, axis] >= split[node]
+        node = np.where(inner, (l >> 2).astype(np.int64) + upper, node)
+    raise AssertionError("the region tree is deeper than 64")
+
+
+def test_gpu_region_tree_agrees_with_the_host_lookup():
+    """The tree the shaders walk (write_nodes) puts every point, inside the scene box, on a
+    split plane or outside, in the region the host's lookup and the samples use, before and
+    after adaptive refinement."""
+    rng = np.random.default_rng(93)
+    lo, hi = np.array([-2.0, -1, 0]), np.array([2.0, 1, 1])
+    f = g.GuidingField(lo, hi, params(region_splits=5, min_samples=300, region_threshold=800, max_regions=64),
+                       threads=1)
+    light = np.array([0.0, 0.0, 3.0])
+    for layout in range(2):
+        nodes = f.nodes()
+        assert len(nodes) == 2 * f.region_count - 1
+        boxes = f.regions()[:, [0, 1, 2, 4, 5, 6]]
+        planes = np.unique(np.concatenate([boxes[:, :3], boxes[:, 3:]]), axis=0)  # corners: on split planes
+        pts = np.concatenate([lo + (hi - lo) * rng.random((4000, 3)), planes,
+                              lo - 1 + (hi - lo + 2) * rng.random((500, 3))]).astype(np.float32)
+        np.testing.assert_array_equal(walk_nodes(nodes, pts), f.region_of(pts.astype(np.float64)))
+        if layout == 0:
+            f.add_samples(samples_from(rng, 4000, [-2, -1, 0], [-1.5, -0.5, 0.5], light))  # one region
+            assert f.fit()["refinements"] > 0
+
+
 def test_pivot_is_the_sample_mean_not_the_box_centre():
     rng = np.random.default_rng(92)
     f = g.GuidingField(np.zeros(3), np.ones(3), params(region_splits=0, min_samples=200, region_threshold=0))

@@ -75,7 +75,7 @@ class RenderParams:
     guiding_prob: float = 0.5       # one-sample MIS: probability of sampling the VMM (else the BSDF)
     guiding_parallax: bool = True   # lobes aim at their target points (thesis eq. 4.5)
     guiding_training_spp: int = 32  # 1-spp training frames before the image accumulates; 0 = keep training
-    guiding_min_samples: int = 512  # a region fits once it has accumulated this many samples
+    guiding_min_samples: int = 128  # a region fits once it has accumulated this many samples
     guiding_max_components: int = 16  # lobes per region (1..16)
     guiding_split_merge: bool = True  # split and merge lobes (Ruppert et al. 2020, sec. 4)
     guiding_region_splits: int = 8  # 2^k initial regions (halvings of the scene box)

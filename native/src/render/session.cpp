@@ -314,10 +314,9 @@ Session::DispatchPlan Session::dispatch_plan() const {
     DispatchPlan plan{};
     // Rays of one path at most: camera ray and bounces up to the depth limits, with the
     // shadow rays of each vertex.
-    // With guiding, each vertex adds a region query and each sample the passes' queries.
-    plan.cost = uint64_t(params_.max_depth + params_.depth_leeway + 2) *
-                    (1 + params_.light_samples + (guiding_->enabled() ? 1 : 0)) +
-                (guiding_->enabled() ? 3 : 0);
+    // With guiding, a sample adds the passes' queries (a region lookup is no ray: a tree walk).
+    plan.cost = uint64_t(params_.max_depth + params_.depth_leeway + 2) * (1 + params_.light_samples) +
+                (guiding_->enabled() ? 2 : 0);
     plan.budget = ctx_->report().type == "cpu" ? (uint64_t(1) << 21) : (uint64_t(1) << 30);
     const uint64_t spp = params_.samples_per_frame;
     if (adrrs_->enabled()) plan.cost *= 1 + params_.adrrs.max_splits;  // a sample's split copies too
@@ -441,6 +440,7 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
     uint32_t completed = 0;
     uint32_t rows_left = frames ? UINT32_MAX : rows;
     bool stop = false;
+    double frame_milliseconds = 0;  // the submissions of the frame in progress (guiding's stats)
     while (!stop && (frames ? completed < frames : rows_left > 0)) {
         if (ic_->enabled() && cursor_.at_frame_start() && ic_->needs_prepare()) {
             prepare_frame();
@@ -461,6 +461,7 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
         // most one frame.
         const bool host_step = ic_->enabled() || guiding_->records_render_frames();
         bool frame_done = false, ic_step = false;
+        const auto submit_start = std::chrono::steady_clock::now();
         ctx_->submit_and_wait([&](VkCommandBuffer cmd) {
             // With the cache a submission holds at most one frame: clear its request queue.
             if (ic_->enabled() && cursor_.at_frame_start()) ic_->record_frame_start(cmd);
@@ -477,11 +478,13 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
                 if (frames == 0) break;  // render_rows: at most the rest of one frame
             }
         });
+        frame_milliseconds += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - submit_start).count();
         if (ic_step) {  // (ADRRS builds the cache: its frames end here too)
             if (ic_->enabled())
                 ic_->after_frame(pipeline(PROGRAM_IC_HEMISPHERE), ic_finish_pipeline(), *set_,
                                  frame_params(stats_.frames + completed), paths, false);
-            if (guiding_->records_render_frames()) guiding_->after_frame(*set_, 0.0);
+            if (guiding_->records_render_frames()) guiding_->after_frame(*set_, frame_milliseconds);
+            frame_milliseconds = 0;
             ++completed;
             adrrs_->after_frame(film_, stats_.samples + uint64_t(completed) * params_.samples_per_frame);
             refresh_adjoint();

@@ -5,7 +5,8 @@
 
 namespace px {
 
-Buffer::Buffer(Context& ctx, VkDeviceSize size, VkBufferUsageFlags usage, bool host_visible) : ctx_(&ctx) {
+Buffer::Buffer(Context& ctx, VkDeviceSize size, VkBufferUsageFlags usage, bool host_visible, bool readback)
+    : ctx_(&ctx) {
     size_ = std::max<VkDeviceSize>(size, 16);
     host_visible = host_visible || ctx.is_cpu();
     usage |= VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT |
@@ -22,9 +23,17 @@ Buffer::Buffer(Context& ctx, VkDeviceSize size, VkBufferUsageFlags usage, bool h
     VkMemoryAllocateInfo alloc{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
     alloc.pNext = &flags;
     alloc.allocationSize = req.size;
-    alloc.memoryTypeIndex = ctx.memory_type(
-        req.memoryTypeBits, host_visible ? VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT
-                                         : VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
+    const VkMemoryPropertyFlags host = VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
+    bool typed = false;
+    if (readback && !ctx.is_cpu()) {
+        try {
+            alloc.memoryTypeIndex = ctx.memory_type(req.memoryTypeBits, host | VK_MEMORY_PROPERTY_HOST_CACHED_BIT);
+            typed = true;
+        } catch (const VulkanError&) {  // no cached host memory: the coherent one below
+        }
+    }
+    if (!typed)
+        alloc.memoryTypeIndex = ctx.memory_type(req.memoryTypeBits, host_visible ? host : VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
     try {
         ctx.reserve_memory(req.size);  // throws DeviceMemoryError past the budget
     } catch (...) {
@@ -104,7 +113,7 @@ void Buffer::download(void* data, size_t bytes, size_t offset) const {
         std::memcpy(data, static_cast<const char*>(mapped_) + offset, bytes);
         return;
     }
-    Buffer staging(*ctx_, bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT, true);
+    Buffer staging(*ctx_, bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT, true, true);
     ctx_->submit_and_wait([&](VkCommandBuffer cmd) {
         VkBufferCopy region{offset, 0, bytes};
         vkCmdCopyBuffer(cmd, buffer_, staging.buffer_, 1, &region);

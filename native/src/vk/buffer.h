@@ -10,7 +10,9 @@ namespace px {
 class Buffer {
 public:
     Buffer() = default;
-    Buffer(Context& ctx, VkDeviceSize size, VkBufferUsageFlags usage, bool host_visible = false);
+    // `readback`: host-visible memory the CPU reads fast (HOST_CACHED where the device has it:
+    // reads of uncached, write-combined memory run at about 1 GB/s).
+    Buffer(Context& ctx, VkDeviceSize size, VkBufferUsageFlags usage, bool host_visible = false, bool readback = false);
     ~Buffer() { release(); }
     Buffer(Buffer&& o) noexcept { *this = std::move(o); }
     Buffer& operator=(Buffer&& o) noexcept;

@@ -3,7 +3,7 @@
 //   after a frame:  field.add_samples(records read back from the GPU sample buffer)
 //                   field.fit()                      (multithreaded; may refine regions)
 //                   field.write_regions/write_lobes  (upload), and when layout_version()
-//                   changed, field.write_aabbs       (rebuild the region BLAS/TLAS)
+//                   changed, field.write_nodes/aabbs (the region tree, the BLAS/TLAS)
 // Robust training: a region's samples accumulate across frames (a reservoir per region)
 // until it has guiding.min_samples of non-zero weight, then it fits (the thesis' clocks
 // scene failed because regions trained on one frame's samples only, sec. 5.3.4).
@@ -65,7 +65,7 @@ public:
     const Aabb& region_bounds(uint32_t r) const { return tree_.bounds(r); }
     // Regions in a spatially coherent order (input order for lavapipe's BVH builder).
     std::vector<uint32_t> spatial_order() const { return tree_.spatial_order(); }
-    // Bumped whenever regions change (build, reset, refinement): rebuild the region TLAS.
+    // Bumped whenever regions change (build, reset, refinement): rebuild the region tree and TLAS.
     uint64_t layout_version() const { return layout_version_; }
 
     // GPU records: one GuidingRegion per region; GUIDING_MAX_COMPONENTS lobes per region;
@@ -74,8 +74,11 @@ public:
     void write_regions(std::vector<GuidingRegion>& out) const;
     void write_lobes(std::vector<GuidingLobe>& out) const;
     void write_aabbs(std::vector<float>& out) const;
+    void write_nodes(std::vector<GuidingNode>& out) const { tree_.write_nodes(out); }
+    // GPU bytes per region: its record, its lobes, its AABB and the tree's two nodes per leaf.
     static size_t gpu_bytes_per_region() {
-        return sizeof(GuidingRegion) + GUIDING_MAX_COMPONENTS * sizeof(GuidingLobe) + 6 * sizeof(float);
+        return sizeof(GuidingRegion) + GUIDING_MAX_COMPONENTS * sizeof(GuidingLobe) + 6 * sizeof(float) +
+               2 * sizeof(GuidingNode);
     }
 
     const Vmm& mixture(uint32_t r) const { return regions_.at(r).state.vmm; }

@@ -63,6 +63,10 @@ Guiding::Guiding(Context& ctx) : ctx_(ctx) {
     build_placeholder();
 }
 
+Guiding::~Guiding() {
+    if (fit_.valid()) fit_.wait();
+}
+
 // Guiding never switched on: one empty region keeps every binding valid (the shaders are
 // specialised without guiding and never read it).
 void Guiding::build_placeholder() {
@@ -72,6 +76,8 @@ void Guiding::build_placeholder() {
     lobes_ = Buffer::with_data(ctx_, &lobe, sizeof(lobe), kStorageUsage);
     const uint32_t order = 0;
     order_ = Buffer::with_data(ctx_, &order, sizeof(order), kStorageUsage);
+    const GuidingNode root{0.0f, GUIDING_NODE_LEAF};  // region 0
+    nodes_ = Buffer::with_data(ctx_, &root, sizeof(root), kStorageUsage);
     const VkAabbPositionsKHR box{0, 0, 0, 1e-3f, 1e-3f, 1e-3f};
     aabbs_ = Buffer::with_data(ctx_, &box, sizeof(box),
                                kStorageUsage | VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR);
@@ -91,6 +97,7 @@ void Guiding::configure(const GuidingParams& params, const SceneHost& scene, uin
     const size_t sample_bytes = size_t(record_paths_) * GUIDING_PATH_VERTICES * sizeof(GuidingSample);
     if (samples_.size() != sample_bytes) samples_ = Buffer(ctx_, sample_bytes, kStorageUsage);
     const GuidingParams key = field_key(params_);
+    finish_fit();  // the field may be replaced
     if (field_ && std::memcmp(&key, &field_key_, sizeof(key)) == 0 && scene_version == scene_version_ && seed == seed_)
         return;
     float lo[3], hi[3];
@@ -101,6 +108,7 @@ void Guiding::configure(const GuidingParams& params, const SceneHost& scene, uin
     seed_ = seed;
     training_frames_ = 0;
     stats_ = GuidingStats{};
+    fitted_ = false;
     built_layout_ = ~0ull;
     upload(nullptr);
 }
@@ -110,6 +118,7 @@ void Guiding::bind(DescriptorSet& set) const {
     set.bind_buffer(BINDING_GUIDING_REGIONS, regions_);
     set.bind_buffer(BINDING_GUIDING_LOBES, lobes_);
     set.bind_buffer(BINDING_GUIDING_ORDER, order_);
+    set.bind_buffer(BINDING_GUIDING_NODES, nodes_);
     set.bind_buffer(BINDING_GUIDING_SAMPLES, samples_);
 }
 
@@ -133,6 +142,9 @@ void Guiding::upload(DescriptorSet* set) {
         const std::vector<uint32_t> order = field_->spatial_order();
         for (size_t i = 0; i < n; ++i) std::copy_n(&boxes[size_t(order[i]) * 6], 6, &sorted[i * 6]);
         order_ = Buffer::with_vector(ctx_, order, kStorageUsage);
+        std::vector<GuidingNode> nodes;
+        field_->write_nodes(nodes);
+        nodes_ = Buffer::with_vector(ctx_, nodes, kStorageUsage);
         aabbs_ = Buffer::with_data(ctx_, sorted.data(), sorted.size() * sizeof(float),
                                    kStorageUsage | VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR);
         tlas_.reset();
@@ -156,20 +168,46 @@ void Guiding::after_frame(DescriptorSet& set, double frame_milliseconds) {
     samples.erase(std::remove_if(samples.begin(), samples.end(), [](const GuidingSample& s) { return s.pdf == 0.0f; }),
                   samples.end());
     stats_.readback_milliseconds += ms_since(start);
-    field_->add_samples(samples.data(), samples.size());
-    const guiding::FieldStats& fit = field_->fit();
-    stats_.fit_milliseconds += fit.fit_milliseconds;
-    stats_.refinements += fit.refinements;
-    if (fit.regions_fitted || fit.refinements) {
-        start = std::chrono::steady_clock::now();
-        upload(&set);
-        stats_.upload_milliseconds += ms_since(start);
-    }
     stats_.frame_milliseconds += frame_milliseconds;
     ++training_frames_;
+    // The previous frame's fit (it ran while the GPU traced this frame) reaches the GPU; this
+    // frame's samples go to a fit on a worker thread, overlapped with the next frame.
+    const auto upload_fitted = [&] {
+        finish_fit();
+        if (!fitted_) return;
+        const auto upload_start = std::chrono::steady_clock::now();
+        upload(&set);
+        stats_.upload_milliseconds += ms_since(upload_start);
+        fitted_ = false;
+    };
+    upload_fitted();
+    guiding::GuidingField* field = field_.get();
+    fit_ = std::async(std::launch::async, [field, samples = std::move(samples)] {
+        field->add_samples(samples.data(), samples.size());
+        field->fit();
+    });
+    // The last training frame: the image accumulates with the finished field.
+    if (params_.training_spp != GUIDING_KEEP_TRAINING && training_frames_ >= params_.training_spp) upload_fitted();
+}
+
+void Guiding::finish_fit() const {
+    if (!fit_.valid()) return;
+    const auto start = std::chrono::steady_clock::now();
+    fit_.get();  // rethrows the fit's exception
+    stats_.fit_wait_milliseconds += ms_since(start);
+    const guiding::FieldStats& fit = field_->stats();  // the last fit()'s figures
+    stats_.fit_milliseconds += fit.fit_milliseconds;
+    stats_.refinements += fit.refinements;
+    fitted_ = fitted_ || fit.regions_fitted || fit.refinements;
+}
+
+const guiding::GuidingField* Guiding::field() const {
+    finish_fit();
+    return field_.get();
 }
 
 GuidingStats Guiding::stats() const {
+    finish_fit();
     GuidingStats s = stats_;
     s.training_frames = training_frames_;
     if (!field_) return s;

@@ -1,12 +1,16 @@
 // Path guiding, the session's side (thesis 4.6; Ruppert, Herholz & Lensch 2020;
 // shaders/techniques/guiding_field.glsl): owns the GuidingField (field.h) and its GPU data —
-// regions, lobes, the region AABBs' BLAS/TLAS (queried by zero-length rays) and the training
-// sample buffer — and drives the training between frames:
+// regions, lobes, the region tree (walked by the shaders' region lookup), the region AABBs'
+// BLAS/TLAS (the Guiding Lobes pass' spheres) and the training sample buffer — and drives the training between frames:
 //   training frames (FRAME_GUIDING_TRAIN, 1 spp, nothing reaches the film) until
 //   guiding_training_spp of them have run, or, with guiding_training_spp = 0, every rendered
 //   frame records too ("keep training"); after each recording frame after_frame() reads the
-//   samples back, adds them to the field, fits (multithreaded), and uploads the mixtures
-//   (rebuilding the region TLAS when adaptive refinement changed the regions).
+//   samples back, adds them to the field and starts the fit (multithreaded) on a worker
+//   thread, which runs while the GPU traces the next frame; the after_frame() that follows
+//   waits for it and uploads its mixtures (rebuilding the region tree and TLAS when adaptive
+//   refinement changed the regions). The frames thus trace with the field one frame behind,
+//   the same for every run (deterministic); the last training frame waits for its own fit,
+//   so that the image accumulates with the finished field.
 // The field survives camera moves, probe changes and guiding being switched off and on; new
 // geometry or lights, the seed or any other guiding setting start it over (configure).
 #pragma once
@@ -15,6 +19,7 @@
 #include "vk/accel.h"
 #include "vk/pipeline.h"
 
+#include <future>
 #include <memory>
 
 namespace px {
@@ -28,9 +33,12 @@ struct GuidingStats {
     uint64_t samples_dropped = 0;
     uint64_t region_fits = 0;
     uint32_t refinements = 0;      // regions split, all time
-    // Training cost, summed over the training frames: the GPU frame (training frames only),
-    // the sample readback, the fit, the upload (with TLAS rebuilds).
-    double frame_milliseconds = 0, readback_milliseconds = 0, fit_milliseconds = 0, upload_milliseconds = 0;
+    // Training cost, summed over the recording frames: the frame (submission to completion),
+    // the sample readback, the fit (on a worker thread, overlapped with the next frame), the
+    // part of the fit the host waited for after that frame, the upload (with tree and TLAS
+    // rebuilds).
+    double frame_milliseconds = 0, readback_milliseconds = 0, fit_milliseconds = 0, fit_wait_milliseconds = 0,
+           upload_milliseconds = 0;
     uint64_t bytes_per_region = 0;   // GPU: region record, lobes, AABB, BLAS share
     uint64_t sample_buffer_bytes = 0;
 };
@@ -38,6 +46,7 @@ struct GuidingStats {
 class Guiding {
 public:
     explicit Guiding(Context& ctx);
+    ~Guiding();
     // Settings, scene and image size for the next frames. The field is kept when nothing it
     // depends on changed: the guiding settings (the probe and on/off aside), the seed and
     // `scene_version` (the session bumps it for every update but a camera-only one).
@@ -59,9 +68,11 @@ public:
     // regions changed. `frame_milliseconds`: the frame's GPU time, for the stats.
     void after_frame(DescriptorSet& set, double frame_milliseconds);
     GuidingStats stats() const;
-    const guiding::GuidingField* field() const { return field_.get(); }
+    // The field, its fit in flight finished (its mixtures reach the GPU at the next after_frame).
+    const guiding::GuidingField* field() const;
 
 private:
+    void finish_fit() const;  // waits for the fit in flight and adds its figures to stats_
     void upload(DescriptorSet* set);  // regions and lobes; AABBs, order and TLAS if the layout changed
     void build_placeholder();
     Context& ctx_;
@@ -71,11 +82,13 @@ private:
     uint32_t seed_ = 0;
     uint32_t record_paths_ = 0;  // path slots of the sample buffer
     std::unique_ptr<guiding::GuidingField> field_;
-    Buffer regions_, lobes_, order_, aabbs_, samples_;
+    Buffer regions_, lobes_, order_, aabbs_, nodes_, samples_;
     std::unique_ptr<AccelerationStructure> blas_, tlas_;
     uint64_t built_layout_ = ~0ull;
     uint32_t training_frames_ = 0;
-    GuidingStats stats_;
+    mutable std::future<void> fit_;      // the fit in flight (worker thread), if any
+    mutable bool fitted_ = false;        // a finished fit whose mixtures are not uploaded yet
+    mutable GuidingStats stats_;
 };
 
 }  // namespace px

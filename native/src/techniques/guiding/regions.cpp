@@ -26,7 +26,8 @@ void RegionTree::subdivide(int32_t node, uint32_t depth) {
     }
     const Aabb box = nodes_[node].box;
     const int a = box.longest_axis();
-    const double mid = 0.5 * (box.lo[a] + box.hi[a]);
+    // A float plane: the GPU's walk (float positions) then picks the same side as lookup().
+    const double mid = double(float(0.5 * (box.lo[a] + box.hi[a])));
     const int32_t c = int32_t(nodes_.size());
     nodes_[node].child = c;
     nodes_[node].axis = a;
@@ -50,7 +51,8 @@ uint32_t RegionTree::split(uint32_t region) {
     const int32_t node = int32_t(leaf_node_[region]);
     const Aabb box = nodes_[node].box;
     const int a = box.longest_axis();
-    const double mid = 0.5 * (box.lo[a] + box.hi[a]);
+    // A float plane: the GPU's walk (float positions) then picks the same side as lookup().
+    const double mid = double(float(0.5 * (box.lo[a] + box.hi[a])));
     const int32_t c = int32_t(nodes_.size());
     nodes_.resize(nodes_.size() + 2);
     Node& parent = nodes_[node];
@@ -66,6 +68,15 @@ uint32_t RegionTree::split(uint32_t region) {
     leaf_node_[region] = uint32_t(c);
     leaf_node_.push_back(uint32_t(c + 1));
     return upper;
+}
+
+void RegionTree::write_nodes(std::vector<GuidingNode>& out) const {
+    out.resize(nodes_.size());
+    for (size_t i = 0; i < nodes_.size(); ++i) {
+        const Node& n = nodes_[i];
+        out[i].split = float(n.split);
+        out[i].link = n.child < 0 ? (n.region << 2) | GUIDING_NODE_LEAF : (uint32_t(n.child) << 2) | uint32_t(n.axis);
+    }
 }
 
 std::vector<uint32_t> RegionTree::spatial_order() const {

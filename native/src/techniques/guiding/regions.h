@@ -1,6 +1,6 @@
 // Guiding regions (thesis 4.6.1, 4.6.3): the scene AABB halved along its longest axis into
-// 2^k boxes (a binary tree), the host's point lookup (the GPU queries the regions' own TLAS
-// with a zero-length ray) and adaptive refinement (a region splits in two).
+// 2^k boxes (a binary tree), the point lookup (the GPU walks the same tree: write_nodes) and
+// adaptive refinement (a region splits in two).
 #pragma once
 #include "techniques/guiding/vmm.h"
 
@@ -29,6 +29,8 @@ public:
     uint32_t split(uint32_t region);
     // Regions in depth-first order of the tree (spatially coherent, for BVH builds).
     std::vector<uint32_t> spatial_order() const;
+    // The tree for the GPU's walk (GuidingNode, shaders/shared/guiding.h); node 0 is the root.
+    void write_nodes(std::vector<GuidingNode>& out) const;
 
 private:
     struct Node {
