@@ -43,6 +43,34 @@ def soft_falloff(b):
     b.set_world()
 
 
+def _area(b, name, location, target, power, size):
+    import bpy
+    from mathutils import Vector
+
+    light = bpy.data.lights.new(name, "AREA")
+    light.energy, light.shape, light.size = power, "SQUARE", size
+    direction = Vector(target) - Vector(location)
+    obj = b.add_object(name, light, location, direction.to_track_quat("-Z", "Y").to_euler())
+    obj.visible_camera = False
+    return obj
+
+
+def resting_on_floor(b):
+    """A rotated glass cube (GGX, roughness 0, IOR 1.45) and a diffuse cube whose bottom faces
+    lie in the floor's plane, under an area, a point and a spot light: a ray refracted out of
+    the glass' bottom face meets the floor right there (Cycles skips only the face it leaves)."""
+    b.add_rect("Floor", 6.0, 6.0, b.diffuse("Floor", (0.6, 0.6, 0.6)), (0, 0, 0))
+    b.add_rect("Wall", 6.0, 3.0, b.diffuse("Wall", (0.5, 0.6, 0.7)), (0, 1.5, 1.5), (math.pi / 2, 0, 0))
+    b.add_box("GlassCube", (0.9, 0.9, 0.9), b.glass("Glass", 1.45), (-0.45, 0.1, 0.45), rot_z=0.5)
+    b.add_box("Block", (0.6, 0.6, 0.6), b.diffuse("Block", (0.7, 0.5, 0.3)), (0.75, 0.3, 0.3), rot_z=-0.4)
+    _area(b, "Area", (-0.6, -1.0, 2.2), (-0.3, 0.2, 0.0), 150.0, 0.8)
+    point = b.add_point_light("Point", (0.9, -0.6, 1.2), 0.1, 40.0)
+    point.visible_camera = False
+    _spot(b, "Spot", (-1.2, -0.4, 1.6), (-0.45, 0.1, 0.0), 60.0, 0.1, 60.0, 0.2)
+    b.add_camera((0.2, -3.0, 1.6), (0.0, 0.2, 0.3), 50.0)
+    b.set_world()
+
+
 def _build(bpy, builder):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
@@ -84,3 +112,9 @@ def test_soft_falloff_matches_cycles(bpy, tmp_path):
     assert ours == pytest.approx(theirs, rel=0.03)
     assert ratio < 3.0
 
+
+
+def test_objects_resting_on_a_floor_match_cycles(bpy, tmp_path):
+    ratio, _, ours, theirs = compare(bpy, tmp_path, resting_on_floor)
+    assert ours == pytest.approx(theirs, rel=0.03)
+    assert ratio < 3.0
