@@ -71,6 +71,28 @@ def resting_on_floor(b):
     b.set_world()
 
 
+def sunlit_textured_floor(b):
+    """A floor with a magnified high-contrast checker texture (8-bit sRGB, Linear
+    interpolation) seen at grazing angles, boxes placed as collection instances, a sun of 5
+    degrees and a world colour. Every shading point blends texels of 0.1 and 0.9 (sRGB)."""
+    import bpy
+    import numpy as np
+
+    checker = np.indices((8, 8)).sum(axis=0) % 2
+    image = b.packed_image("Checker", np.repeat(np.where(checker, 0.9, 0.1)[..., None], 3, axis=2))
+    floor = b.add_rect("Floor", 8.0, 8.0, b.textured_diffuse("Floor", image), (0, 1.0, 0))
+    b.box_project_uvs(floor.data, 2.0)
+    collection = bpy.data.collections.new("Crate")
+    crate = b.make_mesh("Crate", b.box_geometry((0.4, 0.4, 0.4)), [b.diffuse("Crate", (0.7, 0.6, 0.4))])
+    collection.objects.link(bpy.data.objects.new("Crate", crate))
+    for i, (x, y, rz) in enumerate([(-0.8, 1.0, 0.3), (0.6, 2.2, -0.5)]):
+        empty = b.add_object(f"CrateInstance{i}", None, (x, y, 0.2), (0, 0, rz))
+        empty.instance_type, empty.instance_collection = "COLLECTION", collection
+    b.add_sun_light("Sun", (0.4, 0.7, -0.45), 3.0, 5.0)
+    b.add_camera((0.0, -2.5, 0.45), (0.0, 2.0, 0.0), 60.0)
+    b.set_world((0.05, 0.07, 0.1), 1.0)
+
+
 def _build(bpy, builder):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
@@ -116,5 +138,11 @@ def test_soft_falloff_matches_cycles(bpy, tmp_path):
 
 def test_objects_resting_on_a_floor_match_cycles(bpy, tmp_path):
     ratio, _, ours, theirs = compare(bpy, tmp_path, resting_on_floor)
+    assert ours == pytest.approx(theirs, rel=0.03)
+    assert ratio < 3.0
+
+
+def test_sunlit_textured_floor_matches_cycles(bpy, tmp_path):
+    ratio, _, ours, theirs = compare(bpy, tmp_path, sunlit_textured_floor)
     assert ours == pytest.approx(theirs, rel=0.03)
     assert ratio < 3.0
