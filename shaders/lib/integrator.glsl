@@ -87,10 +87,13 @@ struct PathResult {
     vec2 ic_gradients;  // its entries' mean |g_t|, |g_r|
 };
 
-// Rays that leave a surface start on it, as Cycles' do: the origin is the hit point moved a few
-// ulps back to the side the ray arrives from (leave_surface), so a surface touching this one
-// (an object resting on a floor) lies ahead at t > 0, and self_skip.rahit ignores the triangle
-// itself. Rays off any surface (self NO_INDEX) stay opaque: no any-hit calls.
+// Path rays that leave a surface start on it, as Cycles' do: the origin is the hit point moved a
+// few ulps back against the ray's direction (leave_surface), so a surface touching this one (an
+// object resting on a floor) lies ahead at t > 0, and self_skip.rahit ignores the triangle
+// itself. Both the refracted ray out of a glass cube's bottom face and the glass' internal
+// reflection there then meet the floor, and a floor bounce under the cube enters the glass
+// through its bottom face, so every exit from the glass has its entry. Rays off any surface
+// (self NO_INDEX: camera, cache and reflected shadow rays) stay opaque: no any-hit calls.
 uint surface_ray_flags(uint self_instance) {
     return self_instance == NO_INDEX ? gl_RayFlagsOpaqueEXT : gl_RayFlagsNoneEXT;
 }
@@ -297,7 +300,12 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
                     bsdf_pdf = mix(bsdf_pdf, guiding_vmm_pdf(g_first, g_lobes, sh.p, ls.wi), g_prob);
                 // Aim the shadow ray from its origin at the sampled point itself (a direction
                 // kept from the unmoved point misses grazing lights), stopping short of it.
-                vec3 shadow_origin = leave_surface(sh.p, ng, ls.wi);
+                // A shadow ray through the surface (transmission) leaves on it; one on the side the
+                // path came from leaves from the usual offset: a surface touching this one there
+                // belongs to an object the ray then starts inside (the glass cube over the floor),
+                // which blocks it all the same, and opaque rays need no any-hit calls.
+                bool shadow_through = dot(ls.wi, ng) < 0.0;
+                vec3 shadow_origin = offset_ray(sh.p, ng);
                 vec3 shadow_dir = ls.wi;
                 float shadow_t = INFINITY_F;
                 if (ls.dist < INFINITY_F) {
@@ -307,7 +315,7 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
                     shadow_t *= 1.0 - 1e-4;
                 }
                 res.rays++;
-                if (!trace_shadow(shadow_origin, shadow_dir, shadow_t, sh.instance, sh.primitive)) continue;
+                if (!trace_shadow(shadow_origin, shadow_dir, shadow_t, shadow_through ? sh.instance : NO_INDEX, sh.primitive)) continue;
                 float w = (METHOD == METHOD_MIS && !ls.delta && !last_vertex) ? mis_weight(float(opt.light_samples) * ls.pdf, bsdf_pdf) : 1.0;
                 res.radiance += throughput * f * ls.radiance * (w / (ls.pdf * float(opt.light_samples)));
             }
