@@ -1,5 +1,5 @@
 """Parity with Cycles on scenes built the way users build them (issue 14): lights with Soft
-Falloff close to a floor, objects resting on a floor, multiscatter GGX.
+Falloff close to a floor, objects resting on a floor, a sunlit textured floor, multiscatter GGX.
 
 Each scene is built here with blender_scenes/build.py's helpers (Cycles set up as for the
 .blend scenes: box filter, 8 bounces, no clamping) and rendered by both engines with seeds 0
