@@ -1,6 +1,7 @@
 #include "shaders_embedded.h"
 
 #include "closesthit.spv.h"
+#include "self_skip_any_hit.spv.h"
 #include "guiding_query_closest_hit.spv.h"
 #include "guiding_query_intersection.spv.h"
 #include "guiding_query_miss.spv.h"
@@ -24,6 +25,7 @@ namespace px {
 PX_SHADER(raygen)
 PX_SHADER(preview)
 PX_SHADER(closesthit)
+PX_SHADER(self_skip_any_hit)
 PX_SHADER(miss)
 PX_SHADER(shadow_miss)
 PX_SHADER(sampling_test)

@@ -7,6 +7,7 @@ namespace px {
 const std::vector<uint32_t>& shader_raygen();
 const std::vector<uint32_t>& shader_preview();
 const std::vector<uint32_t>& shader_closesthit();
+const std::vector<uint32_t>& shader_self_skip_any_hit();
 const std::vector<uint32_t>& shader_miss();
 const std::vector<uint32_t>& shader_shadow_miss();
 const std::vector<uint32_t>& shader_sampling_test();

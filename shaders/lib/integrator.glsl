@@ -10,7 +10,7 @@ layout(constant_id = 0) const uint METHOD = METHOD_MIS;
 
 layout(set = 0, binding = BINDING_TLAS) uniform accelerationStructureEXT tlas;
 layout(location = 0) rayPayloadEXT HitPayload hit;
-layout(location = 1) rayPayloadEXT uint shadow_visible;
+layout(location = 1) rayPayloadEXT HitPayload shadow_hit;
 
 struct PathOptions {
     uint max_depth;       // non-discrete bounces; emission one segment further still counts
@@ -39,6 +39,9 @@ struct PathOptions {
     uint bounces;
     uint discrete;
     bool resume;
+    // The triangle the first ray starts on (NO_INDEX: a camera or cache ray, off any surface).
+    uint self_instance;
+    uint self_primitive;
 };
 
 // Options for a plain path from the frame's settings; callers change what differs.
@@ -68,6 +71,8 @@ PathOptions path_options() {
     opt.bounces = 0u;
     opt.discrete = 0u;
     opt.resume = false;
+    opt.self_instance = NO_INDEX;
+    opt.self_primitive = NO_INDEX;
     return opt;
 }
 
@@ -82,11 +87,26 @@ struct PathResult {
     vec2 ic_gradients;  // its entries' mean |g_t|, |g_r|
 };
 
-bool trace_shadow(vec3 origin, vec3 dir, float t_max) {
-    shadow_visible = 0u;
-    traceRayEXT(tlas, gl_RayFlagsOpaqueEXT | gl_RayFlagsTerminateOnFirstHitEXT | gl_RayFlagsSkipClosestHitShaderEXT,
+// Path rays that leave a surface start on it, as Cycles' do: the origin is the hit point moved a
+// few ulps back against the ray's direction (leave_surface), so a surface touching this one (an
+// object resting on a floor) lies ahead at t > 0, and self_skip.rahit ignores the triangle
+// itself. Both the refracted ray out of a glass cube's bottom face and the glass' internal
+// reflection there then meet the floor, and a floor bounce under the cube enters the glass
+// through its bottom face, so every exit from the glass has its entry. Rays off any surface
+// (self NO_INDEX: camera, cache and reflected shadow rays) stay opaque: no any-hit calls.
+uint surface_ray_flags(uint self_instance) {
+    return self_instance == NO_INDEX ? gl_RayFlagsOpaqueEXT : gl_RayFlagsNoneEXT;
+}
+
+vec3 leave_surface(vec3 p, vec3 ng, vec3 dir) { return offset_ray(p, dot(dir, ng) > 0.0 ? -ng : ng); }
+
+bool trace_shadow(vec3 origin, vec3 dir, float t_max, uint self_instance, uint self_primitive) {
+    shadow_hit.t = 0.0;
+    shadow_hit.instance = self_instance;
+    shadow_hit.primitive = self_primitive;
+    traceRayEXT(tlas, surface_ray_flags(self_instance) | gl_RayFlagsTerminateOnFirstHitEXT | gl_RayFlagsSkipClosestHitShaderEXT,
                 0xff, 0, 0, MISS_SHADOW, origin, 0.0, dir, t_max, 1);
-    return shadow_visible != 0u;
+    return shadow_hit.t < 0.0;
 }
 
 // The material of a mix chain whose BSDF scatters at this hit (Material.mix_next). One
@@ -152,9 +172,12 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
     uint g_open = NO_INDEX;  // the record whose next non-specular vertex is not reached yet
     float g_travelled = 0.0; // path length from that record's vertex to this segment's origin
     uint g_slot = opt.guiding_slot * GUIDING_PATH_VERTICES;
+    uint self_instance = opt.self_instance, self_primitive = opt.self_primitive;
 
     for (;;) {
-        traceRayEXT(tlas, gl_RayFlagsOpaqueEXT, 0xff, 0, 0, MISS_SCENE, origin, t_min, dir, t_max, 0);
+        hit.instance = self_instance;
+        hit.primitive = self_primitive;
+        traceRayEXT(tlas, surface_ray_flags(self_instance), 0xff, 0, 0, MISS_SCENE, origin, t_min, dir, t_max, 0);
         res.rays++;
         res.segments++;
         float t_surface = hit.t < 0.0 ? t_max : hit.t;
@@ -283,9 +306,14 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
                 // Guided vertex: the continuation's density is the one-sample MIS mixture.
                 if (USES(TECH_GUIDING) && g_prob > 0.0)
                     bsdf_pdf = mix(bsdf_pdf, guiding_vmm_pdf(g_first, g_lobes, sh.p, ls.wi), g_prob);
-                // Aim the shadow ray from the offset origin at the sampled point itself (a
-                // direction kept from the unoffset point misses grazing lights), stopping short.
-                vec3 shadow_origin = offset_ray(sh.p, dot(ls.wi, ng) > 0.0 ? ng : -ng);
+                // Aim the shadow ray from its origin at the sampled point itself (a direction
+                // kept from the unmoved point misses grazing lights), stopping short of it.
+                // A shadow ray through the surface (transmission) leaves on it; one on the side the
+                // path came from leaves from the usual offset: a surface touching this one there
+                // belongs to an object the ray then starts inside (the glass cube over the floor),
+                // which blocks it all the same, and opaque rays need no any-hit calls.
+                bool shadow_through = dot(ls.wi, ng) < 0.0;
+                vec3 shadow_origin = offset_ray(sh.p, ng);
                 vec3 shadow_dir = ls.wi;
                 float shadow_t = INFINITY_F;
                 if (ls.dist < INFINITY_F) {
@@ -295,7 +323,7 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
                     shadow_t *= 1.0 - 1e-4;
                 }
                 res.rays++;
-                if (!trace_shadow(shadow_origin, shadow_dir, shadow_t)) continue;
+                if (!trace_shadow(shadow_origin, shadow_dir, shadow_t, shadow_through ? sh.instance : NO_INDEX, sh.primitive)) continue;
                 float w = (METHOD == METHOD_MIS && !ls.delta && !last_vertex) ? mis_weight(float(opt.light_samples) * ls.pdf, bsdf_pdf) : 1.0;
                 res.radiance += throughput * f * ls.radiance * (w / (ls.pdf * float(opt.light_samples)));
             }
@@ -320,7 +348,8 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
                     uint seed = uint(rnd(rng) * 4294967040.0) ^ (res.segments << 24);
                     adrrs_queue(opt.adrrs_local, opt.adrrs_pixels,
                                 AdrrsSplit(origin, t_min, dir, t_max, throughput, seed,
-                                           bounces | (discrete << 16), copies - 1u, flags, res.segments));
+                                           bounces | (discrete << 16), copies - 1u, flags, res.segments,
+                                           self_instance, self_primitive));
                 }
             }
             adrrs_decided = true;
@@ -365,7 +394,9 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
             g_open = g_count++;
             g_travelled = 0.0;
         }
-        origin = offset_ray(sh.p, dot(dir, ng) > 0.0 ? ng : -ng);
+        origin = leave_surface(sh.p, ng, dir);
+        self_instance = sh.instance;
+        self_primitive = sh.primitive;
         prev_ng = sh.ng;
         t_min = 0.0;
         t_max = INFINITY_F;

@@ -43,11 +43,12 @@ vec3 srgb_to_linear(vec3 c) {
     return mix(c / 12.92, pow((c + 0.055) / 1.055, vec3(2.4)), step(vec3(0.04045), c));
 }
 
-vec3 texel_linear(TextureInfo t, uint x, uint y) {
-    return srgb_to_linear(unpackUnorm4x8(texels[t.offset + y * t.width + x]).rgb);
-}
+vec3 texel_srgb(TextureInfo t, uint x, uint y) { return unpackUnorm4x8(texels[t.offset + y * t.width + x]).rgb; }
 
-// Bilinear lookup with repeat wrapping; v = 1 is the top row (row 0), as in Blender.
+// Bilinear lookup with repeat wrapping; v = 1 is the top row (row 0), as in Blender. As Cycles
+// does for 8-bit sRGB images (svm_image_texture, NODE_IMAGE_COMPRESS_AS_SRGB), the stored sRGB
+// values are interpolated and the result decoded: decoding first would brighten every blend of
+// a light and a dark texel (the decode is convex), most where the texture is magnified.
 vec3 sample_texture(int index, vec2 uv) {
     TextureInfo t = textures[index];
     float x = fract(uv.x) * float(t.width) - 0.5;
@@ -56,8 +57,8 @@ vec3 sample_texture(int index, vec2 uv) {
     vec2 f = vec2(x - fx, y - fy);
     uint x0 = uint(int(fx) + int(t.width)) % t.width, x1 = (x0 + 1u) % t.width;
     uint y0 = uint(int(fy) + int(t.height)) % t.height, y1 = (y0 + 1u) % t.height;
-    return mix(mix(texel_linear(t, x0, y0), texel_linear(t, x1, y0), f.x),
-               mix(texel_linear(t, x0, y1), texel_linear(t, x1, y1), f.x), f.y);
+    return srgb_to_linear(mix(mix(texel_srgb(t, x0, y0), texel_srgb(t, x1, y0), f.x),
+                              mix(texel_srgb(t, x0, y1), texel_srgb(t, x1, y1), f.x), f.y));
 }
 
 vec3 material_albedo(Material m, vec2 uv) {

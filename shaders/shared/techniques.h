@@ -92,6 +92,8 @@ struct AdrrsSplit {
     uint copies;      // paths to trace from this entry
     uint flags;       // ADRRS_SPLIT_CAMERA_RAY: the ray was the camera ray
     uint segments;    // segments the path had traced up to the vertex
+    uint self_instance;   // the triangle the ray starts on (NO_INDEX: none)
+    uint self_primitive;
 };
 PX_CONST uint ADRRS_SPLIT_CAMERA_RAY = 1u;
 

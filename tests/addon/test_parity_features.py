@@ -1,5 +1,5 @@
 """Parity with Cycles on scenes built the way users build them (issue 14): lights with Soft
-Falloff close to a floor, objects resting on a floor, multiscatter GGX.
+Falloff close to a floor, objects resting on a floor, a sunlit textured floor, multiscatter GGX.
 
 Each scene is built here with blender_scenes/build.py's helpers (Cycles set up as for the
 .blend scenes: box filter, 8 bounces, no clamping) and rendered by both engines with seeds 0
@@ -43,6 +43,56 @@ def soft_falloff(b):
     b.set_world()
 
 
+def _area(b, name, location, target, power, size):
+    import bpy
+    from mathutils import Vector
+
+    light = bpy.data.lights.new(name, "AREA")
+    light.energy, light.shape, light.size = power, "SQUARE", size
+    direction = Vector(target) - Vector(location)
+    obj = b.add_object(name, light, location, direction.to_track_quat("-Z", "Y").to_euler())
+    obj.visible_camera = False
+    return obj
+
+
+def resting_on_floor(b):
+    """A rotated glass cube (GGX, roughness 0, IOR 1.45) and a diffuse cube whose bottom faces
+    lie in the floor's plane, under an area, a point and a spot light: a ray refracted out of
+    the glass' bottom face meets the floor right there (Cycles skips only the face it leaves)."""
+    b.add_rect("Floor", 6.0, 6.0, b.diffuse("Floor", (0.6, 0.6, 0.6)), (0, 0, 0))
+    b.add_rect("Wall", 6.0, 3.0, b.diffuse("Wall", (0.5, 0.6, 0.7)), (0, 1.5, 1.5), (math.pi / 2, 0, 0))
+    b.add_box("GlassCube", (0.9, 0.9, 0.9), b.glass("Glass", 1.45), (-0.45, 0.1, 0.45), rot_z=0.5)
+    b.add_box("Block", (0.6, 0.6, 0.6), b.diffuse("Block", (0.7, 0.5, 0.3)), (0.75, 0.3, 0.3), rot_z=-0.4)
+    _area(b, "Area", (-0.6, -1.0, 2.2), (-0.3, 0.2, 0.0), 150.0, 0.8)
+    point = b.add_point_light("Point", (0.9, -0.6, 1.2), 0.1, 40.0)
+    point.visible_camera = False
+    _spot(b, "Spot", (-1.2, -0.4, 1.6), (-0.45, 0.1, 0.0), 60.0, 0.1, 60.0, 0.2)
+    b.add_camera((0.2, -3.0, 1.6), (0.0, 0.2, 0.3), 50.0)
+    b.set_world()
+
+
+def sunlit_textured_floor(b):
+    """A floor with a magnified high-contrast checker texture (8-bit sRGB, Linear
+    interpolation) seen at grazing angles, boxes placed as collection instances, a sun of 5
+    degrees and a world colour. Every shading point blends texels of 0.1 and 0.9 (sRGB)."""
+    import bpy
+    import numpy as np
+
+    checker = np.indices((8, 8)).sum(axis=0) % 2
+    image = b.packed_image("Checker", np.repeat(np.where(checker, 0.9, 0.1)[..., None], 3, axis=2))
+    floor = b.add_rect("Floor", 8.0, 8.0, b.textured_diffuse("Floor", image), (0, 1.0, 0))
+    b.box_project_uvs(floor.data, 2.0)
+    collection = bpy.data.collections.new("Crate")
+    crate = b.make_mesh("Crate", b.box_geometry((0.4, 0.4, 0.4)), [b.diffuse("Crate", (0.7, 0.6, 0.4))])
+    collection.objects.link(bpy.data.objects.new("Crate", crate))
+    for i, (x, y, rz) in enumerate([(-0.8, 1.0, 0.3), (0.6, 2.2, -0.5)]):
+        empty = b.add_object(f"CrateInstance{i}", None, (x, y, 0.2), (0, 0, rz))
+        empty.instance_type, empty.instance_collection = "COLLECTION", collection
+    b.add_sun_light("Sun", (0.4, 0.7, -0.45), 3.0, 5.0)
+    b.add_camera((0.0, -2.5, 0.45), (0.0, 2.0, 0.0), 60.0)
+    b.set_world((0.05, 0.07, 0.1), 1.0)
+
+
 def _build(bpy, builder):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
@@ -84,3 +134,15 @@ def test_soft_falloff_matches_cycles(bpy, tmp_path):
     assert ours == pytest.approx(theirs, rel=0.03)
     assert ratio < 3.0
 
+
+
+def test_objects_resting_on_a_floor_match_cycles(bpy, tmp_path):
+    ratio, _, ours, theirs = compare(bpy, tmp_path, resting_on_floor)
+    assert ours == pytest.approx(theirs, rel=0.03)
+    assert ratio < 3.0
+
+
+def test_sunlit_textured_floor_matches_cycles(bpy, tmp_path):
+    ratio, _, ours, theirs = compare(bpy, tmp_path, sunlit_textured_floor)
+    assert ours == pytest.approx(theirs, rel=0.03)
+    assert ratio < 3.0

@@ -235,7 +235,7 @@ RayTracingPipeline& Session::pipeline(uint32_t program, bool cache_queries) {
 std::unique_ptr<RayTracingPipeline> Session::build_pipeline(uint32_t program, const std::array<uint32_t, 5>& key) {
     const uint32_t techniques = key[3];
     // Stages, then groups: raygen | miss: MISS_SCENE, MISS_SHADOW, MISS_IC_QUERY,
-    // MISS_GUIDING_QUERY | hit groups: HIT_GROUP_TRIANGLES, HIT_GROUP_IC (procedural:
+    // MISS_GUIDING_QUERY | hit groups: HIT_GROUP_TRIANGLES (closest-hit + self-skip any-hit), HIT_GROUP_IC (procedural:
     // intersection + any-hit), HIT_GROUP_GUIDING (intersection + closest-hit). A technique's
     // shaders are left out of pipelines that never use it (less to compile); guiding without
     // the cache puts copies of its groups into the cache's slots.
@@ -279,6 +279,11 @@ std::unique_ptr<RayTracingPipeline> Session::build_pipeline(uint32_t program, co
         }
         groups.insert(groups.begin() + 1 + MISS_GUIDING_QUERY, miss_group);
         groups.push_back(hit_group);
+    }
+    if (program != PROGRAM_PREVIEW) {  // rays leaving a surface skip its triangle (self_skip.rahit)
+        for (auto& g : groups)
+            if (g.type == VK_RAY_TRACING_SHADER_GROUP_TYPE_TRIANGLES_HIT_GROUP_KHR) g.any_hit = uint32_t(stages.size());
+        stages.push_back({VK_SHADER_STAGE_ANY_HIT_BIT_KHR, &shader_self_skip_any_hit()});
     }
     return std::make_unique<RayTracingPipeline>(*ctx_, set_->layout(), uint32_t(sizeof(FrameParams)), stages, groups,
                                                 std::vector<uint32_t>(key.begin(), key.begin() + 4));

@@ -48,7 +48,7 @@ std::vector<std::unique_ptr<AccelerationStructure>> build_triangle_blases(
         auto& g = geometries[i];
         g = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_KHR};
         g.geometryType = VK_GEOMETRY_TYPE_TRIANGLES_KHR;
-        g.flags = VK_GEOMETRY_OPAQUE_BIT_KHR;
+        g.flags = 0;  // not opaque: rays that leave a surface run self_skip.rahit (opaque-flagged rays do not)
         auto& t = g.geometry.triangles;
         t = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_TRIANGLES_DATA_KHR};
         t.vertexFormat = VK_FORMAT_R32G32B32_SFLOAT;
