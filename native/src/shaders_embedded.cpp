@@ -1,6 +1,7 @@
 #include "shaders_embedded.h"
 
 #include "closesthit.spv.h"
+#include "guiding_fit.spv.h"
 #include "guiding_query_closest_hit.spv.h"
 #include "guiding_query_intersection.spv.h"
 #include "guiding_query_miss.spv.h"
@@ -35,4 +36,5 @@ PX_SHADER(ic_finish)
 PX_SHADER(guiding_query_miss)
 PX_SHADER(guiding_query_intersection)
 PX_SHADER(guiding_query_closest_hit)
+PX_SHADER(guiding_fit)
 }  // namespace px
