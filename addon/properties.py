@@ -37,7 +37,7 @@ GUIDING_FIT_ITEMS = (
     ("cpu", "CPU", "Fit the mixtures on the CPU: the samples are read back after each training "
                    "frame, kept per region until there are enough, and regions refine"),
     ("device", "Device", "Fit the mixtures in compute shaders where the samples are: no readback; "
-                         "each frame's samples are one step of the fit, the regions stay fixed"),
+                         "the regions stay as many as Region Splits makes (no refinement)"),
 )
 ADRRS_ESTIMATE_ITEMS = (
     ("ic", "Irradiance Cache", "Estimate frames after the cache's prepare frames: paths to the "

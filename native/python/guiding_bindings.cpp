@@ -159,10 +159,11 @@ struct DeviceFitter {
     px::Buffer samples, regions, lobes;
     std::unique_ptr<DeviceFit> fit;
     uint32_t last_count = 0;
-    DeviceFitter(uint32_t region_count, const FitOptions& o, bool parallax, const std::string& device)
+    DeviceFitter(uint32_t region_count, const FitOptions& o, bool parallax, const std::string& device,
+                 uint32_t min_samples)
         : ctx(px::Context::shared(device)) {
         validate_fit_options(o);
-        fit = std::make_unique<DeviceFit>(*ctx, region_count, o, parallax);
+        fit = std::make_unique<DeviceFit>(*ctx, region_count, o, parallax, min_samples);
         std::vector<GuidingRegion> r(region_count, GuidingRegion{});
         regions = px::Buffer::with_vector(*ctx, r, px::kStorageUsage);
         std::vector<GuidingLobe> l(size_t(region_count) * GUIDING_MAX_COMPONENTS, GuidingLobe{});
@@ -446,8 +447,8 @@ void bind_guiding(nb::module_& parent) {
         });
 
     nb::class_<DeviceFitter>(m, "DeviceFit")
-        .def(nb::init<uint32_t, const FitOptions&, bool, const std::string&>(), "regions"_a,
-             "options"_a = FitOptions(), "parallax"_a = false, "device"_a = "cpu",
+        .def(nb::init<uint32_t, const FitOptions&, bool, const std::string&, uint32_t>(), "regions"_a,
+             "options"_a = FitOptions(), "parallax"_a = false, "device"_a = "cpu", "min_samples"_a = 1,
              "The device fit (fit.comp) of `regions` untrained regions on the device `device` picks.")
         .def("fit", [](DeviceFitter& f, nb::ndarray<const uint32_t, nb::c_contig, nb::device::cpu> records) {
             if (records.ndim() != 2 || records.shape(1) != 8)
@@ -469,6 +470,7 @@ void bind_guiding(nb::module_& parent) {
             d["merges"] = s.merges;
             d["log_likelihood"] = s.log_likelihood;
             d["new_samples"] = s.new_samples;
+            d["pending"] = s.pending;
             d["pivot"] = nb::make_tuple(s.position_mean.x, s.position_mean.y, s.position_mean.z);
             return d;
         }, "region"_a)

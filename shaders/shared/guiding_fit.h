@@ -13,7 +13,9 @@ PX_CONST uint GUIDING_FIT_BINDING_STATE_LOBES = 4; // GuidingFitLobe[regions * G
 PX_CONST uint GUIDING_FIT_BINDING_COUNTS = 5;      // uint[(regions + 1) * blocks], bin-major; then offsets
 PX_CONST uint GUIDING_FIT_BINDING_STARTS = 6;      // uint[regions + 2]: first sorted slot of each bin, total
 PX_CONST uint GUIDING_FIT_BINDING_SORTED = 7;      // uint[samples]: sample indices, by bin, stable
-PX_CONST uint GUIDING_FIT_BINDING_COUNT = 8;
+PX_CONST uint GUIDING_FIT_BINDING_PENDING = 8;     // GuidingSample[regions * pending_capacity]: lit
+                                                   // samples of regions still below min_samples
+PX_CONST uint GUIDING_FIT_BINDING_COUNT = 9;
 
 PX_CONST uint GUIDING_FIT_GROUP = 64;  // threads per workgroup (the EM: one workgroup per region)
 
@@ -46,7 +48,9 @@ struct GuidingFitPush {
     float merge_threshold;
     float merge_min_samples;
     uint parallax;
-    uint pad0, pad1, pad2;
+    uint min_samples;       // guiding_min_samples: a region fits once it has this many lit samples
+    uint pending_capacity;  // max(min_samples, 2 max_components + 1)
+    uint pad0;
 };
 
 // A region's fit state (its mixture lives in GuidingFitLobe records).
@@ -61,6 +65,8 @@ struct GuidingFitRegion {
     uint splits;
     uint merges;
     float log_likelihood; // the last fit's weighted mean log density
+    uint pending;         // lit samples kept from earlier frames (not fitted yet) ...
+    float pending_zero;   // ... and the unlit ones they came with (only counted)
 };
 
 // One lobe of a region's mixture and its sufficient statistics (em.h ComponentStats):

@@ -121,6 +121,31 @@ def test_one_em_step_matches_the_host_fit_in_several_regions():
             assert st["log_likelihood"] == pytest.approx(rep["log_likelihood"], rel=1e-4, abs=1e-4)
 
 
+def test_lit_samples_wait_across_frames_until_min_samples():
+    """A region below min_samples keeps its lit samples on the device (field.cpp's reservoir):
+    three frames of 30 samples (a third unlit) with min_samples 50 fit once, on all 60 lit
+    samples of the first two frames then the third's, as the host fits their concatenation."""
+    rng = np.random.default_rng(96)
+    frames = []
+    for _ in range(3):
+        d, w, p = random_set(rng, 30)
+        w = np.exp(rng.normal(size=30))
+        w[:10] = 0.0
+        frames.append((d, w, p))
+    o = options(max_iterations=1, split_merge=False, initial_components=2)
+    f = g.DeviceFit(1, o, device=DEVICE, min_samples=50)
+    f.fit(records(*frames[0]))
+    assert f.state(0)["fits"] == 0 and f.state(0)["pending"] == 20 and f.state(0)["components"] == 0
+    f.fit(records(*frames[1]))
+    assert f.state(0)["fits"] == 0 and f.state(0)["pending"] == 40
+    f.fit(records(*frames[2]))
+    st = f.state(0)
+    assert st["fits"] == 1 and st["pending"] == 0 and st["samples"] == 90
+    lit = [np.concatenate([fr[i][fr[1] > 0] for fr in frames]) for i in range(3)]
+    cpu, _ = host_fit([tuple(lit)], o)
+    assert_same_mixture(f.mixture(0), cpu.mixture)
+
+
 def test_converged_log_likelihood_within_one_percent():
     rng = np.random.default_rng(92)
     for d, w, p in (three_lobes(rng, 20_000), random_set(rng, 20_000)):

@@ -6,10 +6,12 @@
 // statistics decayed, MAP priors on the weights and the mean cosine, split (chi^2 divergence
 // and PCA) and merge (closed-form chi^2 of two lobes against one), parallax distances, and
 // writes the GuidingRegion/GuidingLobe records the sampler reads. Every reduction has a fixed
-// order (a sample's thread is its index mod 64, then a fixed tree): no float atomics, so a
-// fixed input gives the same mixtures from run to run. In float, where the host is double.
+// order (fixed per-thread sample ranges, then a fixed tree): no float atomics, so a fixed
+// input gives the same mixtures from run to run. In float, where the host is double. Loops are
+// [[dont_unroll]]: llvmpipe compiles the unrolled shader 4x slower (lavapipe's first dispatch).
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_scalar_block_layout : require
+#extension GL_EXT_control_flow_attributes : require
 #include "../../shared/types.h"
 #include "../../shared/guiding_fit.h"
 
@@ -26,6 +28,7 @@ layout(set = 0, binding = GUIDING_FIT_BINDING_STATE_LOBES, scalar) buffer StateL
 layout(set = 0, binding = GUIDING_FIT_BINDING_COUNTS, scalar) buffer Counts { uint counts[]; };
 layout(set = 0, binding = GUIDING_FIT_BINDING_STARTS, scalar) buffer Starts { uint starts[]; };
 layout(set = 0, binding = GUIDING_FIT_BINDING_SORTED, scalar) buffer Sorted { uint sorted_index[]; };
+layout(set = 0, binding = GUIDING_FIT_BINDING_PENDING, scalar) buffer Pending { GuidingSample pending_samples[]; };
 
 const float PI = 3.14159265358979;
 const float KAPPA_MIN = 1e-3;  // GUIDING_KAPPA_MIN, kKappaMin
@@ -44,9 +47,9 @@ uint bin_of(uint i) {
 void pass_count() {
     uint b = gl_GlobalInvocationID.x;
     if (b >= pc.block_count) return;
-    for (uint r = 0u; r <= pc.region_count; ++r) counts[r * pc.block_count + b] = 0u;
+    [[dont_unroll]] for (uint r = 0u; r <= pc.region_count; ++r) counts[r * pc.block_count + b] = 0u;
     uint end = min(pc.sample_count, (b + 1u) * pc.block_size);
-    for (uint i = b * pc.block_size; i < end; ++i) counts[bin_of(i) * pc.block_count + b] += 1u;
+    [[dont_unroll]] for (uint i = b * pc.block_size; i < end; ++i) counts[bin_of(i) * pc.block_count + b] += 1u;
 }
 
 shared uint scan_part[G];
@@ -56,12 +59,12 @@ void pass_scan() {  // one workgroup: counts[bin * blocks + block] becomes its f
     uint chunk = (total + G - 1u) / G;
     uint lo = min(total, t * chunk), hi = min(total, lo + chunk);
     uint sum = 0u;
-    for (uint j = lo; j < hi; ++j) sum += counts[j];
+    [[dont_unroll]] for (uint j = lo; j < hi; ++j) sum += counts[j];
     scan_part[t] = sum;
     barrier();
     if (t == 0u) {
         uint run = 0u;
-        for (uint j = 0u; j < G; ++j) {
+        [[dont_unroll]] for (uint j = 0u; j < G; ++j) {
             uint c = scan_part[j];
             scan_part[j] = run;
             run += c;
@@ -70,7 +73,7 @@ void pass_scan() {  // one workgroup: counts[bin * blocks + block] becomes its f
     }
     barrier();
     uint run = scan_part[t];
-    for (uint j = lo; j < hi; ++j) {
+    [[dont_unroll]] for (uint j = lo; j < hi; ++j) {
         uint c = counts[j];
         counts[j] = run;
         if (j % pc.block_count == 0u) starts[j / pc.block_count] = run;
@@ -82,7 +85,7 @@ void pass_scatter() {  // in sample order within a block, blocks in order: stabl
     uint b = gl_GlobalInvocationID.x;
     if (b >= pc.block_count) return;
     uint end = min(pc.sample_count, (b + 1u) * pc.block_size);
-    for (uint i = b * pc.block_size; i < end; ++i) {
+    [[dont_unroll]] for (uint i = b * pc.block_size; i < end; ++i) {
         uint c = bin_of(i) * pc.block_count + b;
         sorted_index[counts[c]] = i;
         counts[c] += 1u;
@@ -119,7 +122,7 @@ float kappa_from_mean_cosine(float r) {
     if (r >= 0.95) return 1.0 / max(1.0 - r, 1e-30);
     float lo = 0.0, hi = 20.0;
     float k = min(r * (3.0 - r * r) / (1.0 - r * r), hi);
-    for (int i = 0; i < 40; ++i) {
+    [[dont_unroll]] for (int i = 0; i < 40; ++i) {
         float f = mean_cosine(k) - r;
         if (f > 0.0) hi = k; else lo = k;
         float next = k - f / mean_cosine_derivative(k);
@@ -148,6 +151,9 @@ vec3 unpack_direction(uint packed) {  // GuidingSample.direction (octahedral sno
 // to compile); per-sample and per-lobe values live in shared memory instead.
 shared uint s_count;
 shared vec3 s_pivot;
+// The batch: s_pend samples kept from earlier frames (pending_samples[s_pend_base ..]), then
+// this frame's (samples[sorted_index[s_lo ..]]); batch index j covers both.
+shared uint s_pend, s_pend_base, s_lo;
 shared float s_weight[K_MAX], s_kappa[K_MAX], s_distance[K_MAX];  // distance <= 0: infinite
 shared vec3 s_mu[K_MAX];
 // statistics: this fit's (previous + batch) and the previous batches' decayed
@@ -171,7 +177,7 @@ shared uint s_order[K_MAX], s_order_count, s_splits;
 // Tree sum of red_a/red_b over the workgroup (fixed order); the result is in [0].
 void reduce2() {
     uint t = gl_LocalInvocationID.x;
-    for (uint s = G / 2u; s > 0u; s >>= 1u) {
+    [[dont_unroll]] for (uint s = G / 2u; s > 0u; s >>= 1u) {
         barrier();
         if (t < s) {
             red_a[t] += red_a[t + s];
@@ -191,7 +197,7 @@ void reduce_quarters(vec4 a, vec4 b) {
     barrier();
     vec4 sa = vec4(0.0), sb = vec4(0.0);
     if (t < K_MAX) {
-        for (uint q = 0u; q < G / K_MAX; ++q) {
+        [[dont_unroll]] for (uint q = 0u; q < G / K_MAX; ++q) {
             sa += red_a[t + q * K_MAX];
             sb += red_b[t + q * K_MAX];
         }
@@ -206,8 +212,18 @@ void reduce_quarters(vec4 a, vec4 b) {
 
 // Sample j of the batch seen from the pivot (parallax.cpp make_batch): with parallax its
 // direction is normalize(x + d w - pivot) and its distance |x + d w - pivot|.
+// (Member by member: the two blocks' GuidingSample are different SPIR-V types.)
+GuidingSample batch_sample(uint j) {
+    if (j < s_pend) {
+        uint i = s_pend_base + j;
+        return GuidingSample(pending_samples[i].position, pending_samples[i].region, pending_samples[i].direction,
+                             pending_samples[i].pdf, pending_samples[i].weight, pending_samples[i].distance);
+    }
+    return samples[sorted_index[s_lo + j - s_pend]];
+}
+
 void load_sample(uint j, out vec3 w, out float weight, out float pdf, out float inv_d) {
-    GuidingSample g = samples[sorted_index[j]];
+    GuidingSample g = batch_sample(j);
     w = unpack_direction(g.direction);
     weight = g.weight;
     pdf = g.pdf;
@@ -252,7 +268,7 @@ void load_chunk(uint j0, uint hi) {
     if (!(weight > 0.0)) weight = 0.0;
     uint base = t * K_MAX;
     float mx = -1e30;
-    for (uint k = 0u; k < n; ++k) {
+    [[dont_unroll]] for (uint k = 0u; k < n; ++k) {
         vec3 d = e_mu[k] - w;
         float v = e_logwc[k] - 0.5 * e_kappa[k] * dot(d, d);
         c_g[base + k] = v;
@@ -261,16 +277,16 @@ void load_chunk(uint j0, uint hi) {
     float logv = -1e30;
     if (mx > -1e29) {
         float sum = 0.0;
-        for (uint k = 0u; k < n; ++k) {
+        [[dont_unroll]] for (uint k = 0u; k < n; ++k) {
             float e = exp(c_g[base + k] - mx);
             c_g[base + k] = e;
             sum += e;
         }
         float inv = 1.0 / sum;
-        for (uint k = 0u; k < n; ++k) c_g[base + k] *= inv;
+        [[dont_unroll]] for (uint k = 0u; k < n; ++k) c_g[base + k] *= inv;
         logv = mx + log(sum);
     } else {
-        for (uint k = 0u; k < n; ++k) c_g[base + k] = 0.0;
+        [[dont_unroll]] for (uint k = 0u; k < n; ++k) c_g[base + k] = 0.0;
     }
     float f = weight * pdf / s_mean_w;
     float term = f * f / (exp(logv) * pdf) - 2.0 * f / pdf;
@@ -296,7 +312,7 @@ void lobe_from_stats(vec4 st, float n, inout vec3 mu, out float kappa) {
 void stat_sums(out float W, out float N) {  // the same order on every thread
     W = 0.0;
     N = 0.0;
-    for (uint k = 0u; k < s_count; ++k) {
+    [[dont_unroll]] for (uint k = 0u; k < s_count; ++k) {
         W += s_stat[k].w;
         N += s_stat2[k].x;
     }
@@ -332,9 +348,9 @@ uint run_em(uint lo, uint hi) {
         prepare_lobes();
         uint n = e_count;
         vec4 a = vec4(0.0), b = vec4(0.0);  // sum w g omega, sum w g | sum g, sum w g / d, ll, wsum
-        for (uint j0 = lo; j0 < hi; j0 += G) {
+        [[dont_unroll]] for (uint j0 = lo; j0 < hi; j0 += G) {
             load_chunk(j0, hi);
-            for (uint i = q * K_MAX; i < (q + 1u) * K_MAX; ++i) {
+            [[dont_unroll]] for (uint i = q * K_MAX; i < (q + 1u) * K_MAX; ++i) {
                 float wt = c_weight[i];
                 if (!(wt > 0.0)) continue;
                 if (k == 0u && c_logv[i] > -1e29) b.zw += vec2(wt * c_logv[i], wt);
@@ -368,8 +384,8 @@ uint split_lobes(uint lo, uint hi, float total_samples) {
     uint kk = t % K_MAX, q = t / K_MAX;
     // the batch's mean weight, zero-weight samples included
     float wsum = 0.0;
-    for (uint j = lo + t; j < hi; j += G) {
-        float weight = samples[sorted_index[j]].weight;
+    [[dont_unroll]] for (uint j = lo + t; j < hi; j += G) {
+        float weight = batch_sample(j).weight;
         if (weight > 0.0) wsum += weight;
     }
     barrier();
@@ -383,10 +399,10 @@ uint split_lobes(uint lo, uint hi, float total_samples) {
     prepare_lobes();  // the mixture before any split: responsibilities refer to it
     uint n = e_count;
     float d = 0.0;
-    for (uint j0 = lo; j0 < hi; j0 += G) {
+    [[dont_unroll]] for (uint j0 = lo; j0 < hi; j0 += G) {
         load_chunk(j0, hi);
         if (kk < n)
-            for (uint i = q * K_MAX; i < (q + 1u) * K_MAX; ++i) d += c_g[i * K_MAX + kk] * c_term[i];
+            [[dont_unroll]] for (uint i = q * K_MAX; i < (q + 1u) * K_MAX; ++i) d += c_g[i * K_MAX + kk] * c_term[i];
         barrier();
     }
     reduce_quarters(vec4(d, 0.0, 0.0, 0.0), vec4(0.0));
@@ -396,7 +412,7 @@ uint split_lobes(uint lo, uint hi, float total_samples) {
         float W, N;
         stat_sums(W, N);
         uint c = 0u;
-        for (uint k = 0u; k < n; ++k) {
+        [[dont_unroll]] for (uint k = 0u; k < n; ++k) {
             if (!(W > 0.0) || !(s_div[k] >= pc.split_threshold) || !(N * s_stat[k].w / W > pc.split_min_samples))
                 continue;
             uint p = c++;
@@ -411,14 +427,14 @@ uint split_lobes(uint lo, uint hi, float total_samples) {
     }
     barrier();
     uint candidates = s_order_count;
-    for (uint c = 0u; c < candidates; ++c) {
+    [[dont_unroll]] for (uint c = 0u; c < candidates; ++c) {
         if (s_count >= pc.max_components) break;
         uint k = s_order[c];
         vec3 tb, bb;
         make_basis(s_mu[k], tb, bb);
         // PCA of lobe k's samples in the tangent plane of its mean
         vec4 a = vec4(0.0), b = vec4(0.0);  // sw, mx, my, sxx | sxy, syy
-        for (uint j0 = lo; j0 < hi; j0 += G) {
+        [[dont_unroll]] for (uint j0 = lo; j0 < hi; j0 += G) {
             load_chunk(j0, hi);
             float w = c_weight[t] * c_g[t * K_MAX + k];
             if (w > 0.0) {
@@ -516,8 +532,8 @@ uint merge_lobes() {
         stat_sums(W, N);
         uint n = s_count;
         uint p = 0u;
-        for (uint k = 0u; k < n; ++k)
-            for (uint l = k + 1u; l < n; ++l, ++p) {
+        [[dont_unroll]] for (uint k = 0u; k < n; ++k)
+            [[dont_unroll]] for (uint l = k + 1u; l < n; ++l, ++p) {
                 if (p % G != t) continue;
                 vec4 c = s_stat[k] + s_stat[l];
                 vec3 mu = s_weight[k] >= s_weight[l] ? s_mu[k] : s_mu[l];
@@ -530,8 +546,8 @@ uint merge_lobes() {
             float best = 1e30;
             uint bk = 0u, bl = 0u;
             p = 0u;
-            for (uint k = 0u; k < n; ++k)
-                for (uint l = k + 1u; l < n; ++l, ++p)
+            [[dont_unroll]] for (uint k = 0u; k < n; ++k)
+                [[dont_unroll]] for (uint l = k + 1u; l < n; ++l, ++p)
                     if (s_pair_metric[p] < best) {
                         best = s_pair_metric[p];
                         bk = k;
@@ -571,7 +587,7 @@ void pass_em() {
     // This batch's positions (all samples) and its samples with a non-zero weight.
     vec4 a = vec4(0.0);
     float nonzero = 0.0;
-    for (uint j = lo + t; j < hi; j += G) {
+    [[dont_unroll]] for (uint j = lo + t; j < hi; j += G) {
         GuidingSample s = samples[sorted_index[j]];
         a += vec4(s.position, 1.0);
         nonzero += s.weight > 0.0 ? 1.0 : 0.0;
@@ -588,20 +604,43 @@ void pass_em() {
         st.position_count = total;
         st.samples = uint(min(float(st.samples) + batch_n, 4294967040.0));
     }
+    // A region fits once it has min_samples lit samples, and more than 2K ("EM only when
+    // N > 2K", em.cpp fit_batch); until then its lit samples wait in pending_samples across
+    // frames (field.cpp: rarely lit regions train too).
     uint k0 = st.count != 0u ? st.count : min(pc.initial_components, pc.max_components);
-    bool fit = nonzero > float(2u * k0);  // "EM only when N > 2K" (em.cpp fit_batch)
+    float lit = float(st.pending) + nonzero;
+    bool fit = lit >= float(max(pc.min_samples, 2u * k0 + 1u));
+    uint pend_base = r * pc.pending_capacity;
     if (!fit) {
-        if (t == 0u) {
+        if (t == 0u) {  // keep this frame's lit samples, in order
+            uint p = st.pending;
+            [[dont_unroll]] for (uint j = lo; j < hi && p < pc.pending_capacity; ++j) {
+                uint i = sorted_index[j];
+                if (!(samples[i].weight > 0.0)) continue;
+                uint o = pend_base + p++;
+                pending_samples[o].position = samples[i].position;
+                pending_samples[o].region = samples[i].region;
+                pending_samples[o].direction = samples[i].direction;
+                pending_samples[o].pdf = samples[i].pdf;
+                pending_samples[o].weight = samples[i].weight;
+                pending_samples[o].distance = samples[i].distance;
+            }
+            st.pending = p;
+            st.pending_zero += batch_n - nonzero;
             states[r] = st;
             regions[r].samples = st.samples;
         }
         return;
     }
+    float total_samples = st.pending_zero + float(st.pending) + batch_n;
     uint base = r * K_MAX;
     if (t == 0u) {
         s_count = st.count;
         s_pivot = st.position_mean;
         s_mean_w = 1.0;
+        s_pend = st.pending;
+        s_pend_base = pend_base;
+        s_lo = lo;
     }
     if (t < K_MAX) {
         GuidingFitLobe l = state_lobes[base + t];
@@ -644,12 +683,15 @@ void pass_em() {
         s_prev2[t] = s_stat2[t] * pc.decay;
     }
     barrier();
-    uint iterations = run_em(lo, hi);
-    st.new_samples += nonzero;
+    uint batch_end = st.pending + (hi - lo);  // batch indices [0, batch_end)
+    uint iterations = run_em(0u, batch_end);
+    st.new_samples += lit;
+    st.pending = 0u;
+    st.pending_zero = 0.0;
     uint splits = 0u, merges = 0u;
     if (pc.split_merge != 0u) {
-        splits = split_lobes(lo, hi, batch_n);
-        if (splits != 0u) iterations += run_em(lo, hi);
+        splits = split_lobes(0u, batch_end, total_samples);
+        if (splits != 0u) iterations += run_em(0u, batch_end);
         if (st.new_samples > pc.merge_min_samples) {
             merges = merge_lobes();
             st.new_samples = 0.0;
@@ -676,7 +718,7 @@ void pass_em() {
         g.distance = -1.0;
         if (on) {
             float total = 0.0, cdf = 0.0;
-            for (uint k = 0u; k < n; ++k) {
+            [[dont_unroll]] for (uint k = 0u; k < n; ++k) {
                 total += s_weight[k];
                 if (k <= t) cdf += s_weight[k];
             }

@@ -30,9 +30,13 @@ void barrier(VkCommandBuffer cmd) {
 
 }  // namespace
 
-DeviceFit::DeviceFit(Context& ctx, uint32_t regions, const FitOptions& o, bool parallax) : ctx_(ctx), regions_(regions) {
+DeviceFit::DeviceFit(Context& ctx, uint32_t regions, const FitOptions& o, bool parallax, uint32_t min_samples)
+    : ctx_(ctx), regions_(regions) {
     validate_fit_options(o);
     if (regions < 1 || regions > (1u << 22)) throw std::invalid_argument("device fit: regions must be in [1, 2^22]");
+    if (min_samples < 1 || min_samples > (1u << 24)) throw std::invalid_argument("device fit: min_samples must be in [1, 2^24]");
+    push_.min_samples = min_samples;
+    push_.pending_capacity = std::max(min_samples, 2 * o.max_components + 1);
     push_.region_count = regions;
     push_.max_components = o.max_components;
     push_.initial_components = std::min(o.initial_components, o.max_components);
@@ -57,6 +61,8 @@ DeviceFit::DeviceFit(Context& ctx, uint32_t regions, const FitOptions& o, bool p
     lobes_state_.fill_zero();
     starts_ = Buffer(ctx_, (size_t(regions) + 2) * sizeof(uint32_t), kStorageUsage);
     starts_.fill_zero();
+    pending_ = Buffer(ctx_, size_t(regions) * push_.pending_capacity * sizeof(GuidingSample), kStorageUsage);
+    set_->bind_buffer(GUIDING_FIT_BINDING_PENDING, pending_);
     set_->bind_buffer(GUIDING_FIT_BINDING_STATE, states_);
     set_->bind_buffer(GUIDING_FIT_BINDING_STATE_LOBES, lobes_state_);
     set_->bind_buffer(GUIDING_FIT_BINDING_STARTS, starts_);

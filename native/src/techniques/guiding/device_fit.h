@@ -5,9 +5,9 @@
 // only records the dispatches: no readback, no upload. The fit state (statistics, mixtures,
 // pivots) lives in device buffers across frames.
 // Differences from the host field (field.h), by design: each frame's samples of a region are
-// one batch of stepwise EM (the previous statistics decayed), fitted when it has more than 2K
-// samples of non-zero weight, instead of a reservoir that waits for guiding_min_samples; no
-// reservoir cap; and the regions stay the initial 2^guiding_region_splits (no adaptive
+// batch of stepwise EM (the previous statistics decayed) once the region has guiding_min_samples
+// lit samples, those of earlier frames kept on the device until then (as the host field's
+// reservoir, without its cap of max_batch: a batch is all of them); and the regions stay the initial 2^guiding_region_splits (no adaptive
 // refinement). Samples without a valid region are dropped (the trace loop sets one).
 #pragma once
 #include "techniques/guiding/em.h"
@@ -24,8 +24,10 @@ namespace px::guiding {
 
 class DeviceFit {
 public:
-    // `regions` regions, all untrained; `options` as the host fit's (validated).
-    DeviceFit(Context& ctx, uint32_t regions, const FitOptions& options, bool parallax);
+    // `regions` regions, all untrained; `options` as the host fit's (validated). A region fits
+    // once it has min_samples lit samples (guiding_min_samples; more than 2K in any case),
+    // kept across frames until then.
+    DeviceFit(Context& ctx, uint32_t regions, const FitOptions& options, bool parallax, uint32_t min_samples = 1);
     // The frame's sample buffer and the records the sampler reads (regions: GuidingRegion[regions],
     // lobes: GuidingLobe[regions * GUIDING_MAX_COMPONENTS]); again whenever one is re-created.
     void bind(const Buffer& samples, const Buffer& regions, const Buffer& lobes);
@@ -50,7 +52,7 @@ private:
     uint32_t regions_;
     GuidingFitPush push_{};
     std::unique_ptr<DescriptorSet> set_;
-    Buffer states_, lobes_state_, counts_, starts_, sorted_;
+    Buffer states_, lobes_state_, counts_, starts_, sorted_, pending_;
     uint32_t block_size_ = 0, block_count_ = 0, sorted_capacity_ = 0;
     size_t samples_bytes_ = 0;
 };

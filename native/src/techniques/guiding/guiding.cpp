@@ -109,7 +109,7 @@ void Guiding::configure(const GuidingParams& params, const SceneHost& scene, uin
     upload(nullptr);
     if (params_.fit == GUIDING_FIT_DEVICE) {
         device_fit_ = std::make_unique<guiding::DeviceFit>(ctx_, uint32_t(field_->region_count()), field_->fit_options(),
-                                                           params_.parallax != 0);
+                                                           params_.parallax != 0, params_.min_samples);
         device_fit_->bind(samples_, regions_, lobes_);
     }
 }
