@@ -32,7 +32,13 @@ ADRRS_SETTINGS = ("adrrs", "adrrs_splitting", "adrrs_window", "adrrs_rr_min", "a
 GUIDING_SETTINGS = ("guiding", "guiding_prob", "guiding_parallax", "guiding_training_spp",
                     "guiding_min_samples", "guiding_max_components", "guiding_split_merge",
                     "guiding_region_splits", "guiding_region_threshold", "guiding_max_regions",
-                    "guiding_probe_x", "guiding_probe_y")
+                    "guiding_probe_x", "guiding_probe_y", "guiding_fit")
+GUIDING_FIT_ITEMS = (
+    ("cpu", "CPU", "Fit the mixtures on the CPU: the samples are read back after each training "
+                   "frame, kept per region until there are enough, and regions refine"),
+    ("device", "Device", "Fit the mixtures in compute shaders where the samples are: no readback; "
+                         "the regions stay as many as Region Splits makes (no refinement)"),
+)
 ADRRS_ESTIMATE_ITEMS = (
     ("ic", "Irradiance Cache", "Estimate frames after the cache's prepare frames: paths to the "
                                "first non-specular hit, lit by NEE and the cache (thesis 4.5)"),
@@ -206,6 +212,9 @@ class ParallaxRenderSettings(bpy.types.PropertyGroup):
     guiding_max_regions: IntProperty(
         name="Max Regions", description="Adaptive refinement stops at this many regions",
         default=4096, min=1, max=2**22)
+    guiding_fit: EnumProperty(
+        name="Fit On", description="Where the guiding mixtures are fitted", items=GUIDING_FIT_ITEMS,
+        default="cpu")
     guiding_probe_x: IntProperty(
         name="Probe X", description="Pixel column whose first hit's mixture the Guiding Lobes "
         "pass plots (-1 = the image centre)", default=-1, min=-1, max=16383)

@@ -145,7 +145,7 @@ class _GuidingSubPanel(_RenderPanel):
 
 class PARALLAX_PT_guiding_fitting(_GuidingSubPanel, bpy.types.Panel):
     bl_label = "Fitting"
-    properties = ("guiding_min_samples", "guiding_max_components", "guiding_split_merge")
+    properties = ("guiding_fit", "guiding_min_samples", "guiding_max_components", "guiding_split_merge")
 
 
 class PARALLAX_PT_guiding_regions(_GuidingSubPanel, bpy.types.Panel):

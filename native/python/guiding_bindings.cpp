@@ -1,10 +1,14 @@
 // _native.guiding: thin bindings of the guiding library (native/src/techniques/guiding/) for
 // tests and tools. Arrays in, arrays out; std::invalid_argument becomes ValueError.
+#include "techniques/guiding/device_fit.h"
 #include "techniques/guiding/field.h"
 
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
+#include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
+
+#include <chrono>
 
 #include <cstring>
 #include <stdexcept>
@@ -148,6 +152,40 @@ nb::ndarray<nb::numpy, float> lobe_array(const std::vector<GuidingLobe>& lobes) 
     std::memcpy(f.data(), lobes.data(), f.size() * sizeof(float));
     return owned(std::move(f), {lobes.size(), 12});
 }
+
+// The device fit (device_fit.h) on its own buffers: records in, mixtures out (tests, bench).
+struct DeviceFitter {
+    std::shared_ptr<px::Context> ctx;  // first: destroyed last
+    px::Buffer samples, regions, lobes;
+    std::unique_ptr<DeviceFit> fit;
+    uint32_t last_count = 0;
+    DeviceFitter(uint32_t region_count, const FitOptions& o, bool parallax, const std::string& device,
+                 uint32_t min_samples)
+        : ctx(px::Context::shared(device)) {
+        validate_fit_options(o);
+        fit = std::make_unique<DeviceFit>(*ctx, region_count, o, parallax, min_samples);
+        std::vector<GuidingRegion> r(region_count, GuidingRegion{});
+        regions = px::Buffer::with_vector(*ctx, r, px::kStorageUsage);
+        std::vector<GuidingLobe> l(size_t(region_count) * GUIDING_MAX_COMPONENTS, GuidingLobe{});
+        lobes = px::Buffer::with_vector(*ctx, l, px::kStorageUsage);
+        samples = px::Buffer(*ctx, sizeof(GuidingSample), px::kStorageUsage);
+        fit->bind(samples, regions, lobes);
+    }
+    // Uploads the records, then times the passes alone (submit to fence).
+    double run(const GuidingSample* s, size_t n) {
+        if (n > (1u << 24)) throw std::invalid_argument("at most 2^24 records per fit");
+        const size_t bytes = std::max<size_t>(n, 1) * sizeof(GuidingSample);
+        if (samples.size() < bytes) {
+            samples = px::Buffer(*ctx, bytes, px::kStorageUsage);
+            fit->bind(samples, regions, lobes);
+        }
+        if (n) samples.upload(s, n * sizeof(GuidingSample));
+        last_count = uint32_t(n);
+        const auto t0 = std::chrono::steady_clock::now();
+        ctx->submit_and_wait([&](VkCommandBuffer cmd) { fit->record(cmd, uint32_t(n)); });
+        return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    }
+};
 
 }  // namespace
 
@@ -319,7 +357,8 @@ void bind_guiding(nb::module_& parent) {
         .def_rw("region_threshold", &px::GuidingParams::region_threshold)
         .def_rw("max_regions", &px::GuidingParams::max_regions)
         .def_rw("probe_x", &px::GuidingParams::probe_x)
-        .def_rw("probe_y", &px::GuidingParams::probe_y);
+        .def_rw("probe_y", &px::GuidingParams::probe_y)
+        .def_rw("fit", &px::GuidingParams::fit);
     m.def("validate_params", &px::validate_guiding_params, "params"_a);
 
     nb::class_<GuidingField>(m, "GuidingField")
@@ -414,4 +453,49 @@ void bind_guiding(nb::module_& parent) {
             const size_t n = a.size() / 6;
             return owned(std::move(a), {n, 6});
         });
+
+    nb::class_<DeviceFitter>(m, "DeviceFit")
+        .def(nb::init<uint32_t, const FitOptions&, bool, const std::string&, uint32_t>(), "regions"_a,
+             "options"_a = FitOptions(), "parallax"_a = false, "device"_a = "cpu", "min_samples"_a = 1,
+             "The device fit (fit.comp) of `regions` untrained regions on the device `device` picks.")
+        .def("fit", [](DeviceFitter& f, nb::ndarray<const uint32_t, nb::c_contig, nb::device::cpu> records) {
+            if (records.ndim() != 2 || records.shape(1) != 8)
+                throw std::invalid_argument("records must be GuidingSample records, shape (N, 8) uint32");
+            nb::gil_scoped_release release;
+            return f.run(reinterpret_cast<const GuidingSample*>(records.data()), records.shape(0));
+        }, "records"_a, "One frame's records: bin, fit every region with a batch; returns the passes' milliseconds.")
+        .def_prop_ro("region_count", [](const DeviceFitter& f) { return f.fit->region_count(); })
+        .def("mixture", [](const DeviceFitter& f, uint32_t r) { return to_dict(f.fit->mixture(r)); }, "region"_a)
+        .def("state", [](const DeviceFitter& f, uint32_t r) {
+            if (r >= f.fit->region_count()) throw std::invalid_argument("no such region");
+            const px::GuidingFitRegion s = f.fit->read_states()[r];
+            nb::dict d;
+            d["components"] = s.count;
+            d["fits"] = s.fits;
+            d["samples"] = s.samples;
+            d["iterations"] = s.iterations;
+            d["splits"] = s.splits;
+            d["merges"] = s.merges;
+            d["log_likelihood"] = s.log_likelihood;
+            d["new_samples"] = s.new_samples;
+            d["pending"] = s.pending;
+            d["pivot"] = nb::make_tuple(s.position_mean.x, s.position_mean.y, s.position_mean.z);
+            return d;
+        }, "region"_a)
+        .def("bins", [](const DeviceFitter& f) {
+            std::vector<uint32_t> st = f.fit->read_starts(), so = f.fit->read_sorted(f.last_count);
+            const size_t a = st.size(), b = so.size();
+            return nb::make_tuple(owned(std::move(st), {a}), owned(std::move(so), {b}));
+        }, "The last fit's bins: (first slot per region, the dropped bin's, total) and the sorted sample indices.")
+        .def("regions", [](const DeviceFitter& f) {
+            std::vector<float> words(size_t(f.fit->region_count()) * 12);
+            f.regions.download(words.data(), words.size() * sizeof(float));
+            const size_t n = f.fit->region_count();
+            return owned(std::move(words), {n, 12});
+        }, "GuidingRegion records (R, 12) float32, as the sampler reads them.")
+        .def("lobes", [](const DeviceFitter& f) {
+            std::vector<GuidingLobe> l(size_t(f.fit->region_count()) * GUIDING_MAX_COMPONENTS);
+            f.lobes.download(l.data(), l.size() * sizeof(GuidingLobe));
+            return lobe_array(l);
+        }, "GuidingLobe records (R * 16, 12) float32.");
 }

@@ -2,6 +2,7 @@
 
 #include "closesthit.spv.h"
 #include "self_skip_any_hit.spv.h"
+#include "guiding_fit.spv.h"
 #include "guiding_query_closest_hit.spv.h"
 #include "guiding_query_intersection.spv.h"
 #include "guiding_query_miss.spv.h"
@@ -37,4 +38,5 @@ PX_SHADER(ic_finish)
 PX_SHADER(guiding_query_miss)
 PX_SHADER(guiding_query_intersection)
 PX_SHADER(guiding_query_closest_hit)
+PX_SHADER(guiding_fit)
 }  // namespace px

@@ -19,4 +19,5 @@ const std::vector<uint32_t>& shader_ic_finish();
 const std::vector<uint32_t>& shader_guiding_query_miss();
 const std::vector<uint32_t>& shader_guiding_query_intersection();
 const std::vector<uint32_t>& shader_guiding_query_closest_hit();
+const std::vector<uint32_t>& shader_guiding_fit();
 }  // namespace px

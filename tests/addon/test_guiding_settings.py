@@ -17,11 +17,11 @@ import parallax_core
 DEFAULTS = dict(guiding=False, guiding_prob=0.5, guiding_parallax=True, guiding_training_spp=32,
                 guiding_min_samples=128, guiding_max_components=16, guiding_split_merge=True,
                 guiding_region_splits=8, guiding_region_threshold=10000, guiding_max_regions=4096,
-                guiding_probe_x=-1, guiding_probe_y=-1)
+                guiding_probe_x=-1, guiding_probe_y=-1, guiding_fit="cpu")
 CHANGED = dict(guiding=True, guiding_prob=0.7, guiding_parallax=False, guiding_training_spp=0,
                guiding_min_samples=100, guiding_max_components=6, guiding_split_merge=False,
                guiding_region_splits=3, guiding_region_threshold=0, guiding_max_regions=64,
-               guiding_probe_x=5, guiding_probe_y=7)
+               guiding_probe_x=5, guiding_probe_y=7, guiding_fit="device")
 RANGES = dict(guiding_prob=(0.0, 1.0), guiding_training_spp=(0, None), guiding_min_samples=(1, 2**24),
               guiding_max_components=(1, 16), guiding_region_splits=(0, 20), guiding_region_threshold=(0, None),
               guiding_probe_x=(-1, None), guiding_probe_y=(-1, None))
@@ -68,15 +68,17 @@ def test_guiding_panel_shows_every_setting(bpy):
 
 def test_set_parses_guiding_settings_for_blend_files(fresh):
     apply_settings(fresh, ["guiding=on", "guiding_parallax=off", "guiding_prob=0.25", "guiding_training_spp=0",
-                           "guiding_probe_x=-1", "guiding_probe_y=12"])
+                           "guiding_probe_x=-1", "guiding_probe_y=12", "guiding_fit=device"])
     s = fresh.parallax
-    assert (s.guiding, s.guiding_parallax, s.guiding_training_spp, s.guiding_probe_x, s.guiding_probe_y) == \
-        (True, False, 0, -1, 12)
+    assert (s.guiding, s.guiding_parallax, s.guiding_training_spp, s.guiding_probe_x, s.guiding_probe_y,
+            s.guiding_fit) == (True, False, 0, -1, 12, "device")
     assert s.guiding_prob == pytest.approx(0.25)
     with pytest.raises(CommandError):
         apply_settings(fresh, ["guiding=maybe"])
     with pytest.raises(CommandError):
         apply_settings(fresh, ["guiding_prob=high"])
+    with pytest.raises(CommandError):
+        apply_settings(fresh, ["guiding_fit=gpu"])
     apply_settings(fresh, ["guiding_max_components=17"])  # Blender clamps to the core's range
     assert s.guiding_max_components == 16
 
@@ -84,8 +86,9 @@ def test_set_parses_guiding_settings_for_blend_files(fresh):
 def test_set_parses_guiding_settings_for_npz():
     from parallax_core.cli import parse_params
 
-    assert parse_params(["guiding=1", "guiding_prob=0.3", "guiding_probe_x=-1", "guiding_parallax=off"]) == \
-        dict(guiding=True, guiding_prob=0.3, guiding_probe_x=-1, guiding_parallax=False)
+    assert parse_params(["guiding=1", "guiding_prob=0.3", "guiding_probe_x=-1", "guiding_parallax=off",
+                         "guiding_fit=device"]) == \
+        dict(guiding=True, guiding_prob=0.3, guiding_probe_x=-1, guiding_parallax=False, guiding_fit="device")
 
 
 def test_guiding_passes_only_with_guiding_on(fresh, bpy):

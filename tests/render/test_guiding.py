@@ -173,3 +173,18 @@ def test_bad_settings_are_rejected(name, value):
     s = pc.Session(8, 8)
     with pytest.raises(ValueError, match=name):
         s.set_params(**{name: value})
+
+
+def test_device_fit_agrees_with_the_cpu_fit():
+    """guiding_fit = device (issue 13: the mixtures fitted by compute passes, no readback): the
+    regions train, and the guided image agrees per block with the CPU fit's (z-test)."""
+    scene = glass_room(16)
+    cpu_mean, cpu_se, session, cpu_means = batches(scene, "mis", BATCHES, SPP, spp_per_frame=SPP_PER_FRAME, **GUIDING)
+    mean, se, session, means = batches(scene, "mis", BATCHES, SPP, session=session, spp_per_frame=SPP_PER_FRAME,
+                                       guiding_fit="device", **GUIDING)
+    st = session.stats()
+    assert session.params.guiding_fit == "device"
+    assert st["guiding_training_frames"] == GUIDING["guiding_training_spp"]
+    assert st["guiding_trained_regions"] > 0 and st["guiding_lobes"] > 0 and st["guiding_region_fits"] > 0, st
+    assert st["samples"] == SPP
+    assert_unbiased((mean, se, means), (cpu_mean, cpu_se, cpu_means))

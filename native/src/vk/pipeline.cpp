@@ -44,8 +44,8 @@ DescriptorSet::DescriptorSet(Context& ctx, uint32_t binding_count, const std::ve
                                      {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, binding_count - tlas_count}};
     VkDescriptorPoolCreateInfo pinfo{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
     pinfo.maxSets = 1;
-    pinfo.poolSizeCount = 2;
-    pinfo.pPoolSizes = sizes;
+    pinfo.poolSizeCount = tlas_count ? 2 : 1;  // no size of 0 descriptors (a set without TLASes)
+    pinfo.pPoolSizes = tlas_count ? sizes : sizes + 1;
     VK_CHECK(vkCreateDescriptorPool(ctx.device(), &pinfo, nullptr, &pool_));
     VkDescriptorSetAllocateInfo ainfo{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
     ainfo.descriptorPool = pool_;

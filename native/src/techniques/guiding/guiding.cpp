@@ -95,7 +95,10 @@ void Guiding::configure(const GuidingParams& params, const SceneHost& scene, uin
     if (!enabled()) return;  // a trained field stays (switching guiding back on reuses it)
     record_paths_ = uint32_t((pixels + params_.record_stride - 1) / params_.record_stride);
     const size_t sample_bytes = size_t(record_paths_) * GUIDING_PATH_VERTICES * sizeof(GuidingSample);
-    if (samples_.size() != sample_bytes) samples_ = Buffer(ctx_, sample_bytes, kStorageUsage);
+    if (samples_.size() != sample_bytes) {
+        samples_ = Buffer(ctx_, sample_bytes, kStorageUsage);
+        if (device_fit_) device_fit_->bind(samples_, regions_, lobes_);
+    }
     const GuidingParams key = field_key(params_);
     finish_fit();  // the field may be replaced
     if (field_ && std::memcmp(&key, &field_key_, sizeof(key)) == 0 && scene_version == scene_version_ && seed == seed_)
@@ -103,6 +106,7 @@ void Guiding::configure(const GuidingParams& params, const SceneHost& scene, uin
     float lo[3], hi[3];
     scene_bounds(scene, lo, hi);
     field_ = std::make_unique<guiding::GuidingField>(params_, lo, hi, seed);
+    device_fit_.reset();
     field_key_ = key;
     scene_version_ = scene_version;
     seed_ = seed;
@@ -111,6 +115,11 @@ void Guiding::configure(const GuidingParams& params, const SceneHost& scene, uin
     fitted_ = false;
     built_layout_ = ~0ull;
     upload(nullptr);
+    if (params_.fit == GUIDING_FIT_DEVICE) {
+        device_fit_ = std::make_unique<guiding::DeviceFit>(ctx_, uint32_t(field_->region_count()), field_->fit_options(),
+                                                           params_.parallax != 0, params_.min_samples);
+        device_fit_->bind(samples_, regions_, lobes_);
+    }
 }
 
 void Guiding::bind(DescriptorSet& set) const {
@@ -162,6 +171,14 @@ void Guiding::record_frame_start(VkCommandBuffer cmd) const {
 void Guiding::after_frame(DescriptorSet& set, double frame_milliseconds) {
     if (!enabled() || !field_) return;
     auto start = std::chrono::steady_clock::now();
+    if (device_fit_) {  // compute passes where the samples are; the frame loop waits for them
+        const uint32_t slots = record_paths_ * GUIDING_PATH_VERTICES;
+        ctx_.submit_and_wait([&](VkCommandBuffer cmd) { device_fit_->record(cmd, slots); });
+        stats_.fit_milliseconds += ms_since(start);
+        stats_.frame_milliseconds += frame_milliseconds;
+        ++training_frames_;
+        return;
+    }
     std::vector<GuidingSample> samples(size_t(record_paths_) * GUIDING_PATH_VERTICES);
     samples_.download(samples.data(), samples.size() * sizeof(GuidingSample));
     // Unfilled slots (pdf 0: paths with fewer guided vertices) are no samples.
@@ -216,10 +233,20 @@ GuidingStats Guiding::stats() const {
     s.samples_added = f.samples_added;
     s.samples_dropped = f.samples_dropped;
     s.region_fits = f.region_fits;
-    for (uint32_t r = 0; r < s.regions; ++r) {
-        const uint32_t k = field_->mixture(r).count;
-        s.trained_regions += k > 0;
-        s.lobes += k;
+    if (device_fit_) {  // a readback of the fit state, outside the frame loop
+        s.samples_added = s.region_fits = 0;
+        for (const GuidingFitRegion& r : device_fit_->read_states()) {
+            s.trained_regions += r.count > 0;
+            s.lobes += r.count;
+            s.samples_added += r.samples;
+            s.region_fits += r.fits;
+        }
+    } else {
+        for (uint32_t r = 0; r < s.regions; ++r) {
+            const uint32_t k = field_->mixture(r).count;
+            s.trained_regions += k > 0;
+            s.lobes += k;
+        }
     }
     s.bytes_per_region = guiding::GuidingField::gpu_bytes_per_region() + sizeof(uint32_t) +
                          (blas_ ? blas_->size() / std::max<size_t>(1, s.regions) : 0);

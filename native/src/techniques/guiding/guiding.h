@@ -11,10 +11,13 @@
 //   refinement changed the regions). The frames thus trace with the field one frame behind,
 //   the same for every run (deterministic); the last training frame waits for its own fit,
 //   so that the image accumulates with the finished field.
+//   With guiding_fit = device the fit is compute passes instead (device_fit.h): no readback or
+//   upload; the host field then only provides the initial regions (no refinement).
 // The field survives camera moves, probe changes and guiding being switched off and on; new
 // geometry or lights, the seed or any other guiding setting start it over (configure).
 #pragma once
 #include "scene/scene.h"
+#include "techniques/guiding/device_fit.h"
 #include "techniques/guiding/field.h"
 #include "vk/accel.h"
 #include "vk/pipeline.h"
@@ -82,6 +85,7 @@ private:
     uint32_t seed_ = 0;
     uint32_t record_paths_ = 0;  // path slots of the sample buffer
     std::unique_ptr<guiding::GuidingField> field_;
+    std::unique_ptr<guiding::DeviceFit> device_fit_;  // guiding_fit = device
     Buffer regions_, lobes_, order_, aabbs_, nodes_, samples_;
     std::unique_ptr<AccelerationStructure> blas_, tlas_;
     uint64_t built_layout_ = ~0ull;

@@ -1,0 +1,60 @@
+// Guiding mixtures fitted on the device (issue 13; shaders/techniques/guiding/fit.comp): the
+// frame's training samples stay where the trace loop wrote them; four compute passes bin them
+// by region (a stable counting sort) and run the host fit's algorithm (em.h) per region, one
+// workgroup each, writing the GuidingRegion/GuidingLobe records the sampler reads. The host
+// only records the dispatches: no readback, no upload. The fit state (statistics, mixtures,
+// pivots) lives in device buffers across frames.
+// Differences from the host field (field.h), by design: each frame's samples of a region are
+// batch of stepwise EM (the previous statistics decayed) once the region has guiding_min_samples
+// lit samples, those of earlier frames kept on the device until then (as the host field's
+// reservoir, without its cap of max_batch: a batch is all of them); and the regions stay the initial 2^guiding_region_splits (no adaptive
+// refinement). Samples without a valid region are dropped (the trace loop sets one).
+#pragma once
+#include "techniques/guiding/em.h"
+#include "vk/pipeline.h"
+
+#include <memory>
+#include <vector>
+
+namespace px {
+#include "../../../../shaders/shared/guiding_fit.h"
+}  // namespace px
+
+namespace px::guiding {
+
+class DeviceFit {
+public:
+    // `regions` regions, all untrained; `options` as the host fit's (validated). A region fits
+    // once it has min_samples lit samples (guiding_min_samples; more than 2K in any case),
+    // kept across frames until then.
+    DeviceFit(Context& ctx, uint32_t regions, const FitOptions& options, bool parallax, uint32_t min_samples = 1);
+    // The frame's sample buffer and the records the sampler reads (regions: GuidingRegion[regions],
+    // lobes: GuidingLobe[regions * GUIDING_MAX_COMPONENTS]); again whenever one is re-created.
+    void bind(const Buffer& samples, const Buffer& regions, const Buffer& lobes);
+    // Records the four passes over the first `sample_count` GuidingSample slots, with barriers
+    // before (the trace's writes) and after (the sampler's reads).
+    void record(VkCommandBuffer cmd, uint32_t sample_count);
+    uint32_t region_count() const { return regions_; }
+
+    // Readbacks for tests, stats and benchmarks (never in the frame loop).
+    std::vector<GuidingFitRegion> read_states() const;
+    std::vector<GuidingFitLobe> read_lobes() const;
+    // The last record()'s bins: first sorted slot per region, the dropped bin, the total
+    // (regions + 2), and the sample index of each slot.
+    std::vector<uint32_t> read_starts() const;
+    std::vector<uint32_t> read_sorted(uint32_t sample_count) const;
+    // Region r's mixture as the host's type (distances <= 0 become kInfinity).
+    Vmm mixture(uint32_t r) const;
+
+private:
+    void ensure_capacity(uint32_t sample_count);
+    Context& ctx_;
+    uint32_t regions_;
+    GuidingFitPush push_{};
+    std::unique_ptr<DescriptorSet> set_;
+    Buffer states_, lobes_state_, counts_, starts_, sorted_, pending_;
+    uint32_t block_size_ = 0, block_count_ = 0, sorted_capacity_ = 0;
+    size_t samples_bytes_ = 0;
+};
+
+}  // namespace px::guiding

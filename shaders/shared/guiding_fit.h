@@ -1,0 +1,86 @@
+// Guiding mixtures fitted on the device (issue 13; shaders/techniques/guiding/fit.comp,
+// native/src/techniques/guiding/device_fit.h): the fit's own descriptor set and records.
+// Polyglot like types.h; include types.h first (GuidingSample, GuidingRegion, GuidingLobe).
+#ifndef PARALLAX_SHARED_GUIDING_FIT_H
+#define PARALLAX_SHARED_GUIDING_FIT_H
+
+// Bindings of the fit's descriptor set (set 0 of its compute pipeline, not the renderer's).
+PX_CONST uint GUIDING_FIT_BINDING_SAMPLES = 0;     // GuidingSample[], the frame's records (read)
+PX_CONST uint GUIDING_FIT_BINDING_REGIONS = 1;     // GuidingRegion[], what the sampler reads
+PX_CONST uint GUIDING_FIT_BINDING_LOBES = 2;       // GuidingLobe[regions * GUIDING_MAX_COMPONENTS]
+PX_CONST uint GUIDING_FIT_BINDING_STATE = 3;       // GuidingFitRegion[regions]
+PX_CONST uint GUIDING_FIT_BINDING_STATE_LOBES = 4; // GuidingFitLobe[regions * GUIDING_MAX_COMPONENTS]
+PX_CONST uint GUIDING_FIT_BINDING_COUNTS = 5;      // uint[(regions + 1) * blocks], bin-major; then offsets
+PX_CONST uint GUIDING_FIT_BINDING_STARTS = 6;      // uint[regions + 2]: first sorted slot of each bin, total
+PX_CONST uint GUIDING_FIT_BINDING_SORTED = 7;      // uint[samples]: sample indices, by bin, stable
+PX_CONST uint GUIDING_FIT_BINDING_PENDING = 8;     // GuidingSample[regions * pending_capacity]: lit
+                                                   // samples of regions still below min_samples
+PX_CONST uint GUIDING_FIT_BINDING_COUNT = 9;
+
+PX_CONST uint GUIDING_FIT_GROUP = 64;  // threads per workgroup (the EM: one workgroup per region)
+
+// Passes of fit.comp, dispatched in this order with a barrier after each:
+PX_CONST uint GUIDING_FIT_PASS_COUNT = 0;    // a thread per block: its samples' bins
+PX_CONST uint GUIDING_FIT_PASS_SCAN = 1;     // one workgroup: exclusive prefix sum (bin, block)
+PX_CONST uint GUIDING_FIT_PASS_SCATTER = 2;  // a thread per block: stable scatter
+PX_CONST uint GUIDING_FIT_PASS_EM = 3;       // a workgroup per region: EM, split/merge, records
+
+// Push constants: the pass, sizes and the FitOptions (em.h) in float.
+struct GuidingFitPush {
+    uint pass;
+    uint sample_count;      // GuidingSample slots
+    uint region_count;      // bins 0 .. region_count - 1; bin region_count: no sample (dropped)
+    uint block_size;        // samples per block of the counting sort
+    uint block_count;
+    uint max_components;
+    uint initial_components;
+    uint max_iterations;
+    float kappa0;
+    float kappa_max;
+    float tolerance;
+    float weight_prior;
+    float mean_cosine_prior;
+    float mean_cosine_prior_strength;
+    float decay;
+    uint split_merge;
+    float split_threshold;
+    float split_min_samples;
+    float merge_threshold;
+    float merge_min_samples;
+    uint parallax;
+    uint min_samples;       // guiding_min_samples: a region fits once it has this many lit samples
+    uint pending_capacity;  // max(min_samples, 2 max_components + 1)
+    uint pad0;
+};
+
+// A region's fit state (its mixture lives in GuidingFitLobe records).
+struct GuidingFitRegion {
+    vec3 position_mean;   // of every sample received: the pivot
+    float position_count;
+    uint count;           // lobes (0: untrained)
+    uint fits;
+    float new_samples;    // samples since the last merge check
+    uint samples;         // received (saturating)
+    uint iterations;      // the last fit's EM iterations, splits and merges
+    uint splits;
+    uint merges;
+    float log_likelihood; // the last fit's weighted mean log density
+    uint pending;         // lit samples kept from earlier frames (not fitted yet) ...
+    float pending_zero;   // ... and the unlit ones they came with (only counted)
+};
+
+// One lobe of a region's mixture and its sufficient statistics (em.h ComponentStats):
+// stat_weight = sum w g, stat_direction = sum w g omega, stat_count = sum g,
+// stat_inv_distance = sum w g / d.
+struct GuidingFitLobe {
+    vec3 mu;
+    float kappa;
+    vec3 stat_direction;
+    float stat_weight;
+    float weight;
+    float distance;       // harmonic mean from the pivot; <= 0: infinitely far
+    float stat_count;
+    float stat_inv_distance;
+};
+
+#endif

@@ -1,0 +1,244 @@
+"""Guiding mixtures fitted on the device (issue 13; shaders/techniques/guiding/fit.comp,
+native/src/techniques/guiding/device_fit.h) against the host fit (em.cpp), which stays the
+oracle: the stable counting sort by region; one EM step equal within float tolerance; the
+converged log-likelihood within 1%; the same lobe count after split and merge; parallax
+targets; stepwise statistics across frames; several regions in one dispatch; run-to-run
+determinism; the records the sampler reads. The device sees what the trace loop writes
+(float32, octahedral directions), so the host fit gets the same rounded inputs. Seeded.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from parallax_core import _native
+from test_guiding_vmm import THREE, mixture, two_lobes, unit
+
+g = _native.guiding
+DEVICE = "cpu"  # lavapipe
+
+
+def rounded(d, w, p):
+    """The directions, weights and pdfs as the device reads them from GuidingSample records."""
+    d = g.unpack_directions(g.pack_directions(d))
+    return d, np.asarray(w, np.float32).astype(np.float64), np.asarray(p, np.float32).astype(np.float64)
+
+
+def records(d, w, p, positions=None, distances=None, regions=None):
+    n = len(d)
+    positions = np.zeros((n, 3)) if positions is None else positions
+    distances = np.full(n, 1e30) if distances is None else distances
+    regions = np.zeros(n, np.uint32) if regions is None else np.asarray(regions, np.uint32)
+    return g.make_samples(positions, d, p, w, distances, regions)
+
+
+def options(**kw):
+    o = g.FitOptions()
+    for k, v in kw.items():
+        setattr(o, k, v)
+    return o
+
+
+def host_fit(batches, o, parallax=False, pivot=(0.0, 0.0, 0.0)):
+    """The host fit of the same batches (each (d, w, p[, positions, distances]))."""
+    m = g.Mixture()
+    rep = None
+    for b in batches:
+        d, w, p = rounded(*b[:3])
+        kw = dict(positions=b[3], distances=b[4], parallax=True) if parallax else {}
+        rep = m.fit(d, w, p, o, pivot=np.asarray(pivot, np.float64), **kw)
+    return m, rep
+
+
+def weighted_ll(mix, d, w):
+    d = g.unpack_directions(g.pack_directions(d))
+    return float(np.sum(w * np.log(g.vmm_pdf(mix, d))) / np.sum(w))
+
+
+def assert_same_mixture(dev, cpu, atol=2e-4, rtol=2e-3):
+    assert len(dev["weights"]) == len(cpu["weights"])
+    np.testing.assert_allclose(dev["weights"], cpu["weights"], atol=atol)
+    np.testing.assert_allclose(dev["mus"], cpu["mus"], atol=atol)
+    np.testing.assert_allclose(dev["kappas"], cpu["kappas"], rtol=rtol)
+
+
+def three_lobes(rng, n):
+    d = g.vmm_sample(THREE, rng.random((n, 3)))
+    return d, np.ones(n), g.vmm_pdf(THREE, d)
+
+
+def bimodal(rng, n):
+    _, d, p = two_lobes(rng, n)
+    return d, np.ones(n), p
+
+
+def random_set(rng, n):
+    """Uniform directions, log-normal weights, a quarter of them zero (unlit samples)."""
+    d = unit(rng.normal(size=(n, 3)))
+    w = np.exp(rng.normal(size=n)) * (rng.random(n) > 0.25)
+    return d, w, np.full(n, 1 / (4 * math.pi))
+
+
+def test_counting_sort_is_stable_and_drops_bad_records():
+    rng = np.random.default_rng(90)
+    n = 3000
+    d, w, p = random_set(rng, n)
+    regions = rng.integers(0, 5, n)
+    regions[::97] = 9  # no such region
+    p[::89] = 0.0      # an empty slot
+    w[::83] = np.nan   # rejected, as add_samples rejects it
+    f = g.DeviceFit(5, options(), device=DEVICE)
+    f.fit(records(d, w, p, regions=regions))
+    starts, order = f.bins()
+    bins = np.where((regions < 5) & (p > 0) & np.isfinite(w), regions, 5)
+    want = np.argsort(bins, kind="stable")
+    np.testing.assert_array_equal(order, want)
+    np.testing.assert_array_equal(starts, np.concatenate([[0], np.cumsum(np.bincount(bins, minlength=6))]))
+
+
+def test_one_em_step_matches_the_host_fit_in_several_regions():
+    """Three regions in one dispatch (a constructed three-lobe set, a random weighted set and a
+    bimodal one), each against its own host fit; then a second frame, with the first frame's
+    statistics decayed (stepwise EM)."""
+    rng = np.random.default_rng(91)
+    o = options(max_iterations=1, split_merge=False)
+    sets = [[three_lobes(rng, 4000), random_set(rng, 3000), bimodal(rng, 2000)],
+            [three_lobes(rng, 3000), random_set(rng, 2000), bimodal(rng, 2500)]]
+    f = g.DeviceFit(3, o, device=DEVICE)
+    for frame in range(2):
+        recs = np.concatenate([records(*s, regions=np.full(len(s[0]), r)) for r, s in enumerate(sets[frame])])
+        order = rng.permutation(len(recs))  # interleaved: the sort gathers each region's samples
+        f.fit(np.ascontiguousarray(recs[order]))
+        for r in range(3):
+            # the host fit sees the region's samples in the same (original) order
+            cpu, rep = host_fit([sets[i][r] for i in range(frame + 1)], o)
+            dev = f.mixture(r)
+            assert_same_mixture(dev, cpu.mixture)
+            st = f.state(r)
+            assert st["fits"] == frame + 1 and st["iterations"] == 1 and st["components"] == cpu.count
+            assert st["log_likelihood"] == pytest.approx(rep["log_likelihood"], rel=1e-4, abs=1e-4)
+
+
+def test_lit_samples_wait_across_frames_until_min_samples():
+    """A region below min_samples keeps its lit samples on the device (field.cpp's reservoir):
+    three frames of 30 samples (a third unlit) with min_samples 50 fit once, on all 60 lit
+    samples of the first two frames then the third's, as the host fits their concatenation."""
+    rng = np.random.default_rng(96)
+    frames = []
+    for _ in range(3):
+        d, w, p = random_set(rng, 30)
+        w = np.exp(rng.normal(size=30))
+        w[:10] = 0.0
+        frames.append((d, w, p))
+    o = options(max_iterations=1, split_merge=False, initial_components=2)
+    f = g.DeviceFit(1, o, device=DEVICE, min_samples=50)
+    f.fit(records(*frames[0]))
+    assert f.state(0)["fits"] == 0 and f.state(0)["pending"] == 20 and f.state(0)["components"] == 0
+    f.fit(records(*frames[1]))
+    assert f.state(0)["fits"] == 0 and f.state(0)["pending"] == 40
+    f.fit(records(*frames[2]))
+    st = f.state(0)
+    assert st["fits"] == 1 and st["pending"] == 0 and st["samples"] == 90
+    lit = [np.concatenate([fr[i][fr[1] > 0] for fr in frames]) for i in range(3)]
+    cpu, _ = host_fit([tuple(lit)], o)
+    assert_same_mixture(f.mixture(0), cpu.mixture)
+
+
+def test_converged_log_likelihood_within_one_percent():
+    rng = np.random.default_rng(92)
+    for d, w, p in (three_lobes(rng, 20_000), random_set(rng, 20_000)):
+        o = options(split_merge=False)
+        cpu, rep = host_fit([(d, w, p)], o)
+        f = g.DeviceFit(1, o, device=DEVICE)
+        f.fit(records(d, w, p))
+        assert f.state(0)["iterations"] >= 2
+        ll_cpu, ll_dev = weighted_ll(cpu.mixture, d, w), weighted_ll(f.mixture(0), d, w)
+        assert abs(ll_dev - ll_cpu) <= 0.01 * abs(ll_cpu), (ll_dev, ll_cpu)
+
+
+def test_split_and_merge_give_the_same_lobe_count():
+    rng = np.random.default_rng(93)
+    # split: one lobe on a bimodal set becomes two
+    truth, d, p = two_lobes(rng, 40_000)
+    o = options(max_components=4, initial_components=1)
+    cpu, rep = host_fit([(d, np.ones(len(d)), p)], o)
+    f = g.DeviceFit(1, o, device=DEVICE)
+    f.fit(records(d, np.ones(len(d)), p))
+    st = f.state(0)
+    assert rep["splits"] == st["splits"] == 1 and cpu.count == st["components"] == 2
+    dev = f.mixture(0)
+    for mu in truth["mus"]:
+        assert np.max(dev["mus"] @ mu) > math.cos(math.radians(3.0))
+    # merge: the default start (8 lobes) on three lobes merges duplicates
+    d, w, p = three_lobes(rng, 60_000)
+    cpu, rep = host_fit([(d, w, p)], options())
+    f = g.DeviceFit(1, options(), device=DEVICE)
+    f.fit(records(d, w, p))
+    st = f.state(0)
+    assert rep["merges"] >= 1 and st["merges"] == rep["merges"] and st["components"] == cpu.count
+    ll_cpu, ll_dev = weighted_ll(cpu.mixture, d, w), weighted_ll(f.mixture(0), d, w)
+    assert abs(ll_dev - ll_cpu) <= 0.01 * abs(ll_cpu), (ll_dev, ll_cpu)
+
+
+def test_parallax_targets_match_the_host_fit():
+    """A point light seen from all over a region: one lobe at kappa_max aiming at the light,
+    its target where the host fit puts it; the pivot is the samples' mean position."""
+    rng = np.random.default_rng(94)
+    n = 20_000
+    x = rng.random((n, 3))
+    light = np.array([0.5, 0.5, 3.0])
+    dist = np.linalg.norm(light - x, axis=1)
+    d = (light - x) / dist[:, None]
+    o = options(initial_components=2, split_merge=False)
+    f = g.DeviceFit(1, o, parallax=True, device=DEVICE)
+    f.fit(records(d, np.ones(n), np.ones(n), positions=x, distances=dist))
+    pivot = np.array(f.state(0)["pivot"])
+    np.testing.assert_allclose(pivot, x.mean(0), atol=1e-4)
+    cpu, _ = host_fit([(d, np.ones(n), np.ones(n), x, dist)], o, parallax=True, pivot=pivot)
+    dev, want = f.mixture(0), cpu.mixture
+    k, kc = int(np.argmax(dev["weights"])), int(np.argmax(want["weights"]))
+    assert dev["kappas"][k] == pytest.approx(want["kappas"][kc], rel=1e-2) and dev["kappas"][k] > 1e4
+    target = dev["pivot"] + dev["distances"][k] * dev["mus"][k]
+    np.testing.assert_allclose(target, want["pivot"] + want["distances"][kc] * want["mus"][kc], atol=2e-3)
+    np.testing.assert_allclose(target, light, atol=5e-3)
+    # the sampler's record: the target and a finite distance
+    lobe = f.lobes()[k]
+    np.testing.assert_allclose(lobe[8:11], target, atol=1e-4)
+    assert lobe[7] == pytest.approx(dev["distances"][k], rel=1e-5)
+
+
+def test_deterministic_and_the_records_the_sampler_reads():
+    rng = np.random.default_rng(95)
+    d, w, p = three_lobes(rng, 30_000)
+    rec = records(d, w, p, regions=rng.integers(0, 2, len(d)))
+    runs = []
+    for _ in range(2):
+        f = g.DeviceFit(2, options(), device=DEVICE)
+        f.fit(rec)
+        f.fit(rec)
+        runs.append((f.lobes(), f.regions(), f.mixture(0), f.mixture(1)))
+    np.testing.assert_array_equal(runs[0][0], runs[1][0])
+    np.testing.assert_array_equal(runs[0][1], runs[1][1])
+    lobes, regions = runs[0][0], runs[0][1].view(np.uint32)
+    for r in range(2):
+        mix = runs[0][2 + r]
+        k = len(mix["weights"])
+        assert regions[r, 3] == k and regions[r, 7] == 2  # lobe_count, fits
+        np.testing.assert_allclose(lobes[16 * r: 16 * r + k], g.gpu_lobes(mix, parallax=False), rtol=2e-5, atol=2e-6)
+        assert not lobes[16 * r + k: 16 * (r + 1)].any()
+
+
+def test_bad_input_is_a_clear_error():
+    with pytest.raises(ValueError, match="regions"):
+        g.DeviceFit(0, device=DEVICE)
+    o = g.FitOptions()
+    o.max_components = 17
+    with pytest.raises(ValueError, match="max_components"):
+        g.DeviceFit(1, o, device=DEVICE)
+    f = g.DeviceFit(1, device=DEVICE)
+    with pytest.raises(ValueError, match="records"):
+        f.fit(np.zeros((4, 7), np.uint32))
+    with pytest.raises(ValueError, match="region"):
+        f.mixture(1)
