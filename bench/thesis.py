@@ -25,7 +25,7 @@ THESIS_PIXELS = 1280 * 720
 THESIS_METHOD_NAMES = {
     "pt": "Path Tracer", "nee": "NEE", "mis": "NEE + MIS", "ic_noupdate": "IC no updates",
     "ic": "Irradiance Cache", "adrrs": "ADRRS", "guiding_pt": "Guiding Parallax",
-    "guiding": "Guiding Parallax + NEE",
+    "guiding": "Guiding Parallax + NEE", "guiding_device": "Guiding Parallax + NEE, device fit",
 }
 
 # Table -> (our scene of the same class, seconds, {method: (relMSE, spp)}). Mitsuba's columns
