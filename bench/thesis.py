@@ -95,7 +95,8 @@ def write_summary(out=os.path.join(RESULTS, "SUMMARY.md"), dirs=("gpu_thesis", "
         with open(path) as f:
             results = json.load(f)
         lines += [f"## {results.get('device', d)} ({d}): {results.get('seconds', 0):g} s per renderer, "
-                  f"{results.get('width')} px wide", ""]
+                  f"{results.get('width')} px wide"
+                  + (", pipelines compiled before the timed runs" if results.get("warm_pipelines") else ""), ""]
         for table in THESIS_TABLES:
             rows = summary_rows(results, table)
             if all(r[3] is None for r in rows):

@@ -9,7 +9,6 @@ the .blend renders what a Parallax render of the SceneData renders. They are der
 shared folder's files and are written to blender_scenes/generated/ (ignored by git), never
 committed; `python -m bench.converge --suite thesis` builds them when missing.
 """
-import math
 import os
 import sys
 

@@ -292,7 +292,10 @@ class _NodeReader:
         def first(*names):
             return next((n for n in names if n in node.inputs), names[0])
 
-        def colour(name):
+        def tint(name):
+            """A colour input; white where it is missing or, before Blender 4.0, a float."""
+            if getattr(node.inputs.get(name), "type", None) != "RGBA":
+                return (1.0, 1.0, 1.0)
             rgb, texture = self.color(node, name, (1.0, 1.0, 1.0))
             if texture is not None:
                 self.warn(f"'{node.name}': a texture on {name} is not supported; using white")
@@ -308,15 +311,14 @@ class _NodeReader:
             metallic=self.value(node, "Metallic", 0.0),
             transmission=self.value(node, first("Transmission Weight", "Transmission"), 0.0),
             specular_ior_level=self.value(node, "Specular IOR Level", 0.5),
-            specular_tint=colour("Specular Tint") if "Specular Tint" in node.inputs and
-            getattr(node.inputs["Specular Tint"], "type", "RGBA") == "RGBA" else (1.0, 1.0, 1.0),
+            specular_tint=tint("Specular Tint"),
             coat_weight=self.value(node, "Coat Weight", 0.0),
             coat_roughness=self.value(node, "Coat Roughness", 0.03),
             coat_ior=self.value(node, "Coat IOR", 1.5),
-            coat_tint=colour("Coat Tint") if "Coat Tint" in node.inputs else (1.0, 1.0, 1.0),
+            coat_tint=tint("Coat Tint"),
             sheen_weight=self.value(node, "Sheen Weight", 0.0),
             sheen_roughness=self.value(node, "Sheen Roughness", 0.5),
-            sheen_tint=colour("Sheen Tint") if "Sheen Tint" in node.inputs else (1.0, 1.0, 1.0),
+            sheen_tint=tint("Sheen Tint"),
         )
         if principled["sheen_weight"] > 0.0:
             self.warn(f"'{node.name}': Sheen is approximated (a Charlie sheen lobe, not Cycles' "

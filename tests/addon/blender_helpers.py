@@ -29,6 +29,22 @@ def render(bpy, path):
     return read_layers(path)
 
 
+def render_engine(bpy, tmp_path, scene, engine, seed, samples):
+    """The Combined RGB of `scene` rendered by `engine` ("PARALLAX" with MIS and Cycles' bounce
+    count, or "CYCLES") with `samples` and `seed`: the parity tests' one render."""
+    scene.render.engine = engine
+    if engine == "PARALLAX":
+        settings = scene.parallax
+        settings.samples, settings.samples_per_frame, settings.seed = samples, 16, seed
+        settings.max_depth, settings.depth_leeway = scene.cycles.max_bounces, 0
+        settings.method = "mis"
+    else:
+        scene.cycles.samples, scene.cycles.seed = samples, seed
+    image = render(bpy, tmp_path / f"{scene.name}_{engine}_{seed}.exr")["Combined"][..., :3]
+    assert np.isfinite(image).all()
+    return image
+
+
 def read_layers(path):
     passes = {}
     with OpenEXR.File(str(path)) as f:

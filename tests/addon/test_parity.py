@@ -16,33 +16,19 @@ means within 3% (a units error would show there first).
 """
 import os
 
-import numpy as np
 import pytest
-from blender_helpers import block_means, open_scene, render
+from blender_helpers import block_means, open_scene, render_engine
 
 SIZE, BLOCK = 32, 4
 SAMPLES = int(os.environ.get("PARALLAX_PARITY_SAMPLES", 512))  # more for the closing-note numbers
 SCENES = ("cornell_box", "veach_mis", "cornell_dielectric")
 
 
-def _render(bpy, tmp_path, name, engine, seed):
-    scene = open_scene(bpy, name, SIZE, SIZE, engine)
-    if engine == "PARALLAX":
-        settings = scene.parallax
-        settings.samples, settings.samples_per_frame, settings.seed = SAMPLES, 16, seed
-        settings.max_depth, settings.depth_leeway = scene.cycles.max_bounces, 0
-        settings.method = "mis"
-    else:
-        scene.cycles.samples, scene.cycles.seed = SAMPLES, seed
-    image = render(bpy, tmp_path / f"{name}_{engine}_{seed}.exr")["Combined"][..., :3]
-    assert np.isfinite(image).all()
-    return image
-
 
 @pytest.mark.parametrize("name", SCENES)
 def test_parallax_matches_cycles(bpy, tmp_path, name):
-    p0, p1 = (_render(bpy, tmp_path, name, "PARALLAX", seed) for seed in (0, 1))
-    c0, c1 = (_render(bpy, tmp_path, name, "CYCLES", seed) for seed in (0, 1))
+    p0, p1 = (render_engine(bpy, tmp_path, open_scene(bpy, name, SIZE, SIZE), "PARALLAX", seed, SAMPLES) for seed in (0, 1))
+    c0, c1 = (render_engine(bpy, tmp_path, open_scene(bpy, name, SIZE, SIZE), "CYCLES", seed, SAMPLES) for seed in (0, 1))
     ours, theirs = (p0 + p1) / 2, (c0 + c1) / 2
     assert ours.mean() == pytest.approx(theirs.mean(), rel=0.03)
     P0, P1, C0, C1 = (block_means(x, BLOCK) for x in (p0, p1, c0, c1))

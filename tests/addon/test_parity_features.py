@@ -10,9 +10,8 @@ R < 3 and image means within 3%.
 import math
 import os
 
-import numpy as np
 import pytest
-from blender_helpers import load_scene_builder, parity_ratio, render
+from blender_helpers import load_scene_builder, parity_ratio, render_engine
 
 SIZE, BLOCK = 32, 4
 SAMPLES = int(os.environ.get("PARALLAX_PARITY_SAMPLES", 256))
@@ -103,25 +102,12 @@ def _build(bpy, builder):
     return scene
 
 
-def _render(bpy, tmp_path, scene, engine, seed, samples):
-    scene.render.engine = engine
-    if engine == "PARALLAX":
-        settings = scene.parallax
-        settings.samples, settings.samples_per_frame, settings.seed = samples, 16, seed
-        settings.max_depth, settings.depth_leeway = scene.cycles.max_bounces, 0
-        settings.method = "mis"
-    else:
-        scene.cycles.samples, scene.cycles.seed = samples, seed
-    image = render(bpy, tmp_path / f"{scene.name}_{engine}_{seed}.exr")["Combined"][..., :3]
-    assert np.isfinite(image).all()
-    return image
-
 
 def compare(bpy, tmp_path, builder, samples=SAMPLES):
     """(R, block relMSE, our mean, Cycles' mean) of the scene ``builder`` makes."""
     scene = _build(bpy, builder)
-    p0, p1 = (_render(bpy, tmp_path, scene, "PARALLAX", seed, samples) for seed in (0, 1))
-    c0, c1 = (_render(bpy, tmp_path, scene, "CYCLES", seed, samples) for seed in (0, 1))
+    p0, p1 = (render_engine(bpy, tmp_path, scene, "PARALLAX", seed, samples) for seed in (0, 1))
+    c0, c1 = (render_engine(bpy, tmp_path, scene, "CYCLES", seed, samples) for seed in (0, 1))
     ratio, rel_mse = parity_ratio(p0, p1, c0, c1, BLOCK)
     ours, theirs = float((p0 + p1).mean() / 2), float((c0 + c1).mean() / 2)
     print(f"{builder.__name__}: mean {ours:.4f} vs Cycles {theirs:.4f}, block relMSE {rel_mse:.5f}, "

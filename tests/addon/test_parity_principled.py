@@ -12,7 +12,7 @@ import math
 import os
 
 import numpy as np
-from blender_helpers import load_scene_builder, render
+from blender_helpers import load_scene_builder, render_engine
 
 W, H, ORTHO = 90, 32, 9.0        # pixel = 0.1 m across; rows see y / sqrt(2)
 SAMPLES = int(os.environ.get("PARALLAX_PARITY_SAMPLES", 256))
@@ -78,24 +78,11 @@ def patch_means(image):
     return np.array(out)
 
 
-def _render(bpy, tmp_path, scene, engine, seed):
-    scene.render.engine = engine
-    if engine == "PARALLAX":
-        settings = scene.parallax
-        settings.samples, settings.samples_per_frame, settings.seed = SAMPLES, 16, seed
-        settings.max_depth, settings.depth_leeway = scene.cycles.max_bounces, 0
-        settings.method = "mis"
-    else:
-        scene.cycles.samples, scene.cycles.seed = SAMPLES, seed
-    image = render(bpy, tmp_path / f"principled_{engine}_{seed}.exr")["Combined"][..., :3]
-    assert np.isfinite(image).all()
-    return image
-
 
 def test_principled_grid_matches_cycles(bpy, tmp_path):
     scene = build(bpy)
-    ours = sum(patch_means(_render(bpy, tmp_path, scene, "PARALLAX", s)) for s in (0, 1)) / 2
-    theirs = sum(patch_means(_render(bpy, tmp_path, scene, "CYCLES", s)) for s in (0, 1)) / 2
+    ours = sum(patch_means(render_engine(bpy, tmp_path, scene, "PARALLAX", s, SAMPLES)) for s in (0, 1)) / 2
+    theirs = sum(patch_means(render_engine(bpy, tmp_path, scene, "CYCLES", s, SAMPLES)) for s in (0, 1)) / 2
     ratio = ours / theirs  # per patch and channel
     for (label, _), r, o, t in zip(patches(), ratio, ours, theirs):
         print(f"{label:24s} ratio {np.round(r, 3)}  ours {np.round(o, 4)}  Cycles {np.round(t, 4)}")
