@@ -59,9 +59,10 @@ void make_basis(vec3 n, out vec3 t, out vec3 b) {
 }
 
 // Moves a ray origin off a surface along the geometric normal, robust at any scale
-// (Wächter & Binder, Ray Tracing Gems ch. 6).
-vec3 offset_ray(vec3 p, vec3 n) {
-    const float origin = 1.0 / 32.0, float_scale = 1.0 / 65536.0, int_scale = 256.0;
+// (Wächter & Binder, Ray Tracing Gems ch. 6); `scale` 1 is their offset (256 ulps).
+vec3 offset_ray_scaled(vec3 p, vec3 n, float scale) {
+    const float origin = 1.0 / 32.0;
+    float float_scale = scale / 65536.0, int_scale = scale * 256.0;
     ivec3 of_i = ivec3(int_scale * n);
     vec3 p_i = vec3(intBitsToFloat(floatBitsToInt(p.x) + ((p.x < 0.0) ? -of_i.x : of_i.x)),
                     intBitsToFloat(floatBitsToInt(p.y) + ((p.y < 0.0) ? -of_i.y : of_i.y)),
@@ -70,3 +71,5 @@ vec3 offset_ray(vec3 p, vec3 n) {
                 abs(p.y) < origin ? p.y + float_scale * n.y : p_i.y,
                 abs(p.z) < origin ? p.z + float_scale * n.z : p_i.z);
 }
+
+vec3 offset_ray(vec3 p, vec3 n) { return offset_ray_scaled(p, n, 1.0); }

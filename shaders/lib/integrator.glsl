@@ -88,7 +88,7 @@ struct PathResult {
 };
 
 // Path rays that leave a surface start on it, as Cycles' do: the origin is the hit point moved a
-// few ulps back against the ray's direction (leave_surface), so a surface touching this one (an
+// few ulps back against the ray's direction (leave_surface, 8 ulps), so a surface touching this one (an
 // object resting on a floor) lies ahead at t > 0, and self_skip.rahit ignores the triangle
 // itself. Both the refracted ray out of a glass cube's bottom face and the glass' internal
 // reflection there then meet the floor, and a floor bounce under the cube enters the glass
@@ -98,7 +98,10 @@ uint surface_ray_flags(uint self_instance) {
     return self_instance == NO_INDEX ? gl_RayFlagsOpaqueEXT : gl_RayFlagsNoneEXT;
 }
 
-vec3 leave_surface(vec3 p, vec3 ng, vec3 dir) { return offset_ray(p, dot(dir, ng) > 0.0 ? -ng : ng); }
+// 8 ulps back, not offset_ray's 256: from further behind a tessellated convex surface, rays
+// leaving near an edge at grazing angles hit the neighbouring triangle (a furnace sphere of
+// diffuse + mirror + glass gained 1.4% energy that way).
+vec3 leave_surface(vec3 p, vec3 ng, vec3 dir) { return offset_ray_scaled(p, dot(dir, ng) > 0.0 ? -ng : ng, 1.0 / 32.0); }
 
 bool trace_shadow(vec3 origin, vec3 dir, float t_max, uint self_instance, uint self_primitive) {
     shadow_hit.t = 0.0;
