@@ -35,10 +35,11 @@ Parallax renders, in Parallax's (Cycles') units:
   refraction where Parallax (like Cycles) does not: the factors cancel on any path that
   enters and leaves a closed object, so only paths ending inside glass (a light or the
   camera in the glass) differ. emission -> black ``twosided(diffuse)`` (Parallax ends the
-  path there). Textures: uint8 sRGB -> linear in numpy (exactly Parallax's per-texel
-  conversion), times base_color (bilinear interpolation is linear, so this is Parallax's
-  colour * lookup), a ``bitmap`` with raw=True, bilinear, repeat; UV v flipped (Mitsuba's
-  texture space has v = 0 at the top row). Exact. Mix chains -> nested ``blendbsdf`` with
+  path there). Textures: uint8 sRGB, upsampled bilinearly up to 16x (Parallax interpolates
+  sRGB values and then decodes, as Cycles does; Mitsuba decodes first), -> linear in numpy,
+  times base_color (bilinear interpolation is linear, so this is Parallax's colour * lookup),
+  a ``bitmap`` with raw=True, bilinear, repeat; UV v flipped (Mitsuba's texture space has
+  v = 0 at the top row). Close: only the decode's curvature within 1/16 texel differs. Mix chains -> nested ``blendbsdf`` with
   weight = 1 - mix_weight (Mitsuba's weight is the probability of its SECOND bsdf). Exact.
 - Emission (any material with emission > 0, the head material's): an ``area`` emitter on
   the group's mesh. Mitsuba's area emitters are one-sided, Parallax's mesh emission is
@@ -211,6 +212,20 @@ def _luminance(c):
     return float(0.2126 * c[..., 0] + 0.7152 * c[..., 1] + 0.0722 * c[..., 2])
 
 
+def upsample_bilinear(image, factor):
+    """(h, w, C) -> (h * factor, w * factor, C): the bilinear, repeat-wrapped lookup of
+    `image` at the finer texels' centres. Parallax (as Cycles) interpolates 8-bit sRGB texels
+    and decodes the result, Mitsuba decodes first; decoding this finer grid instead leaves only
+    the decode's curvature within 1/factor of a texel."""
+    for axis in (0, 1):
+        n = image.shape[axis]
+        x = (np.arange(n * factor) + 0.5) / factor - 0.5  # in texels, centres at integers
+        i0 = np.floor(x).astype(int)
+        t = (x - i0).reshape((-1, 1, 1) if axis == 0 else (1, -1, 1))
+        image = (1 - t) * np.take(image, i0 % n, axis) + t * np.take(image, (i0 + 1) % n, axis)
+    return image
+
+
 def srgb_to_linear(c):
     """Parallax's sRGB decoding (shaders/lib/surface.glsl) of values in [0,1]."""
     c = np.asarray(c, np.float64)
@@ -293,7 +308,8 @@ class _Materials:
         if key not in self.textures:
             off, w, h = (int(v) for v in f["texture_info"][x])
             px = f["texture_texels"][off:off + w * h, :3].reshape(h, w, 3)
-            lin = (srgb_to_linear(px / 255.0) * colour).astype(np.float32)
+            fine = upsample_bilinear(px / 255.0, max(1, min(16, 2048 // max(w, h))))
+            lin = (srgb_to_linear(fine) * colour).astype(np.float32)
             self.textures[key] = {"type": "bitmap", "bitmap": self.mi.Bitmap(np.ascontiguousarray(lin)),
                                   "raw": True, "filter_type": "bilinear", "wrap_mode": "repeat"}
         return self.textures[key]
