@@ -133,6 +133,10 @@ PX_CONST uint FEATURE_ENV = 1u << 9;            // constant world or map
 PX_CONST uint FEATURE_ENV_MAP = 1u << 10;
 PX_CONST uint FEATURE_MIX = 1u << 11;           // some used material has mix_next >= 0
 PX_CONST uint FEATURE_PRINCIPLED = 1u << 12;
+// Some used material transmits (Glass, Principled with transmission): only then do rays leaving
+// a surface skip their own triangle (self_skip.rahit) instead of starting past it, which costs
+// lavapipe about a third of its speed (contact geometry; integrator.glsl surface_ray_flags).
+PX_CONST uint FEATURE_TRANSMISSION = 1u << 13;
 PX_CONST uint FEATURE_ALL = 0xffffffffu;
 
 // ---- scene records --------------------------------------------------------------------

@@ -280,7 +280,7 @@ std::unique_ptr<RayTracingPipeline> Session::build_pipeline(uint32_t program, co
         groups.insert(groups.begin() + 1 + MISS_GUIDING_QUERY, miss_group);
         groups.push_back(hit_group);
     }
-    if (program != PROGRAM_PREVIEW) {  // rays leaving a surface skip its triangle (self_skip.rahit)
+    if (program != PROGRAM_PREVIEW && (key[2] & FEATURE_TRANSMISSION)) {  // rays leaving a surface skip its triangle (self_skip.rahit)
         for (auto& g : groups)
             if (g.type == VK_RAY_TRACING_SHADER_GROUP_TYPE_TRIANGLES_HIT_GROUP_KHR) g.any_hit = uint32_t(stages.size());
         stages.push_back({VK_SHADER_STAGE_ANY_HIT_BIT_KHR, &shader_self_skip_any_hit()});

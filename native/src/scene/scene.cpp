@@ -224,6 +224,8 @@ uint scene_features(const SceneHost& s) {
         if (m.type == MATERIAL_CONDUCTOR) f |= FEATURE_CONDUCTOR;
         if (m.type == MATERIAL_DIELECTRIC) f |= FEATURE_DIELECTRIC;
         if (m.type == MATERIAL_PRINCIPLED) f |= FEATURE_PRINCIPLED;
+        if (m.type == MATERIAL_DIELECTRIC || (m.type == MATERIAL_PRINCIPLED && m.transmission > 0.0f))
+            f |= FEATURE_TRANSMISSION;
         if (m.base_color_texture >= 0) f |= FEATURE_TEXTURES;
     }
     for (const auto& l : s.lights->lights) {
