@@ -90,6 +90,11 @@ class ParallaxRenderSettings(bpy.types.PropertyGroup):
     light_samples: IntProperty(
         name="Light Samples", description="Light samples (shadow rays) per path vertex",
         default=1, min=1, max=64)
+    light_tree: BoolProperty(
+        name="Light Tree", description="Pick among the local lights (lamps, emissive meshes) "
+        "by their estimated contribution at the shading point, through a tree over them "
+        "(Conty Estevez & Kulla 2018), as Cycles' Light Tree; off: by emitted power alone",
+        default=True)
     mis_heuristic: EnumProperty(
         name="MIS Heuristic", description="How MIS weighs light and BSDF samples",
         items=HEURISTIC_ITEMS, default="power")
@@ -232,7 +237,7 @@ class ParallaxRenderSettings(bpy.types.PropertyGroup):
             samples_per_frame=self.samples_per_frame, max_depth=self.max_depth,
             depth_leeway=self.depth_leeway,
             rr_start_depth=self.rr_start_depth if self.use_russian_roulette else 0,
-            light_samples=self.light_samples, seed=self.seed,
+            light_samples=self.light_samples, light_tree=self.light_tree, seed=self.seed,
             **{name: getattr(self, name) for name in IC_SETTINGS + ADRRS_SETTINGS + GUIDING_SETTINGS})
 
 

@@ -45,7 +45,7 @@ class PARALLAX_PT_light_paths(_RenderPanel, bpy.types.Panel):
 
 class PARALLAX_PT_lights(_RenderPanel, bpy.types.Panel):
     bl_label = "Lights"
-    properties = ("method", "light_samples")
+    properties = ("method", "light_samples", "light_tree")
 
     def draw(self, context):
         super().draw(context)

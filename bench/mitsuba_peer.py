@@ -307,11 +307,18 @@ class _Materials:
         key = (x, tuple(colour.tolist()))
         if key not in self.textures:
             off, w, h = (int(v) for v in f["texture_info"][x])
-            px = f["texture_texels"][off:off + w * h, :3].reshape(h, w, 3)
-            fine = upsample_bilinear(px / 255.0, max(1, min(16, 2048 // max(w, h))))
-            lin = (srgb_to_linear(fine) * colour).astype(np.float32)
+            flags = int(f["texture_flags"][x]) if "texture_flags" in f else 0
+            closest = bool(flags & 1)  # TEXTURE_FLAG_CLOSEST
+            if flags & 2:  # TEXTURE_FLAG_HALF: linear floats, interpolated as they are
+                px = f["texture_half_texels"].view(np.float16)[off:off + w * h, :3].reshape(h, w, 3)
+                lin = (px.astype(np.float64) * colour).astype(np.float32)
+            else:
+                px = f["texture_texels"][off:off + w * h, :3].reshape(h, w, 3) / 255.0
+                fine = px if closest else upsample_bilinear(px, max(1, min(16, 2048 // max(w, h))))
+                lin = (srgb_to_linear(fine) * colour).astype(np.float32)
             self.textures[key] = {"type": "bitmap", "bitmap": self.mi.Bitmap(np.ascontiguousarray(lin)),
-                                  "raw": True, "filter_type": "bilinear", "wrap_mode": "repeat"}
+                                  "raw": True, "filter_type": "nearest" if closest else "bilinear",
+                                  "wrap_mode": "repeat"}
         return self.textures[key]
 
     def _single(self, k):

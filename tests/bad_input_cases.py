@@ -135,6 +135,7 @@ def cli_render(build_file, *extra):
 def _texture_past_texels(a):
     a["texture_info"] = np.array([[0, 100, 100]], np.uint32)
     a["texture_texels"] = np.zeros((16, 4), np.uint8)
+    a["texture_flags"] = np.zeros(1, np.uint32)
 
 
 def _degenerate_camera(scale):
@@ -256,8 +257,10 @@ CASES = [
     Case("material-unknown-type-flat", "flat", lambda _t: flat(set_("material_type", 2, 7)), E,
          r"material 2: unknown type 7"),
     Case("mix-cycle", "scene", lambda _t: _mix_cycle(), E, r"mix chain has a cycle"),
-    Case("texture-float", "scene", with_scene(lambda sc: sc.textures.append(Texture(np.zeros((2, 2, 3))))), E,
-         r"texture 0: pixels must be uint8"),
+    Case("texture-float-nan", "scene", with_scene(lambda sc: sc.textures.append(Texture(np.full((2, 2, 3), np.nan)))), E,
+         r"texture 0: float pixels must be finite"),
+    Case("texture-int16", "scene", with_scene(lambda sc: sc.textures.append(Texture(np.zeros((2, 2, 3), np.int16)))), E,
+         r"texture 0: pixels must be uint8 sRGB or float linear, got int16"),
     Case("texture-zero-size", "scene", with_scene(lambda sc: sc.textures.append(Texture(np.zeros((0, 4, 3), np.uint8)))), E,
          r"zero-size image"),
     Case("texture-index-string", "scene", with_scene(setattr_("materials.0.base_color_texture", "wood")), E,

@@ -19,7 +19,7 @@ socket's own value; any other shader node renders as a diffuse surface of its co
 """
 import numpy as np
 
-from .images import image_rgb, linear_to_srgb
+from .images import image_rgb
 
 DEFAULT_COLOR = (0.8, 0.8, 0.8)  # Cycles' surface for objects without a material
 
@@ -112,24 +112,30 @@ class MaterialTable:
                 materials.append(material)
             remaining -= p
 
-    def _texture(self, image, node_label):
-        """Index of ``image`` in data.textures (uint8 sRGB, row 0 at the top), or None."""
-        key = image.name_full
+    def _texture(self, image, node_label, interpolation="linear"):
+        """Index of ``image`` with ``interpolation`` ("linear" or "closest") in data.textures
+        (row 0 at the top), or None."""
+        key = (image.name_full, interpolation)
         if key not in self._textures:
-            self._textures[key] = self._load_texture(image, node_label)
+            self._textures[key] = self._load_texture(image, node_label, interpolation)
         return self._textures[key]
 
-    def _load_texture(self, image, node_label):
+    def _load_texture(self, image, node_label, interpolation):
         loaded = image_rgb(image)
         if loaded is None:
             self._warnings.add(f"{node_label}: image '{image.name}' has no pixels (missing "
                                "file?); using the input's colour")
             return None
         pixels, stored_as_srgb = loaded
-        if not stored_as_srgb:  # linear data: encode to sRGB bytes like the core expects
-            pixels = linear_to_srgb(pixels)
-        texels = np.clip(np.rint(pixels * 255.0), 0, 255).astype(np.uint8)
-        self._out_textures.append(self._scene.Texture(np.ascontiguousarray(texels), name=image.name))
+        if stored_as_srgb:  # 8-bit sRGB: bytes, interpolated before decoding (as Cycles)
+            texels = np.clip(np.rint(pixels * 255.0), 0, 255).astype(np.uint8)
+        else:  # float images and non-colour data: linear floats (half texels in the core)
+            if not np.isfinite(pixels).all():
+                self._warnings.add(f"{node_label}: image '{image.name}' has NaN or infinite pixels; "
+                                   "replaced by 0 (NaN) and the largest half float (infinity)")
+            texels = np.nan_to_num(pixels, nan=0.0, posinf=self._scene.HALF_MAX, neginf=0.0)
+        self._out_textures.append(self._scene.Texture(np.ascontiguousarray(texels), name=image.name,
+                                                      interpolation=interpolation))
         return len(self._out_textures) - 1
 
 
@@ -214,7 +220,11 @@ class _NodeReader:
             if src.projection != "FLAT" or src.extension != "REPEAT":
                 self.warn(f"image texture '{src.name}' uses {src.projection} projection / "
                           f"{src.extension} extension; rendered as flat, repeating")
-            texture = self.texture_loader(src.image, label)
+            if src.interpolation not in ("Linear", "Closest"):  # Cubic, Smart
+                self.warn(f"image texture '{src.name}' uses {src.interpolation} interpolation; "
+                          "rendered as Linear")
+            interpolation = "closest" if src.interpolation == "Closest" else "linear"
+            texture = self.texture_loader(src.image, label, interpolation)
             if texture is not None:
                 return np.ones(3), texture
             return constant, None

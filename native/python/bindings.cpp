@@ -90,7 +90,8 @@ NB_MODULE(_native, m) {
 
     m.def("light_tree_min_lights", &px::light_tree_min_lights,
           "Scenes with at least this many local lights (emissive triangles, point, spot and area "
-          "lights) pick them through the light tree, fewer from the power CDF alone.");
+          "lights) pick them through the light tree (where the session's light_tree setting is on), "
+          "fewer from the power CDF alone.");
     m.def("set_light_tree_min_lights", &px::set_light_tree_min_lights, "n"_a,
           "Sets light_tree_min_lights for scenes updated from now on (0 or 1: always the tree; "
           "2**32 - 1: never); a benchmark and test knob.");
@@ -118,6 +119,7 @@ NB_MODULE(_native, m) {
         .def_rw("light_samples", &px::RenderParams::light_samples)
         .def_rw("seed", &px::RenderParams::seed)
         .def_rw("preview", &px::RenderParams::preview)
+        .def_rw("light_tree", &px::RenderParams::light_tree)
 #define PX_IC_FIELD(NAME, MEMBER)                                                                      \
     .def_prop_rw(NAME, [](const px::RenderParams& p) { return p.ic.MEMBER; },                        \
                  [](px::RenderParams& p, decltype(px::IcParams::MEMBER) v) { p.ic.MEMBER = v; })
@@ -240,6 +242,7 @@ NB_MODULE(_native, m) {
                  d["milliseconds"] = st.milliseconds;
                  d["frames"] = st.frames;
                  d["blas_builds"] = st.blas_builds;
+                 d["light_tree_nodes"] = st.light_tree_nodes;
                  d["ic_entries"] = st.ic.entries;
                  d["ic_capacity"] = st.ic.capacity;
                  d["ic_dropped"] = st.ic.dropped;

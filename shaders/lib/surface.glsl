@@ -43,22 +43,41 @@ vec3 srgb_to_linear(vec3 c) {
     return mix(c / 12.92, pow((c + 0.055) / 1.055, vec3(2.4)), step(vec3(0.04045), c));
 }
 
-vec3 texel_srgb(TextureInfo t, uint x, uint y) { return unpackUnorm4x8(texels[t.offset + y * t.width + x]).rgb; }
+// One texel: sRGB-encoded for byte textures, linear for half-float ones (TEXTURE_FLAG_HALF).
+vec3 texel_value(TextureInfo t, uint x, uint y) {
+    uint i = y * t.width + x;
+    if ((t.flags & TEXTURE_FLAG_HALF) != 0u) {
+        uint w = t.offset + 2u * i;
+        return vec3(unpackHalf2x16(texels[w]), unpackHalf2x16(texels[w + 1u]).x);
+    }
+    return unpackUnorm4x8(texels[t.offset + i]).rgb;
+}
 
-// Bilinear lookup with repeat wrapping; v = 1 is the top row (row 0), as in Blender. As Cycles
-// does for 8-bit sRGB images (svm_image_texture, NODE_IMAGE_COMPRESS_AS_SRGB), the stored sRGB
-// values are interpolated and the result decoded: decoding first would brighten every blend of
-// a light and a dark texel (the decode is convex), most where the texture is magnified.
+// Lookup with repeat wrapping; v = 1 is the top row (row 0), as in Blender. Closest takes the
+// texel the point falls in (Cycles' INTERPOLATION_CLOSEST: floor(u * width)); Linear is
+// bilinear. As Cycles does for 8-bit sRGB images (svm_image_texture,
+// NODE_IMAGE_COMPRESS_AS_SRGB), the stored sRGB values are interpolated and the result decoded:
+// decoding first would brighten every blend of a light and a dark texel (the decode is
+// convex), most where the texture is magnified. Half-float texels are linear already and are
+// interpolated as they are, like Cycles' float images.
 vec3 sample_texture(int index, vec2 uv) {
     TextureInfo t = textures[index];
-    float x = fract(uv.x) * float(t.width) - 0.5;
-    float y = (1.0 - fract(uv.y)) * float(t.height) - 0.5;
-    float fx = floor(x), fy = floor(y);
-    vec2 f = vec2(x - fx, y - fy);
-    uint x0 = uint(int(fx) + int(t.width)) % t.width, x1 = (x0 + 1u) % t.width;
-    uint y0 = uint(int(fy) + int(t.height)) % t.height, y1 = (y0 + 1u) % t.height;
-    return srgb_to_linear(mix(mix(texel_srgb(t, x0, y0), texel_srgb(t, x1, y0), f.x),
-                              mix(texel_srgb(t, x0, y1), texel_srgb(t, x1, y1), f.x), f.y));
+    vec3 c;
+    if ((t.flags & TEXTURE_FLAG_CLOSEST) != 0u) {
+        uint x = min(uint(fract(uv.x) * float(t.width)), t.width - 1u);
+        uint y = t.height - 1u - min(uint(fract(uv.y) * float(t.height)), t.height - 1u);
+        c = texel_value(t, x, y);
+    } else {
+        float x = fract(uv.x) * float(t.width) - 0.5;
+        float y = (1.0 - fract(uv.y)) * float(t.height) - 0.5;
+        float fx = floor(x), fy = floor(y);
+        vec2 f = vec2(x - fx, y - fy);
+        uint x0 = uint(int(fx) + int(t.width)) % t.width, x1 = (x0 + 1u) % t.width;
+        uint y0 = uint(int(fy) + int(t.height)) % t.height, y1 = (y0 + 1u) % t.height;
+        c = mix(mix(texel_value(t, x0, y0), texel_value(t, x1, y0), f.x),
+                mix(texel_value(t, x0, y1), texel_value(t, x1, y1), f.x), f.y);
+    }
+    return (t.flags & TEXTURE_FLAG_HALF) != 0u ? c : srgb_to_linear(c);
 }
 
 vec3 material_albedo(Material m, vec2 uv) {

@@ -31,7 +31,7 @@ PX_CONST uint BINDING_MESHES = 8;          // MeshInfo
 PX_CONST uint BINDING_INSTANCES = 9;       // InstanceInfo, indexed by gl_InstanceCustomIndexEXT
 PX_CONST uint BINDING_MATERIALS = 10;      // Material
 PX_CONST uint BINDING_TEXTURE_INFO = 11;   // TextureInfo
-PX_CONST uint BINDING_TEXELS = 12;         // uint RGBA8 sRGB texels, all textures
+PX_CONST uint BINDING_TEXELS = 12;         // uint words: RGBA8 sRGB texels, then RGBA half texels (2 words each)
 PX_CONST uint BINDING_LIGHTS = 13;         // Light
 PX_CONST uint BINDING_LIGHT_CDF = 14;      // float[light_count + 1], selection by power
 PX_CONST uint BINDING_ENV_TEXELS = 15;     // vec3 linear radiance, row 0 = top (zenith)
@@ -188,11 +188,15 @@ struct Material {
 // 1/E(mu_o) (and the Fresnel-coloured multi-bounce term) from shaders/shared/ggx_tables.h.
 PX_CONST uint MATERIAL_FLAG_MULTISCATTER = 1u;
 
+// TextureInfo.flags (parallax_core.scene TEXTURE_FLAG_*).
+PX_CONST uint TEXTURE_FLAG_CLOSEST = 1u;  // Blender's Closest interpolation: the nearest texel
+PX_CONST uint TEXTURE_FLAG_HALF = 2u;     // linear RGBA half-float texels, 2 words each (float images)
+
 struct TextureInfo {
-    uint offset;  // first texel in the texel buffer
+    uint offset;  // first word of the texture in the texel buffer
     uint width;
     uint height;
-    uint pad0;
+    uint flags;   // TEXTURE_FLAG_*
 };
 
 // One light. Radiometric quantities are already converted from Cycles' units to radiance

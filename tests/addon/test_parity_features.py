@@ -1,5 +1,6 @@
 """Parity with Cycles on scenes built the way users build them (issue 14): lights with Soft
-Falloff close to a floor, objects resting on a floor, a sunlit textured floor, multiscatter GGX.
+Falloff close to a floor, objects resting on a floor, a sunlit textured floor (8-bit sRGB,
+Linear; float, Closest), multiscatter GGX.
 
 Each scene is built here with blender_scenes/build.py's helpers (Cycles set up as for the
 .blend scenes: box filter, 8 bounces, no clamping) and rendered by both engines with seeds 0
@@ -92,6 +93,27 @@ def sunlit_textured_floor(b):
     b.set_world((0.05, 0.07, 0.1), 1.0)
 
 
+def closest_float_floor(b):
+    """A floor textured with a float image (linear texels 0.05 and 1.5: above 1 in a float
+    buffer) with Closest interpolation, magnified at grazing angles (sharp texel edges), under a
+    sun and a world colour."""
+    import bpy
+    import numpy as np
+
+    checker = (np.indices((4, 4)).sum(axis=0) % 2).astype(bool)
+    rgba = np.ones((4, 4, 4), np.float32)
+    rgba[..., :3] = np.where(checker[..., None], (1.5, 1.2, 0.9), (0.05, 0.05, 0.05))
+    image = bpy.data.images.new("FloatChecker", 4, 4, alpha=False, float_buffer=True)
+    image.pixels.foreach_set(rgba.ravel())
+    material = b.textured_diffuse("Floor", image)
+    material.node_tree.nodes["Image Texture"].interpolation = "Closest"
+    floor = b.add_rect("Floor", 8.0, 8.0, material, (0, 1.0, 0))
+    b.box_project_uvs(floor.data, 2.0)
+    b.add_sun_light("Sun", (0.4, 0.7, -0.45), 3.0, 5.0)
+    b.add_camera((0.0, -2.5, 0.45), (0.0, 2.0, 0.0), 60.0)
+    b.set_world((0.05, 0.07, 0.1), 1.0)
+
+
 def _build(bpy, builder):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
@@ -130,5 +152,11 @@ def test_objects_resting_on_a_floor_match_cycles(bpy, tmp_path):
 
 def test_sunlit_textured_floor_matches_cycles(bpy, tmp_path):
     ratio, _, ours, theirs = compare(bpy, tmp_path, sunlit_textured_floor)
+    assert ours == pytest.approx(theirs, rel=0.03)
+    assert ratio < 3.0
+
+
+def test_closest_float_texture_matches_cycles(bpy, tmp_path):
+    ratio, _, ours, theirs = compare(bpy, tmp_path, closest_float_floor, samples=min(SAMPLES, 128))
     assert ours == pytest.approx(theirs, rel=0.03)
     assert ratio < 3.0

@@ -175,6 +175,31 @@ def test_image_texture_into_base_color(fresh, bpy):
     assert (texels[0, :, 0] == 255).all() and (texels[1, :, 0] == 0).all()  # row 0 = top
 
 
+def test_float_image_and_interpolation_reach_the_texture(fresh, bpy):
+    """A float image stays linear floats (values above 1 kept); the node's Closest travels
+    with the texture; Cubic renders as Linear with a warning."""
+    image = bpy.data.images.new("HDR", 2, 1, float_buffer=True)
+    image.pixels.foreach_set(np.array([0.25, 0.5, 1.0, 1.0, 3.0, 2.0, 0.125, 1.0], np.float32))
+    material, diffuse = _material(bpy, "Float", "ShaderNodeBsdfDiffuse")
+    tex = material.node_tree.nodes.new("ShaderNodeTexImage")
+    tex.image, tex.interpolation = image, "Closest"
+    material.node_tree.links.new(tex.outputs["Color"], diffuse.inputs["Color"])
+    _cube(bpy, fresh, material=material)
+    data, warnings = export_current(bpy)
+    index = data.materials[data.meshes[0].material_indices[0]].base_color_texture
+    texture = data.textures[index]
+    assert texture.interpolation == "closest" and texture.pixels.dtype == np.float32
+    np.testing.assert_allclose(texture.pixels[0], [[0.25, 0.5, 1.0], [3.0, 2.0, 0.125]])
+    flat = data.flatten()
+    assert flat["texture_flags"][index] == 3  # TEXTURE_FLAG_CLOSEST | TEXTURE_FLAG_HALF
+    assert not any("interpolation" in w for w in warnings)
+    tex.interpolation = "Cubic"
+    data, warnings = export_current(bpy)
+    texture = data.textures[data.materials[data.meshes[0].material_indices[0]].base_color_texture]
+    assert texture.interpolation == "linear"
+    assert any("uses Cubic interpolation; rendered as Linear" in w for w in warnings)
+
+
 def test_lights_in_cycles_units(fresh, bpy):
     def light(kind, **props):
         obj = bpy.data.objects.new(kind, bpy.data.lights.new(kind, kind))

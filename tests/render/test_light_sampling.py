@@ -4,21 +4,12 @@ mis; and the light tree against picking by power on 1000 emissive triangles: the
 (Z-test), less noise at equal samples. Tiny images; one scene family, so one pipeline per
 method."""
 import numpy as np
-import pytest
 
 import parallax_core as pc
 from parallax_core import scenes
 from parallax_core.scene import Camera, Material, SceneData, World
 
 from helpers import batches, means_agree, z_scores
-
-
-@pytest.fixture
-def tree_threshold():
-    """Restores the light tree threshold a test changes."""
-    before = pc.light_tree_min_lights()
-    yield pc.set_light_tree_min_lights
-    pc.set_light_tree_min_lights(before)
 
 
 def _close_triangle_scene(size=16):
@@ -49,14 +40,19 @@ def rel_variance(mean, se):
     return float((se**2 / (mean**2 + 1e-3)).mean())
 
 
-def test_light_tree_beats_power_on_many_emitters(tree_threshold):
+def test_light_tree_beats_power_on_many_emitters():
+    """The light_tree setting (Cycles' Light Tree checkbox) switches one session's scene
+    between the tree and the power CDF without a new update."""
     sc = scenes.many_emitters(1000, 16, 16)
     s = pc.Session(sc.width, sc.height)
+    s.update(sc)
     res = {}
-    for name, threshold in (("tree", 0), ("power", 2**32 - 1)):
-        tree_threshold(threshold)
-        s.update(sc)
-        res[name] = batches(sc, "nee", n_batches=8, spp=16, session=s, max_depth=1)
+    for name, on in (("tree", True), ("power", False)):
+        res[name] = batches(sc, "nee", n_batches=8, spp=16, session=s, max_depth=1, light_tree=on)
+        nodes = s.stats()["light_tree_nodes"]
+        assert (nodes > 0) if on else (nodes == 0), f"{name}: {nodes} light tree nodes"
+    s.update(sc)  # an update keeps the setting
+    assert s.stats()["light_tree_nodes"] == 0
     z = z_scores(*res["tree"][:2], *res["power"][:2], k=4)
     assert np.abs(z).max() < 5.0, f"tree vs power: max |z| {np.abs(z).max():.2f}"
     ok, ma, mb, se = means_agree(res["tree"][3], res["power"][3])

@@ -9,22 +9,23 @@ from parallax_core import scenes
 from parallax_core.scene import Camera, Instance, Light, Material, Mesh, SceneData, Texture, World
 
 
-def textured_quad(texture, width=32, height=32):
+def textured_quad(texture, width=32, height=32, interpolation="linear", base_color=(1.0, 1.0, 1.0)):
     # Quad [-1,1]^2 at z=0, UVs as Blender unwraps it: (0,0) bottom-left, (1,1) top-right.
     p = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float)
     uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
     tris = np.array([[0, 1, 2], [0, 2, 3]])
     mesh = Mesh(p, tris, uvs=uv[tris], name="quad")
-    mat = Material("diffuse", (1.0, 1.0, 1.0), base_color_texture=0)
+    mat = Material("diffuse", base_color, base_color_texture=0)
     # Orthographic camera 5 above, looking down, +Y up in the image; ortho_scale 2 spans the quad.
     m = np.eye(4)
     m[:3, 3] = (0, 0, 5)
     cam = Camera.from_blender(m, width, height, type="ORTHO", ortho_scale=2.0)
-    return SceneData([mesh], [], [mat], [Texture(texture)], [], World((1, 1, 1), 1.0), cam, width, height)
+    return SceneData([mesh], [], [mat], [Texture(texture, interpolation=interpolation)], [], World((1, 1, 1), 1.0),
+                     cam, width, height)
 
 
-def albedo(scene):
-    s = pc.Session(scene.width, scene.height)
+def albedo(scene, session=None):
+    s = session or pc.Session(scene.width, scene.height)
     s.set_params(method="mis", samples_per_frame=16)
     s.update(scene)
     s.render(1)
@@ -60,6 +61,42 @@ def test_texture_is_bilinear():
     # Repeat wrapping: the ramp rises across the middle and falls towards both edges.
     assert row[16] < 0.05 and row[47] > 0.95
     assert np.all(np.diff(row[16:48]) >= -1e-4)
+
+
+def test_closest_interpolation_shows_only_the_texels():
+    """Blender's Closest: each pixel shows the texel it falls in (sharp edges), where Linear
+    blends neighbours. A 2x2 checker over 32x32 pixels: texel edges lie on pixel edges."""
+    tex = np.array([[[255, 0, 0], [0, 255, 0]], [[0, 0, 255], [255, 255, 255]]], np.uint8)
+    s = pc.Session(32, 32)
+    closest, _ = albedo(textured_quad(tex, interpolation="closest"), s)
+    expected = np.zeros((32, 32, 3), np.float32)
+    expected[:16, :16], expected[:16, 16:], expected[16:, :16], expected[16:, 16:] = tex.reshape(4, 3) / 255.0
+    assert np.abs(closest - expected).max() < 1e-4
+    linear, _ = albedo(textured_quad(tex), s)
+    blended = ((linear > 0.02) & (linear < 0.98)).any(axis=2)
+    assert blended.mean() > 0.5  # Linear: most pixels mix two or four texels
+    assert min(linear[8, 15, 0], linear[8, 15, 1]) > 0.1  # red and green mix at their edge
+
+
+def test_float_texture_keeps_values_above_one_and_interpolates_linearly():
+    """A float (linear) image: values above 1 survive and blends are linear, with no 8-bit
+    quantisation; the render's mean is the texture's mean times the base colour (a diffuse
+    quad under a white world reflects its albedo)."""
+    tex = np.array([[[0.5, 0.5, 0.5], [3.5, 3.5, 3.5]]], np.float32)
+    sc = textured_quad(tex, 64, 8, base_color=(0.25, 0.25, 0.25))
+    s = pc.Session(64, 8)
+    albedo(sc, s)
+    s.render(7)  # 128 samples per pixel: the albedo pass's pixel-footprint noise below 1e-3
+    a = s.read("albedo")
+    # Bilinear at the pixel centres, repeat wrapping: texel position x = (i + 0.5) / 64 * 2 - 0.5.
+    x = (np.arange(64) + 0.5) / 64 * 2 - 0.5
+    f = x - np.floor(x)
+    left = np.where(np.floor(x) % 2 == 0, 0.5, 3.5)
+    right = np.where(np.floor(x) % 2 == 0, 3.5, 0.5)
+    np.testing.assert_allclose(a[4, :, 0], 0.25 * ((1 - f) * left + f * right), atol=3e-3)
+    assert a.max() > 0.85  # 0.25 * 3.5 near the right texel's centre
+    mean = s.read("combined")[..., :3].mean()
+    assert mean == pytest.approx(0.25 * 2.0, rel=0.02)
 
 
 def test_instance_transform_matches_baked_geometry():

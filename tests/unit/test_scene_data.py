@@ -193,8 +193,12 @@ def test_instance_errors():
 def test_texture_and_world_errors():
     expect_error(scene_with(textures=[Texture(np.zeros((0, 4, 3), np.uint8))]),
                  "texture 0: zero-size image")
-    expect_error(scene_with(textures=[Texture(np.zeros((2, 2, 3), np.float32), "t")]),
-                 "texture 't' (texture 0): pixels must be uint8")
+    expect_error(scene_with(textures=[Texture(np.zeros((2, 2, 3), np.int32), "t")]),
+                 "texture 't' (texture 0): pixels must be uint8 sRGB or float linear, got int32")
+    expect_error(scene_with(textures=[Texture(np.full((2, 2, 3), np.inf, np.float32), "t")]),
+                 "texture 't' (texture 0): float pixels must be finite")
+    expect_error(scene_with(textures=[Texture(np.zeros((2, 2, 3), np.uint8), "t", "cubic")]),
+                 "texture 't' (texture 0): unknown interpolation 'cubic'")
     expect_error(scene_with(textures=[Texture(np.zeros((2, 2, 2), np.uint8))]),
                  "texture 0: pixels has shape")
     expect_error(scene_with(world=World(map=np.zeros((0, 0, 3), np.float32))),
@@ -333,6 +337,29 @@ def test_flatten_lights():
     f = scene_with(lights=[Light("area", shape="square", size=3)]).flatten()
     np.testing.assert_allclose(f["light_axis_u"][0], [3, 0, 0])
     np.testing.assert_allclose(f["light_axis_v"][0], [0, 3, 0])
+
+
+def test_float_and_closest_textures_flatten_and_load(tmp_path):
+    """Float pixels become linear half texels of their own array (values > 1 kept, negatives
+    clamped to 0); the interpolation and the kind travel in texture_flags; a file round-trips."""
+    hdr = np.linspace(-1.0, 4.0, 18, dtype=np.float32).reshape(2, 3, 3)
+    s = scene_with(textures=[Texture(np.zeros((2, 2, 3), np.uint8), "bytes", "closest"),
+                             Texture(hdr, "hdr"), Texture(hdr[..., 2], "grey", "closest")])
+    flat = s.flatten()
+    assert flat["texture_flags"].tolist() == [scene.TEXTURE_FLAG_CLOSEST, scene.TEXTURE_FLAG_HALF,
+                                              scene.TEXTURE_FLAG_CLOSEST | scene.TEXTURE_FLAG_HALF]
+    assert flat["texture_info"].tolist() == [[0, 2, 2], [0, 3, 2], [6, 3, 2]]
+    assert flat["texture_texels"].shape == (4, 4) and flat["texture_half_texels"].shape == (12, 4)
+    halves = flat["texture_half_texels"].view(np.float16).astype(np.float32)
+    np.testing.assert_allclose(halves[:6, :3], np.maximum(hdr, 0).reshape(-1, 3), rtol=1e-3)
+    assert halves.max() == pytest.approx(4.0) and (halves[:, 3] == 1).all()
+    s.save(tmp_path / "t.npz")
+    loaded = SceneData.load(tmp_path / "t.npz")
+    assert [t.interpolation for t in loaded.textures] == ["closest", "linear", "closest"]
+    assert_flat_equal(flat, loaded.flatten())
+    old = {k: v for k, v in flat.items() if k not in ("texture_flags", "texture_half_texels")}
+    old["texture_info"], old["texture_texels"] = flat["texture_info"][:1], flat["texture_texels"]
+    assert [t.interpolation for t in SceneData.from_flat(old).textures] == ["linear"]  # older files
 
 
 # ---- files -------------------------------------------------------------------------------

@@ -42,6 +42,7 @@ class RenderParams:
     depth_leeway: int = 4           # delta bounces not counted towards max_depth
     rr_start_depth: int = 3         # Russian roulette from this bounce on; 0 = off
     light_samples: int = 1          # NEE samples per vertex
+    light_tree: bool = True         # local lights picked through the light tree (Cycles' Light Tree); off: by power
     seed: int = 0
     preview: bool = False           # first-hit shading only (preview.rgen): compiles in a fraction
                                     # of the path tracer's time; the viewport's first frame

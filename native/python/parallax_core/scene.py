@@ -17,7 +17,7 @@ import numpy as np
 
 __all__ = [
     "Mesh", "Instance", "Material", "Texture", "Light", "World", "Camera", "SceneData",
-    "FLAT_KEYS", "PARTS", "PART_KEYS", "MATERIAL_TYPES", "LIGHT_TYPES", "MIX_CHAIN_MAX",
+    "FLAT_KEYS", "PARTS", "PART_KEYS", "MATERIAL_TYPES", "LIGHT_TYPES", "MIX_CHAIN_MAX", "TEXTURE_INTERPOLATIONS",
     "direction_to_equirectangular", "equirectangular_to_direction",
 ]
 
@@ -25,6 +25,12 @@ MATERIAL_TYPES = {"diffuse": 0, "conductor": 1, "dielectric": 2, "emission": 3, 
 LIGHT_TYPES = {"point": 1, "spot": 2, "sun": 3, "area": 4}
 AREA_SHAPES = {"square": 4, "rectangle": 4, "disk": 5, "ellipse": 5}
 CAMERA_TYPES = {"perspective": 0, "orthographic": 1}
+# Texture.interpolation -> its texture_flags bit (Blender's Image Texture node: Linear, Closest).
+TEXTURE_INTERPOLATIONS = {"linear": 0, "closest": 1}
+# texture_flags bits (px TEXTURE_FLAG_* in shaders/shared/types.h).
+TEXTURE_FLAG_CLOSEST = 1  # the nearest texel, no filtering
+TEXTURE_FLAG_HALF = 2     # texels in texture_half_texels (linear), else texture_texels (sRGB bytes)
+HALF_MAX = 65504.0        # largest finite half float: float texels are clamped to [0, HALF_MAX]
 
 # Every key flatten() produces, with its dtype and shape (V vertices, T triangles, M meshes,
 # I instances, K materials, N texels, X textures, L lights).
@@ -51,7 +57,9 @@ FLAT_KEYS = {
     "material_multiscatter": (np.uint32, "(K,)"),
     "material_principled": (np.float32, "(K,17)"),  # PRINCIPLED_FIELDS, in that order
     "texture_texels": (np.uint8, "(N,4)"),
-    "texture_info": (np.uint32, "(X,3)"),
+    "texture_info": (np.uint32, "(X,3)"),           # first texel, width, height
+    "texture_flags": (np.uint32, "(X,)"),           # TEXTURE_FLAG_* bits
+    "texture_half_texels": (np.uint16, "(N2,4)"),   # float textures: linear RGBA, IEEE half bits
     "light_type": (np.uint32, "(L,)"),
     "light_position": (np.float32, "(L,3)"),
     "light_direction": (np.float32, "(L,3)"),
@@ -107,7 +115,8 @@ def parts_set(parts):
 # Keys newer than some saved files, with their defaults (and the array they follow in length).
 _OPTIONAL_KEY_DEFAULTS = {"material_mix_next": -1, "material_mix_weight": 1.0, "material_multiscatter": 0,
                           "material_principled": 0.0,
-                          "light_camera_visible": 1, "light_soft_falloff": 0}
+                          "light_camera_visible": 1, "light_soft_falloff": 0,
+                          "texture_flags": 0, "texture_half_texels": 0}
 
 # Principled material inputs (Blender's Principled BSDF), their sizes, and the clamps Cycles
 # applies (low, high; None: open): the columns of material_principled in this order.
@@ -299,9 +308,15 @@ class Material:
 
 @dataclass
 class Texture:
-    """uint8 sRGB image, (H,W,3|4) (or (H,W) grey); row 0 is the top of the image."""
+    """An image, (H,W,3|4) or (H,W) grey; row 0 is the top of the image. ``pixels`` uint8:
+    sRGB-encoded bytes, interpolated before decoding (as Cycles does 8-bit sRGB images); any
+    float dtype: linear values (Cycles' float images: EXR, HDR, non-colour data), kept as half
+    floats (clamped to 0..65504; values above 1 stay) and interpolated linearly.
+    ``interpolation``: "linear" (bilinear) or "closest" (the nearest texel), as the Image
+    Texture node's Linear and Closest."""
     pixels: np.ndarray
     name: str = ""
+    interpolation: str = "linear"
 
 
 @dataclass
@@ -549,7 +564,11 @@ class SceneData:
                     raise ValueError(f"{lbl}: mix_next {n} out of range ({K} materials)")
         _check_mix_chains(materials)
         for x, tex in enumerate(self.textures):
-            _texture_rgba(tex.pixels, _label("texture", x, tex.name))
+            lbl = _label("texture", x, tex.name)
+            _texture_rgba(tex.pixels, lbl)
+            if not isinstance(tex.interpolation, str) or tex.interpolation not in TEXTURE_INTERPOLATIONS:
+                raise ValueError(f"{lbl}: unknown interpolation {tex.interpolation!r} "
+                                 f"(choose from {', '.join(TEXTURE_INTERPOLATIONS)})")
 
     def _check_world(self):
         w = self.world
@@ -700,16 +719,25 @@ class SceneData:
             [np.concatenate([np.clip(np.asarray(getattr(m, a), np.float64).reshape(n), lo, hi)
                              for a, n, lo, hi in PRINCIPLED_FIELDS]) for m in mats],
             np.float32).reshape(-1, 17)
-        texels, info, first = [], [], 0
+        texels, halves, info, flags = [], [], [], []
+        first = {False: 0, True: 0}  # next texel of the byte and of the half texel arrays
         for tex in self.textures:
             rgba = _texture_rgba(tex.pixels, "texture")
             h, w = rgba.shape[:2]
-            texels.append(rgba.reshape(-1, 4))
-            info.append((first, w, h))
-            first += w * h
+            is_float = rgba.dtype != np.uint8
+            if is_float:
+                halves.append(rgba.reshape(-1, 4).astype(np.float16).view(np.uint16))
+            else:
+                texels.append(rgba.reshape(-1, 4))
+            info.append((first[is_float], w, h))
+            flags.append(TEXTURE_INTERPOLATIONS[tex.interpolation] | (TEXTURE_FLAG_HALF if is_float else 0))
+            first[is_float] += w * h
         out["texture_texels"] = (np.concatenate(texels) if texels
                                  else np.zeros((0, 4), np.uint8))
         out["texture_info"] = np.array(info, np.uint32).reshape(-1, 3)
+        out["texture_flags"] = np.array(flags, np.uint32)
+        out["texture_half_texels"] = (np.concatenate(halves) if halves
+                                      else np.zeros((0, 4), np.uint16))
 
     def _flatten_lights(self, light_keep, out):
         rows = [_light_row(l) for l, ok in zip(self.lights, light_keep) if ok]
@@ -831,8 +859,13 @@ class SceneData:
                      **_principled_fields(a["material_principled"][k]))
             for k in range(len(a["material_type"]))]
         tnames = meta.get("texture_names") or [""] * len(a["texture_info"])
-        textures = [Texture(a["texture_texels"][o:o + w * h].reshape(h, w, 4).copy(), tnames[x])
-                    for x, (o, w, h) in enumerate(a["texture_info"].astype(np.int64))]
+        interpolations = {v: k for k, v in TEXTURE_INTERPOLATIONS.items()}
+        textures = []
+        for x, (o, w, h) in enumerate(a["texture_info"].astype(np.int64)):
+            f = int(a["texture_flags"][x])
+            src = a["texture_half_texels"].view(np.float16) if f & TEXTURE_FLAG_HALF else a["texture_texels"]
+            textures.append(Texture(src[o:o + w * h].reshape(h, w, 4).copy(), tnames[x],
+                                    interpolations[f & TEXTURE_FLAG_CLOSEST]))
         lnames = meta.get("light_names") or [""] * len(a["light_type"])
         lights = [_light_from_row(a, j, lnames[j]) for j in range(len(a["light_type"]))]
         wm = a["world_map"]
@@ -968,11 +1001,18 @@ def _check_flat(flat, meta):
     if np.any(first < 0) or np.any(count < 0) or np.any(first + count > T):
         m = int(np.argmax((first < 0) | (count < 0) | (first + count > T)))
         raise ValueError(f"mesh {m} covers triangles {first[m]}..{first[m] + count[m]}, but there are {T}")
-    N = len(a["texture_texels"])
+    if len(a["texture_flags"]) != len(a["texture_info"]):
+        raise ValueError(f"array 'texture_flags' has {len(a['texture_flags'])} rows, expected "
+                         f"{len(a['texture_info'])} (one per texture)")
     for x, (o, w, h) in enumerate(a["texture_info"].astype(np.int64)):
+        f = int(a["texture_flags"][x])
+        if f & ~(TEXTURE_FLAG_CLOSEST | TEXTURE_FLAG_HALF):
+            raise ValueError(f"texture {x}: unknown texture_flags bits {f:#x}")
+        key = "texture_half_texels" if f & TEXTURE_FLAG_HALF else "texture_texels"
+        N = len(a[key])
         if w <= 0 or h <= 0 or o < 0 or o + w * h > N:
             raise ValueError(f"texture {x}: {w}x{h} texels at offset {o} do not fit in the {N} texels "
-                             "of 'texture_texels'")
+                             f"of '{key}'")
     for key in ("width", "height"):
         value = meta.get(key)
         if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < 1):
@@ -996,8 +1036,10 @@ def _with_optional_defaults(flat):
     flat = dict(flat)
     for k, default in _OPTIONAL_KEY_DEFAULTS.items():
         if k not in flat:
-            like = "light_type" if k.startswith("light_") else "material_type"
-            n = len(flat[like]) if like in flat and np.ndim(flat[like]) == 1 else 0
+            like = {"light": "light_type", "material": "material_type", "texture": "texture_info"}[k.split("_")[0]]
+            n = len(flat[like]) if like in flat and np.ndim(flat[like]) >= 1 else 0
+            if k == "texture_half_texels":
+                n = 0  # files without float textures
             trailing = tuple(int(d) for d in FLAT_KEYS[k][1].strip("()").split(",")[1:] if d)
             flat[k] = np.full((n,) + trailing, default, dtype=FLAT_KEYS[k][0])
     return flat
@@ -1043,12 +1085,20 @@ def _texture_rgba(pixels, lbl):
         raise ValueError(f"{lbl}: pixels has shape {px.shape}, expected (H,W,3) or (H,W,4)")
     if px.shape[0] == 0 or px.shape[1] == 0:
         raise ValueError(f"{lbl}: zero-size image")
-    if px.dtype != np.uint8:
-        raise ValueError(f"{lbl}: pixels must be uint8 sRGB, got {px.dtype}")
+    if px.dtype.kind == "f":  # linear float texels
+        px = px.astype(np.float32)
+        if not np.isfinite(px).all():
+            raise ValueError(f"{lbl}: float pixels must be finite (NaN or infinite texel)")
+        px = np.clip(px, 0.0, HALF_MAX)
+        opaque = 1.0
+    elif px.dtype == np.uint8:
+        opaque = 255
+    else:
+        raise ValueError(f"{lbl}: pixels must be uint8 sRGB or float linear, got {px.dtype}")
     if px.shape[2] == 1:
         px = np.repeat(px, 3, axis=2)
     if px.shape[2] == 3:
-        px = np.concatenate([px, np.full(px.shape[:2] + (1,), 255, np.uint8)], axis=2)
+        px = np.concatenate([px, np.full(px.shape[:2] + (1,), opaque, px.dtype)], axis=2)
     return np.ascontiguousarray(px)
 
 

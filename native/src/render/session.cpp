@@ -13,7 +13,7 @@ namespace px {
 bool RenderParams::operator==(const RenderParams& o) const {
     return method == o.method && mis_heuristic == o.mis_heuristic && samples_per_frame == o.samples_per_frame &&
            max_depth == o.max_depth && depth_leeway == o.depth_leeway && rr_start_depth == o.rr_start_depth &&
-           light_samples == o.light_samples && seed == o.seed && preview == o.preview &&
+           light_samples == o.light_samples && seed == o.seed && preview == o.preview && light_tree == o.light_tree &&
            std::memcmp(&ic, &o.ic, sizeof(ic)) == 0 && std::memcmp(&adrrs, &o.adrrs, sizeof(adrrs)) == 0 &&
            std::memcmp(&guiding, &o.guiding, sizeof(guiding)) == 0;
 }
@@ -115,8 +115,9 @@ std::vector<std::string> Session::update(const SceneArrays& arrays, bool spatial
 
     // Validates before touching the GPU; the parts not updated are shared with the current
     // scene. scene_ changes only in this function, which update_mutex_ serialises.
-    SceneHost host = scene_ ? update_scene(scene_->host(), views, spatial_order, parts)
-                            : prepare_scene(views, spatial_order);
+    const bool light_tree = params_.light_tree != 0;
+    SceneHost host = scene_ ? update_scene(scene_->host(), views, spatial_order, parts, light_tree)
+                            : prepare_scene(views, spatial_order, light_tree);
     auto warnings = host.warnings();
     // Upload next to the old scene (sharing its buffers and BLASes where the host data is
     // the same): if this fails (out of memory, device lost), the session keeps rendering
@@ -150,10 +151,24 @@ void Session::set_params(const RenderParams& p) {
     validate_adrrs_params(p.adrrs);
     validate_guiding_params(p.guiding);
     if (p.preview > 1) throw std::invalid_argument("preview must be 0 or 1");
+    if (p.light_tree > 1) throw std::invalid_argument("light_tree must be 0 or 1");
     if (p.preview && (p.ic.enabled || p.adrrs.enabled || p.guiding.enabled))
         throw std::invalid_argument("preview frames use no technique: turn ic, adrrs and guiding off");
-    std::lock_guard<std::mutex> lock(mutex_);
+    std::lock_guard<std::mutex> updating(update_mutex_);
     if (p == params_) return;
+    // The light tree is part of the light table: remade from the kept arrays, uploaded next
+    // to the current scene (which stays, with the old settings, if that fails).
+    std::unique_ptr<Scene> next;
+    if (scene_ && p.light_tree != params_.light_tree) {
+        SceneArrays views;
+        for (const auto& [name, array] : arrays_) views.emplace(name, array->view());
+        next = std::make_unique<Scene>(*ctx_, relight_scene(scene_->host(), views, p.light_tree != 0), scene_.get());
+    }
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (next) {
+        scene_ = std::move(next);
+        scene_->bind(*set_);
+    }
     params_ = p;
     reset_accumulation();  // any setting changes what the cache holds: it starts over
 }
@@ -549,6 +564,7 @@ SessionStats Session::stats() {
     stats_.rays = total;
     SessionStats out = stats_;
     out.blas_builds = blas_builds_;
+    out.light_tree_nodes = scene_ ? scene_->host().info.light_tree_nodes : 0;
     out.ic = ic_->stats();
     out.adrrs_estimate_frames = adrrs_->estimate_frames();
     out.adrrs_image_refreshes = adrrs_->image_refreshes();

@@ -26,6 +26,8 @@ struct RenderParams {
     uint32_t seed = 0;
     // The viewport's first frame: preview.rgen's first-hit shading, which compiles quickly.
     uint32_t preview = 0;  // 0/1, like the other flags
+    // Local lights picked through the light tree (Cycles' Light Tree, default on); 0: by power.
+    uint32_t light_tree = 1;
     IcParams ic;  // irradiance cache (techniques/irradiance_cache.h)
     AdrrsParams adrrs;  // adjoint-driven Russian roulette and splitting (techniques/adrrs.h)
     GuidingParams guiding;  // path guiding (techniques/guiding/guiding.h)
@@ -38,6 +40,7 @@ struct SessionStats {
     double milliseconds = 0;  // GPU-side render time since the last reset (wall clock)
     uint32_t frames = 0;
     uint64_t blas_builds = 0;  // BLASes built by this session's updates (never reset; debugging)
+    uint32_t light_tree_nodes = 0;  // nodes of the scene's light tree (0: lights picked by power)
     IcStats ic;
     uint32_t adrrs_estimate_frames = 0;  // estimate frames run (ADRRS_ESTIMATE_IC)
     uint32_t adrrs_image_refreshes = 0;  // image estimates made (ADRRS_ESTIMATE_IMAGE)
@@ -148,7 +151,8 @@ private:
     std::shared_ptr<Context> ctx_;  // first member: destroyed after everything using it
     uint32_t width_, height_;
     std::unique_ptr<DescriptorSet> set_;
-    std::unique_ptr<Scene> scene_;  // written only by update(), under update_mutex_ and mutex_
+    // Written only by update() and set_params() (a light_tree change), under update_mutex_ and mutex_.
+    std::unique_ptr<Scene> scene_;
     std::map<std::string, std::shared_ptr<const OwnedArray>> arrays_;  // the last arrays of every part
     uint64_t blas_builds_ = 0;
     Buffer film_, ray_count_, test_io_, technique_params_, ggx_tables_;  // ggx: constant, multiscatter albedos
@@ -163,7 +167,9 @@ private:
     Cursor cursor_;            // progress through the current frame
     std::atomic<bool> cancel_{false};
     std::mutex mutex_;         // the scene, film and stats against concurrent render()/read()
-    std::mutex update_mutex_;  // one update() at a time: each builds on the previous one
+    // One update() or set_params() at a time: each builds on the previous one. Taken before
+    // mutex_; params_ is written under both.
+    std::mutex update_mutex_;
 };
 
 }  // namespace px

@@ -16,8 +16,8 @@ namespace px {
 std::vector<LightTreeNode> build_light_tree(std::vector<Light>& lights, const std::vector<uint32_t>& local,
                                             const std::vector<double>& power);
 
-// Scenes with fewer local lights pick them from the power CDF (default 0: never; a test and
-// benchmark knob).
+// Scenes with fewer local lights pick them from the power CDF (default 0: never; a process-wide
+// test and benchmark knob on top of each session's light_tree setting).
 uint32_t light_tree_min_lights();
 void set_light_tree_min_lights(uint32_t n);
 

@@ -42,7 +42,7 @@ Arr<T> get(const SceneArrays& a, const std::string& name, char kind, std::vector
     const ArrayView& v = it->second;
     if (v.kind != kind || v.itemsize != sizeof(T))
         bad("array '" + name + "' has the wrong dtype (expected " +
-            (kind == 'f' ? "float32" : kind == 'u' ? (sizeof(T) == 1 ? "uint8" : "uint32") : "int32") + ")");
+            (kind == 'f' ? "float32" : kind == 'u' ? (sizeof(T) == 1 ? "uint8" : sizeof(T) == 2 ? "uint16" : "uint32") : "int32") + ")");
     bool ok = v.shape.size() == trailing.size() + 1;
     for (size_t i = 0; ok && i < trailing.size(); ++i) ok = v.shape[i + 1] == trailing[i];
     if (!ok) {
@@ -357,6 +357,8 @@ std::shared_ptr<const SceneMaterials> prepare_materials(const SceneArrays& a, co
     auto principled = get<float>(a, "material_principled", 'f', {17}, true);
     auto texels = get<uint8_t>(a, "texture_texels", 'u', {4});
     auto tex_info = get<uint32_t>(a, "texture_info", 'u', {3});
+    auto tex_flags = get<uint32_t>(a, "texture_flags", 'u', {}, true);                  // optional: 0
+    auto half_texels = get<uint16_t>(a, "texture_half_texels", 'u', {4}, true);        // optional: none
     if (base_color.rows != K || roughness.rows != K || ior.rows != K || emission.rows != K || texture.rows != K)
         bad("material_* arrays differ in length");
     if ((mix_next.data && mix_next.rows != K) || (mix_weight.data && mix_weight.rows != K))
@@ -364,18 +366,28 @@ std::shared_ptr<const SceneMaterials> prepare_materials(const SceneArrays& a, co
     if (multiscatter.data && multiscatter.rows != K) bad("material_multiscatter differs in length from material_type");
     if (principled.data && principled.rows != K) bad("material_principled differs in length from material_type");
     if (!mix_next.data != !mix_weight.data) bad("material_mix_next and material_mix_weight must be given together");
+    if (tex_flags.data && tex_flags.rows != tex_info.rows) bad("texture_flags and texture_info differ in length");
+    // One word buffer: the byte texels (one word each), then the half texels (two words each).
+    if (uint64_t(texels.rows) + 2 * uint64_t(half_texels.rows) > 0xffffffffull) bad("textures exceed 2^32 texel words");
     for (size_t x = 0; x < tex_info.rows; ++x) {
         const uint32_t* ti = tex_info.data + 3 * x;
-        if (ti[1] == 0 || ti[2] == 0) bad("texture " + std::to_string(x) + " has zero size");
-        if (uint64_t(ti[0]) + uint64_t(ti[1]) * ti[2] > texels.rows)
-            bad("texture " + std::to_string(x) + " extends past the end of texture_texels");
-        s.textures.push_back({ti[0], ti[1], ti[2], 0});
+        const uint32_t flags = tex_flags.data ? tex_flags.data[x] : 0u;
+        const std::string id = "texture " + std::to_string(x);
+        if (flags & ~(TEXTURE_FLAG_CLOSEST | TEXTURE_FLAG_HALF)) bad(id + " has unknown texture_flags bits");
+        const bool half = (flags & TEXTURE_FLAG_HALF) != 0;
+        if (ti[1] == 0 || ti[2] == 0) bad(id + " has zero size");
+        if (uint64_t(ti[0]) + uint64_t(ti[1]) * ti[2] > (half ? half_texels.rows : texels.rows))
+            bad(id + " extends past the end of " + (half ? "texture_half_texels" : "texture_texels"));
+        const uint32_t offset = half ? uint32_t(texels.rows + 2 * uint64_t(ti[0])) : ti[0];
+        s.textures.push_back({offset, ti[1], ti[2], flags});
     }
-    s.texels.resize(texels.rows);
+    s.texels.resize(texels.rows + 2 * half_texels.rows);
     for (size_t i = 0; i < texels.rows; ++i) {
         const uint8_t* c = texels.data + 4 * i;
         s.texels[i] = uint(c[0]) | uint(c[1]) << 8 | uint(c[2]) << 16 | uint(c[3]) << 24;
     }
+    for (size_t i = 0; i < 2 * half_texels.rows; ++i)  // RG, BA: as GLSL's unpackHalf2x16 reads them
+        s.texels[texels.rows + i] = uint(half_texels.data[2 * i]) | uint(half_texels.data[2 * i + 1]) << 16;
     s.materials.resize(K);
     for (size_t k = 0; k < K; ++k) {
         Material& m = s.materials[k];
@@ -597,7 +609,9 @@ std::shared_ptr<const SceneEnvironment> prepare_environment(const SceneArrays& a
 // s.placement; sets s.lights, the light fields of s.info and (when `new_environment` or
 // there is none yet) s.environment. Weights are summed in double and are finite by the
 // limits checked, so no light can poison the CDF; a light that emits nothing is left out.
-void prepare_lights(const SceneArrays& a, bool new_environment, SceneHost& s) {
+// `light_tree`: local lights are picked through a light tree (Cycles' Light Tree option),
+// else from the power CDF like the distant ones.
+void prepare_lights(const SceneArrays& a, bool new_environment, bool light_tree, SceneHost& s) {
     const SceneGeometry& g = *s.geometry;
     const std::vector<Material>& materials = s.materials->materials;
     auto out = std::make_shared<SceneLights>();
@@ -714,7 +728,7 @@ void prepare_lights(const SceneArrays& a, bool new_environment, SceneHost& s) {
         }
     s.info.light_tree_nodes = 0;
     s.info.light_tree_prob = 0;
-    if (local.size() >= light_tree_min_lights() && local_power > 0) {
+    if (light_tree && local.size() >= light_tree_min_lights() && local_power > 0) {
         out->light_tree = build_light_tree(lights, local, power);
         s.info.light_tree_nodes = uint(out->light_tree.size());
         s.info.light_tree_prob = float(local_power / std::accumulate(power.begin(), power.end(), 0.0));
@@ -861,7 +875,8 @@ std::vector<std::string> SceneHost::warnings() const {
     return out;
 }
 
-SceneHost update_scene(const SceneHost& previous, const SceneArrays& a, bool spatial_order, uint32_t parts) {
+SceneHost update_scene(const SceneHost& previous, const SceneArrays& a, bool spatial_order, uint32_t parts,
+                       bool light_tree) {
     // Every other part refers to the geometry (mesh and triangle indices): it redoes all.
     if ((parts & PART_GEOMETRY) || !previous.geometry) parts = PART_ALL;
     SceneHost s = parts == PART_ALL ? SceneHost{} : previous;  // shares the parts kept
@@ -875,14 +890,22 @@ SceneHost update_scene(const SceneHost& previous, const SceneArrays& a, bool spa
     // The light table holds the emissive instances' triangles (with their materials'
     // emission) as well as the analytic lights and the world.
     if (parts & (PART_INSTANCES | PART_MATERIALS | PART_LIGHTS)) {
-        prepare_lights(a, (parts & PART_LIGHTS) != 0, s);
+        prepare_lights(a, (parts & PART_LIGHTS) != 0, light_tree, s);
         s.features = scene_features(s);
     }
     if (parts & PART_CAMERA) prepare_camera(a, s.info);
     return s;
 }
 
-SceneHost prepare_scene(const SceneArrays& a, bool spatial_order) { return update_scene({}, a, spatial_order, PART_ALL); }
+SceneHost prepare_scene(const SceneArrays& a, bool spatial_order, bool light_tree) {
+    return update_scene({}, a, spatial_order, PART_ALL, light_tree);
+}
+
+SceneHost relight_scene(const SceneHost& previous, const SceneArrays& a, bool light_tree) {
+    SceneHost s = previous;
+    prepare_lights(a, false, light_tree, s);
+    return s;
+}
 
 Scene::Scene(Context& ctx, SceneHost host, const Scene* previous) : host_(std::move(host)) {
     const SceneHost* old = previous ? &previous->host_ : nullptr;

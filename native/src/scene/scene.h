@@ -133,13 +133,19 @@ struct SceneHost {
 // format). Throws std::invalid_argument naming the offending array and element.
 // `spatial_order` sorts triangles and instances along a Morton curve (lavapipe's BVH
 // builder splits in input order, so this decides its trace speed).
-SceneHost prepare_scene(const SceneArrays& arrays, bool spatial_order);
+// `light_tree`: pick local lights through a light tree (else by power; light_tree.h).
+SceneHost prepare_scene(const SceneArrays& arrays, bool spatial_order, bool light_tree = true);
 
 // `previous` with the `parts` re-prepared from `arrays` (which must hold every array, the
 // unchanged ones included) and whatever depends on them; the other parts are shared with
 // `previous`. PART_GEOMETRY re-prepares everything. Throws like prepare_scene; `previous`
 // is never modified.
-SceneHost update_scene(const SceneHost& previous, const SceneArrays& arrays, bool spatial_order, uint32_t parts);
+SceneHost update_scene(const SceneHost& previous, const SceneArrays& arrays, bool spatial_order, uint32_t parts,
+                       bool light_tree = true);
+
+// `previous` with its light table (and light sampling tables) remade from `arrays` for
+// another `light_tree` setting; everything else, the environment included, is shared.
+SceneHost relight_scene(const SceneHost& previous, const SceneArrays& arrays, bool light_tree);
 
 // Permutation sorting `points` along a Morton curve within their bounding box (the order
 // lavapipe's BVH builder needs its primitives in).
