@@ -506,6 +506,9 @@ void bind_guiding(nb::module_& parent) {
             std::memcpy(words.data(), n.data(), words.size() * sizeof(uint32_t));
             return owned(std::move(words), {n.size(), 2});
         }, "The region tree's GuidingNode records (N, 2) uint32, as GuidingField.nodes().")
+        .def_prop_ro("inherited", [](const DeviceFitter& f) {
+            return nb::make_tuple(f.fit->inherited_samples(), f.fit->inherited_fits());
+        }, "(samples, fits) the children of refine() inherited (counted in both halves).")
         .def_prop_ro("region_count", [](const DeviceFitter& f) { return f.fit->region_count(); })
         .def("mixture", [](const DeviceFitter& f, uint32_t r) { return to_dict(f.fit->mixture(r)); }, "region"_a)
         .def("state", [](const DeviceFitter& f, uint32_t r) {

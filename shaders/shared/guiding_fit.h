@@ -15,9 +15,8 @@ PX_CONST uint GUIDING_FIT_BINDING_STARTS = 6;      // uint[regions + 2]: first s
 PX_CONST uint GUIDING_FIT_BINDING_SORTED = 7;      // uint[samples]: sample indices, by bin, stable
 PX_CONST uint GUIDING_FIT_BINDING_PENDING = 8;     // GuidingSample[regions * pending_capacity]: lit
                                                    // samples of regions still below min_samples
-PX_CONST uint GUIDING_FIT_BINDING_RECEIVED = 9;    // uint[regions]: samples received since the region
-                                                   // was made, 0 without a mixture (host-visible: the
-                                                   // host's refinement decision reads it)
+PX_CONST uint GUIDING_FIT_BINDING_TALLY = 9;       // GuidingFitTally[regions] (host-visible: the host's
+                                                   // refinement reads it after the fit)
 PX_CONST uint GUIDING_FIT_BINDING_SPLITS = 10;     // GuidingFitSplit[split_count]: the REFINE pass' work
 PX_CONST uint GUIDING_FIT_BINDING_COUNT = 11;
 
@@ -74,6 +73,13 @@ struct GuidingFitRegion {
     uint pending;         // lit samples kept from earlier frames (not fitted yet) ...
     float pending_zero;   // ... and the unlit ones they came with (only counted)
     uint received;        // samples received since the region was made (refinement; saturating)
+};
+
+// What the host's refinement reads of a region (12 bytes), written by EM and REFINE.
+struct GuidingFitTally {
+    uint received;  // samples received since the region was made; 0 without a mixture
+    uint samples;   // GuidingFitRegion.samples, fits: a child inherits them (as the host
+    uint fits;      // field's records do), so the session's stats subtract them
 };
 
 // One region split by the host (RegionTree::split): `parent` keeps the lower half of its box

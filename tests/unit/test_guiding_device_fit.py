@@ -302,6 +302,10 @@ def test_refinement_matches_the_host_field():
         dev, host = f.mixture(r), field.mixture(r)
         assert_same_mixture(dev, host, atol=1e-3, rtol=1e-2)
         np.testing.assert_allclose(dev["pivot"], host["pivot"], atol=1e-5)
+    # The session's stats: what children inherited is counted once.
+    samples, fits = f.inherited
+    assert sum(f.state(r)["samples"] for r in range(4)) - samples == 600 + 380 + 480
+    assert sum(f.state(r)["fits"] for r in range(4)) - fits == field.fit()["region_fits"] == 2 + 1 + 4
 
 
 def test_bad_input_is_a_clear_error():

@@ -30,7 +30,7 @@ layout(set = 0, binding = GUIDING_FIT_BINDING_COUNTS, scalar) buffer Counts { ui
 layout(set = 0, binding = GUIDING_FIT_BINDING_STARTS, scalar) buffer Starts { uint starts[]; };
 layout(set = 0, binding = GUIDING_FIT_BINDING_SORTED, scalar) buffer Sorted { uint sorted_index[]; };
 layout(set = 0, binding = GUIDING_FIT_BINDING_PENDING, scalar) buffer Pending { GuidingSample pending_samples[]; };
-layout(set = 0, binding = GUIDING_FIT_BINDING_RECEIVED, scalar) buffer Received { uint received_counts[]; };
+layout(set = 0, binding = GUIDING_FIT_BINDING_TALLY, scalar) buffer Tally { GuidingFitTally tally[]; };
 layout(set = 0, binding = GUIDING_FIT_BINDING_SPLITS, scalar) readonly buffer Splits { GuidingFitSplit splits[]; };
 
 const float PI = 3.14159265358979;
@@ -633,7 +633,7 @@ void pass_em() {
             st.pending_zero += batch_n - nonzero;
             states[r] = st;
             regions[r].samples = st.samples;
-            received_counts[r] = st.count != 0u ? st.received : 0u;
+            tally[r] = GuidingFitTally(st.count != 0u ? st.received : 0u, st.samples, st.fits);
         }
         return;
     }
@@ -759,7 +759,7 @@ void pass_em() {
         regions[r].fits = st.fits;
         regions[r].pivot = s_pivot;
         regions[r].samples = st.samples;
-        received_counts[r] = n != 0u ? st.received : 0u;
+        tally[r] = GuidingFitTally(n != 0u ? st.received : 0u, st.samples, st.fits);
     }
 }
 
@@ -811,8 +811,8 @@ void pass_refine() {
     rc.aabb_min[sp.axis] = sp.plane;
     regions[p] = rp;
     regions[c] = rc;
-    received_counts[p] = 0u;
-    received_counts[c] = 0u;
+    tally[p].received = 0u;
+    tally[c] = tally[p];
 }
 
 void main() {

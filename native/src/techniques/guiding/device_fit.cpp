@@ -66,9 +66,9 @@ DeviceFit::DeviceFit(Context& ctx, uint32_t regions, const FitOptions& o, bool p
     set_->bind_buffer(GUIDING_FIT_BINDING_STATE, states_);
     set_->bind_buffer(GUIDING_FIT_BINDING_STATE_LOBES, lobes_state_);
     set_->bind_buffer(GUIDING_FIT_BINDING_STARTS, starts_);
-    received_ = Buffer(ctx_, size_t(regions) * sizeof(uint32_t), kStorageUsage, true, true);
-    received_.fill_zero();
-    set_->bind_buffer(GUIDING_FIT_BINDING_RECEIVED, received_);
+    tally_ = Buffer(ctx_, size_t(regions) * sizeof(GuidingFitTally), kStorageUsage, true, true);
+    tally_.fill_zero();
+    set_->bind_buffer(GUIDING_FIT_BINDING_TALLY, tally_);
     splits_ = Buffer(ctx_, sizeof(GuidingFitSplit), kStorageUsage, true);
     set_->bind_buffer(GUIDING_FIT_BINDING_SPLITS, splits_);
     ensure_capacity(1);
@@ -135,17 +135,19 @@ uint32_t DeviceFit::refine(RegionTree& tree, uint32_t threshold, uint32_t max_re
                            Buffer& lobes) {
     if (tree.size() != regions_) throw std::invalid_argument("device fit: the region tree has other regions");
     if (threshold == 0 || regions_ >= max_regions) return 0;
-    std::vector<uint32_t> received(regions_);
-    received_.download(received.data(), received.size() * sizeof(uint32_t));
+    std::vector<GuidingFitTally> tally(regions_);
+    tally_.download(tally.data(), tally.size() * sizeof(GuidingFitTally));
     const double min_extent = 1e-6 * length(tree.root().extent());
     std::vector<GuidingFitSplit> splits;
     for (uint32_t r = 0; r < regions_ && regions_ + splits.size() < max_regions; ++r) {
-        if (received[r] <= threshold) continue;  // 0: no mixture (its children would inherit none)
+        if (tally[r].received <= threshold) continue;  // 0: no mixture (its children would inherit none)
         const Aabb& b = tree.bounds(r);
         const int axis = b.longest_axis();
         if (b.extent()[axis] <= min_extent) continue;
         const uint32_t child = tree.split(r);
         splits.push_back({r, child, uint32_t(axis), float(tree.bounds(child).lo[axis])});
+        inherited_samples_ += tally[r].samples;
+        inherited_fits_ += tally[r].fits;
     }
     if (splits.empty()) return 0;
     const uint32_t count = regions_ + uint32_t(splits.size());
@@ -173,12 +175,12 @@ uint32_t DeviceFit::refine(RegionTree& tree, uint32_t threshold, uint32_t max_re
             grow(lobes_state_, size_t(capacity_) * GUIDING_MAX_COMPONENTS * sizeof(GuidingFitLobe));
             grow(pending_, size_t(capacity_) * push_.pending_capacity * sizeof(GuidingSample));
             grow(starts_, (size_t(capacity_) + 2) * sizeof(uint32_t));
-            grow(received_, size_t(capacity_) * sizeof(uint32_t), true);
+            grow(tally_, size_t(capacity_) * sizeof(GuidingFitTally), true);
             set_->bind_buffer(GUIDING_FIT_BINDING_STATE, states_);
             set_->bind_buffer(GUIDING_FIT_BINDING_STATE_LOBES, lobes_state_);
             set_->bind_buffer(GUIDING_FIT_BINDING_PENDING, pending_);
             set_->bind_buffer(GUIDING_FIT_BINDING_STARTS, starts_);
-            set_->bind_buffer(GUIDING_FIT_BINDING_RECEIVED, received_);
+            set_->bind_buffer(GUIDING_FIT_BINDING_TALLY, tally_);
         }
         grow(regions, size_t(capacity_) * sizeof(GuidingRegion));
         grow(lobes, size_t(capacity_) * GUIDING_MAX_COMPONENTS * sizeof(GuidingLobe));

@@ -9,8 +9,8 @@
 // lit samples, those of earlier frames kept on the device until then (as the host field's
 // reservoir, without its cap of max_batch: a batch is all of them). Samples without a valid
 // region are dropped (the trace loop sets one).
-// Adaptive refinement (refine()) is split between host and device: the host reads one uint per
-// region (samples received since the region was made, 0 without a mixture), decides the splits
+// Adaptive refinement (refine()) is split between host and device: the host reads 12 bytes per
+// region (GuidingFitTally: samples received since the region was made), decides the splits
 // by the host field's rule and splits its region tree (the tree, the node buffer and the TLAS
 // stay host-built); the REFINE pass then gives each child its parent's mixture and half of the
 // statistics and moves the pending samples, on the device. The buffers grow with a copy.
@@ -49,6 +49,10 @@ public:
     // waited for), growing the fit's buffers and `regions`/`lobes` (re-created with a copy and
     // bound: the caller rebinds them elsewhere). Returns the regions split.
     uint32_t refine(RegionTree& tree, uint32_t threshold, uint32_t max_regions, Buffer& regions, Buffer& lobes);
+    // What children inherited (GuidingFitRegion samples and fits, counted again in each child):
+    // the sums over the regions less these are the samples received and the fits run.
+    uint64_t inherited_samples() const { return inherited_samples_; }
+    uint64_t inherited_fits() const { return inherited_fits_; }
 
     // Readbacks for tests, stats and benchmarks (never in the frame loop).
     std::vector<GuidingFitRegion> read_states() const;
@@ -67,7 +71,8 @@ private:
     GuidingFitPush push_{};
     std::unique_ptr<DescriptorSet> set_;
     Buffer states_, lobes_state_, counts_, starts_, sorted_, pending_;
-    Buffer received_, splits_;  // host-visible: read / written by refine()
+    Buffer tally_, splits_;  // host-visible: read / written by refine()
+    uint64_t inherited_samples_ = 0, inherited_fits_ = 0;
     uint32_t block_size_ = 0, block_count_ = 0, sorted_capacity_ = 0;
     size_t samples_bytes_ = 0;
 };

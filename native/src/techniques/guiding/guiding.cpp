@@ -258,6 +258,8 @@ GuidingStats Guiding::stats() const {
             s.samples_added += r.samples;
             s.region_fits += r.fits;
         }
+        s.samples_added -= device_fit_->inherited_samples();  // counted in both halves of a split
+        s.region_fits -= device_fit_->inherited_fits();
     } else {
         for (uint32_t r = 0; r < s.regions; ++r) {
             const uint32_t k = field_->mixture(r).count;

@@ -13,7 +13,7 @@
 //   so that the image accumulates with the finished field.
 //   With guiding_fit = device the fit is compute passes instead (device_fit.h): no sample
 //   readback or upload; the host field then only provides the initial regions. Adaptive
-//   refinement reads one uint per region back after the fit's passes, splits a copy of the
+//   refinement reads 12 bytes per region back after the fit's passes, splits a copy of the
 //   region tree on the host (node buffer, AABBs and TLAS rebuilt as for the host fit) and
 //   hands the splits to the device (DeviceFit::refine).
 // The field survives camera moves, probe changes and guiding being switched off and on; new
