@@ -176,8 +176,6 @@ shared vec4 red_a[G];
 shared vec4 red_b[G];
 shared float s_ll, s_mean_w, s_div[K_MAX];
 shared uint s_order[K_MAX], s_order_count, s_splits;
-shared vec4 s_pca_a[K_MAX];  // per lobe, in its tangent plane: sum w, w x, w y, w x x
-shared vec2 s_pca_b[K_MAX];  // sum w x y, w y y
 
 // Tree sum of red_a/red_b over the workgroup (fixed order); the result is in [0].
 void reduce2() {
@@ -403,36 +401,15 @@ uint split_lobes(uint lo, uint hi, float total_samples) {
     if (t == 0u) s_mean_w = wsum / n_all;
     prepare_lobes();  // the mixture before any split: responsibilities refer to it
     uint n = e_count;
-    // One pass for every lobe (thread t: lobe t % 16, samples of quarter t / 16): the
-    // divergence's sum, and the weighted moments of the PCA in the tangent plane of the lobe's
-    // mean. A split only changes its own lobe and appends one, so these stay valid for every
-    // candidate.
-    vec3 tb = vec3(1.0, 0.0, 0.0), bb = vec3(0.0, 1.0, 0.0);
-    if (kk < n) make_basis(s_mu[kk], tb, bb);
     float d = 0.0;
-    vec4 pa = vec4(0.0);  // sw, mx, my, sxx
-    vec2 pb = vec2(0.0);  // sxy, syy
     [[dont_unroll]] for (uint j0 = lo; j0 < hi; j0 += G) {
         load_chunk(j0, hi);
         if (kk < n)
-            [[dont_unroll]] for (uint i = q * K_MAX; i < (q + 1u) * K_MAX; ++i) {
-                float g = c_g[i * K_MAX + kk];
-                d += g * c_term[i];
-                float w = c_weight[i] * g;
-                if (w > 0.0) {
-                    float x = dot(c_w[i], tb), y = dot(c_w[i], bb);
-                    pa += vec4(w, w * x, w * y, w * x * x);
-                    pb += vec2(w * x * y, w * y * y);
-                }
-            }
+            [[dont_unroll]] for (uint i = q * K_MAX; i < (q + 1u) * K_MAX; ++i) d += c_g[i * K_MAX + kk] * c_term[i];
         barrier();
     }
-    reduce_quarters(vec4(d, pb, 0.0), pa);
-    if (t < n) {
-        s_div[t] = red_a[t].x / n_all + s_weight[t];
-        s_pca_a[t] = red_b[t];
-        s_pca_b[t] = red_a[t].yz;
-    }
+    reduce_quarters(vec4(d, 0.0, 0.0, 0.0), vec4(0.0));
+    if (t < n) s_div[t] = red_a[t].x / n_all + s_weight[t];
     barrier();
     if (t == 0u) {  // candidates by divergence, descending (stable)
         float W, N;
@@ -452,17 +429,32 @@ uint split_lobes(uint lo, uint hi, float total_samples) {
         s_splits = 0u;
     }
     barrier();
-    if (t == 0u) {  // the candidates in order: a PCA split of each (its moments from the pass above)
-        [[dont_unroll]] for (uint c = 0u; c < s_order_count; ++c) {
-            if (s_count >= pc.max_components) break;
-            uint k = s_order[c];
-            make_basis(s_mu[k], tb, bb);
-            vec4 a = s_pca_a[k];
-            vec2 b = s_pca_b[k];
-            float sw = a.x;
+    uint candidates = s_order_count;
+    [[dont_unroll]] for (uint c = 0u; c < candidates; ++c) {
+        if (s_count >= pc.max_components) break;
+        uint k = s_order[c];
+        vec3 tb, bb;
+        make_basis(s_mu[k], tb, bb);
+        // PCA of lobe k's samples in the tangent plane of its mean
+        vec4 a = vec4(0.0), b = vec4(0.0);  // sw, mx, my, sxx | sxy, syy
+        [[dont_unroll]] for (uint j0 = lo; j0 < hi; j0 += G) {
+            load_chunk(j0, hi);
+            float w = c_weight[t] * c_g[t * K_MAX + k];
+            if (w > 0.0) {
+                float x = dot(c_w[t], tb), y = dot(c_w[t], bb);
+                a += vec4(w, w * x, w * y, w * x * x);
+                b += vec4(w * x * y, w * y * y, 0.0, 0.0);
+            }
+            barrier();
+        }
+        red_a[t] = a;
+        red_b[t] = b;
+        reduce2();
+        if (t == 0u) {
+            float sw = red_a[0].x;
             if (sw > 0.0) {
-                float mx = a.y / sw, my = a.z / sw;
-                float cxx = a.w / sw - mx * mx, cxy = b.x / sw - mx * my, cyy = b.y / sw - my * my;
+                float mx = red_a[0].y / sw, my = red_a[0].z / sw;
+                float cxx = red_a[0].w / sw - mx * mx, cxy = red_b[0].x / sw - mx * my, cyy = red_b[0].y / sw - my * my;
                 float half_ = 0.5 * (cxx + cyy), diff = 0.5 * (cxx - cyy);
                 float lambda = half_ + sqrt(diff * diff + cxy * cxy);
                 if (lambda > 0.0) {
@@ -501,8 +493,8 @@ uint split_lobes(uint lo, uint hi, float total_samples) {
                 }
             }
         }
+        barrier();
     }
-    barrier();
     return s_splits;
 }
 
@@ -590,23 +582,27 @@ uint merge_lobes() {
     return merges;
 }
 
-// Exclusive prefix count of `flag` over the workgroup (Hillis-Steele in scan_part), and the total.
-uint prefix_count(bool flag, out uint total) {
+// Exclusive prefix sum of `v` over the workgroup (in scan_part; thread 0 adds the G values)
+// and the total.
+const uint RUN = 16u;  // samples per thread and step of the pending compaction
+shared uint s_scan_total;
+uint prefix_sum(uint v, out uint total) {
     uint t = gl_LocalInvocationID.x;
-    uint v = flag ? 1u : 0u;
     barrier();
     scan_part[t] = v;
     barrier();
-    [[dont_unroll]] for (uint s = 1u; s < G; s <<= 1u) {
-        uint add = t >= s ? scan_part[t - s] : 0u;
-        barrier();
-        scan_part[t] += add;
-        barrier();
+    if (t == 0u) {
+        uint run = 0u;
+        [[dont_unroll]] for (uint j = 0u; j < G; ++j) {
+            uint c = scan_part[j];
+            scan_part[j] = run;
+            run += c;
+        }
+        s_scan_total = run;
     }
-    total = scan_part[G - 1u];
-    uint inclusive = scan_part[t];
     barrier();
-    return inclusive - v;
+    total = s_scan_total;
+    return scan_part[t];
 }
 
 void pass_em() {
@@ -643,23 +639,26 @@ void pass_em() {
     bool fit = lit >= float(max(pc.min_samples, 2u * k0 + 1u));
     uint pend_base = r * pc.pending_capacity;
     if (!fit) {
-        // Keep this frame's lit samples, in order, G at a time: a lit sample's slot is the
-        // count of lit samples before it in its chunk (the whole workgroup, not one thread).
+        // Keep this frame's lit samples, in order, G * RUN at a time: thread t counts the lit
+        // samples of its run of RUN, an exclusive scan of the counts gives each run its first
+        // slot, and each thread copies its run's (the whole workgroup, not one thread).
         uint p = st.pending;
-        [[dont_unroll]] for (uint j0 = lo; j0 < hi && p < pc.pending_capacity; j0 += G) {
-            uint j = j0 + t;
-            uint i = j < hi ? sorted_index[j] : 0u;
-            bool lit = j < hi && samples[i].weight > 0.0;
+        [[dont_unroll]] for (uint j0 = lo; j0 < hi && p < pc.pending_capacity; j0 += G * RUN) {
+            uint a = min(hi, j0 + t * RUN), b = min(hi, a + RUN);
+            uint lit = 0u;
+            [[dont_unroll]] for (uint j = a; j < b; ++j) lit += samples[sorted_index[j]].weight > 0.0 ? 1u : 0u;
             uint total;
-            uint o = p + prefix_count(lit, total);
-            if (lit && o < pc.pending_capacity) {
-                o += pend_base;
-                pending_samples[o].position = samples[i].position;
-                pending_samples[o].region = samples[i].region;
-                pending_samples[o].direction = samples[i].direction;
-                pending_samples[o].pdf = samples[i].pdf;
-                pending_samples[o].weight = samples[i].weight;
-                pending_samples[o].distance = samples[i].distance;
+            uint o = p + prefix_sum(lit, total);
+            [[dont_unroll]] for (uint j = a; j < b && o < pc.pending_capacity && lit != 0u; ++j) {
+                uint i = sorted_index[j];
+                if (!(samples[i].weight > 0.0)) continue;
+                uint d = pend_base + o++;
+                pending_samples[d].position = samples[i].position;
+                pending_samples[d].region = samples[i].region;
+                pending_samples[d].direction = samples[i].direction;
+                pending_samples[d].pdf = samples[i].pdf;
+                pending_samples[d].weight = samples[i].weight;
+                pending_samples[d].distance = samples[i].distance;
             }
             p = min(pc.pending_capacity, p + total);
         }
