@@ -129,6 +129,12 @@ void DeviceFit::record(VkCommandBuffer cmd, uint32_t sample_count) {
     pc.pass = GUIDING_FIT_PASS_EM;
     p.dispatch(cmd, set_->set(), &pc, sizeof(pc), regions_);
     barrier(cmd);
+    // The tally reaches the host (refine() reads it after the fence).
+    VkMemoryBarrier h{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    h.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
+    h.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &h, 0, nullptr, 0,
+                         nullptr);
 }
 
 uint32_t DeviceFit::refine(RegionTree& tree, uint32_t threshold, uint32_t max_regions, Buffer& regions,
