@@ -36,8 +36,8 @@ GUIDING_SETTINGS = ("guiding", "guiding_prob", "guiding_parallax", "guiding_trai
 GUIDING_FIT_ITEMS = (
     ("cpu", "CPU", "Fit the mixtures on the CPU: the samples are read back after each training "
                    "frame, kept per region until there are enough, and regions refine"),
-    ("device", "Device", "Fit the mixtures in compute shaders where the samples are: no readback; "
-                         "the regions stay as many as Region Splits makes (no refinement)"),
+    ("device", "Device", "Fit the mixtures in compute shaders where the samples are: no sample "
+                         "readback; regions refine as with the CPU fit (a few bytes per region read back)"),
 )
 ADRRS_ESTIMATE_ITEMS = (
     ("ic", "Irradiance Cache", "Estimate frames after the cache's prepare frames: paths to the "

@@ -158,6 +158,8 @@ struct DeviceFitter {
     std::shared_ptr<px::Context> ctx;  // first: destroyed last
     px::Buffer samples, regions, lobes;
     std::unique_ptr<DeviceFit> fit;
+    RegionTree tree;  // for refine(): a field's, when made from one
+    bool has_tree = false;
     uint32_t last_count = 0;
     DeviceFitter(uint32_t region_count, const FitOptions& o, bool parallax, const std::string& device,
                  uint32_t min_samples)
@@ -170,6 +172,29 @@ struct DeviceFitter {
         lobes = px::Buffer::with_vector(*ctx, l, px::kStorageUsage);
         samples = px::Buffer(*ctx, sizeof(GuidingSample), px::kStorageUsage);
         fit->bind(samples, regions, lobes);
+    }
+    // The device fit a session makes for a field (guiding.cpp): its regions, tree, options,
+    // parallax and min_samples, and its records.
+    explicit DeviceFitter(const GuidingField& field, const std::string& device) : ctx(px::Context::shared(device)) {
+        const px::GuidingParams& p = field.params();
+        fit = std::make_unique<DeviceFit>(*ctx, uint32_t(field.region_count()), field.fit_options(), p.parallax != 0,
+                                          p.min_samples);
+        std::vector<GuidingRegion> r;
+        field.write_regions(r);
+        regions = px::Buffer::with_vector(*ctx, r, px::kStorageUsage);
+        std::vector<GuidingLobe> l;
+        field.write_lobes(l);
+        lobes = px::Buffer::with_vector(*ctx, l, px::kStorageUsage);
+        samples = px::Buffer(*ctx, sizeof(GuidingSample), px::kStorageUsage);
+        fit->bind(samples, regions, lobes);
+        tree = field.tree();
+        has_tree = true;
+    }
+    uint32_t refine(uint32_t threshold, uint32_t max_regions) {
+        if (!has_tree) throw std::invalid_argument("refine needs a DeviceFit made for a field (DeviceFit.for_field)");
+        const uint32_t n = fit->refine(tree, threshold, max_regions, regions, lobes);
+        fit->bind(samples, regions, lobes);
+        return n;
     }
     // Uploads the records, then times the passes alone (submit to fence).
     double run(const GuidingSample* s, size_t n) {
@@ -464,6 +489,26 @@ void bind_guiding(nb::module_& parent) {
             nb::gil_scoped_release release;
             return f.run(reinterpret_cast<const GuidingSample*>(records.data()), records.shape(0));
         }, "records"_a, "One frame's records: bin, fit every region with a batch; returns the passes' milliseconds.")
+        .def_static("for_field", [](const GuidingField& field, const std::string& device) {
+            return new DeviceFitter(field, device);
+        }, "field"_a, "device"_a = "cpu", nb::rv_policy::take_ownership,
+           "The device fit a session makes for `field` (its regions, tree, options and records).")
+        .def("refine", [](DeviceFitter& f, uint32_t threshold, uint32_t max_regions) {
+            nb::gil_scoped_release release;
+            return f.refine(threshold, max_regions);
+        }, "threshold"_a, "max_regions"_a,
+           "Adaptive refinement after the last fit (DeviceFit::refine); returns the regions split.")
+        .def("nodes", [](const DeviceFitter& f) {
+            if (!f.has_tree) throw std::invalid_argument("nodes needs a DeviceFit made for a field (DeviceFit.for_field)");
+            std::vector<px::GuidingNode> n;
+            f.tree.write_nodes(n);
+            std::vector<uint32_t> words(n.size() * 2);
+            std::memcpy(words.data(), n.data(), words.size() * sizeof(uint32_t));
+            return owned(std::move(words), {n.size(), 2});
+        }, "The region tree's GuidingNode records (N, 2) uint32, as GuidingField.nodes().")
+        .def_prop_ro("inherited", [](const DeviceFitter& f) {
+            return nb::make_tuple(f.fit->inherited_samples(), f.fit->inherited_fits());
+        }, "(samples, fits) the children of refine() inherited (counted in both halves).")
         .def_prop_ro("region_count", [](const DeviceFitter& f) { return f.fit->region_count(); })
         .def("mixture", [](const DeviceFitter& f, uint32_t r) { return to_dict(f.fit->mixture(r)); }, "region"_a)
         .def("state", [](const DeviceFitter& f, uint32_t r) {
@@ -479,6 +524,16 @@ void bind_guiding(nb::module_& parent) {
             d["log_likelihood"] = s.log_likelihood;
             d["new_samples"] = s.new_samples;
             d["pending"] = s.pending;
+            d["pending_zero"] = s.pending_zero;
+            d["received"] = s.received;
+            const std::vector<px::GuidingFitLobe> l = f.fit->read_lobes();
+            double w = 0.0, c = 0.0;
+            for (uint32_t k = 0; k < GUIDING_MAX_COMPONENTS; ++k) {
+                w += l[size_t(r) * GUIDING_MAX_COMPONENTS + k].stat_weight;
+                c += l[size_t(r) * GUIDING_MAX_COMPONENTS + k].stat_count;
+            }
+            d["stat_weight"] = w;  // sum w g over the lobes
+            d["stat_count"] = c;   // sum g
             d["pivot"] = nb::make_tuple(s.position_mean.x, s.position_mean.y, s.position_mean.z);
             return d;
         }, "region"_a)

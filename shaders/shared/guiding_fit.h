@@ -15,7 +15,10 @@ PX_CONST uint GUIDING_FIT_BINDING_STARTS = 6;      // uint[regions + 2]: first s
 PX_CONST uint GUIDING_FIT_BINDING_SORTED = 7;      // uint[samples]: sample indices, by bin, stable
 PX_CONST uint GUIDING_FIT_BINDING_PENDING = 8;     // GuidingSample[regions * pending_capacity]: lit
                                                    // samples of regions still below min_samples
-PX_CONST uint GUIDING_FIT_BINDING_COUNT = 9;
+PX_CONST uint GUIDING_FIT_BINDING_TALLY = 9;       // GuidingFitTally[regions] (host-visible: the host's
+                                                   // refinement reads it after the fit)
+PX_CONST uint GUIDING_FIT_BINDING_SPLITS = 10;     // GuidingFitSplit[split_count]: the REFINE pass' work
+PX_CONST uint GUIDING_FIT_BINDING_COUNT = 11;
 
 PX_CONST uint GUIDING_FIT_GROUP = 64;  // threads per workgroup (the EM: one workgroup per region)
 
@@ -24,6 +27,8 @@ PX_CONST uint GUIDING_FIT_PASS_COUNT = 0;    // a thread per block: its samples'
 PX_CONST uint GUIDING_FIT_PASS_SCAN = 1;     // one workgroup: exclusive prefix sum (bin, block)
 PX_CONST uint GUIDING_FIT_PASS_SCATTER = 2;  // a thread per block: stable scatter
 PX_CONST uint GUIDING_FIT_PASS_EM = 3;       // a workgroup per region: EM, split/merge, records
+// After EM, only when the host decided to refine regions (device_fit.h), a workgroup per split:
+PX_CONST uint GUIDING_FIT_PASS_REFINE = 4;   // the child inherits the parent's state (field.cpp refine)
 
 // Push constants: the pass, sizes and the FitOptions (em.h) in float.
 struct GuidingFitPush {
@@ -50,7 +55,7 @@ struct GuidingFitPush {
     uint parallax;
     uint min_samples;       // guiding_min_samples: a region fits once it has this many lit samples
     uint pending_capacity;  // max(min_samples, 2 max_components + 1)
-    uint pad0;
+    uint split_count;       // GuidingFitSplit records (REFINE)
 };
 
 // A region's fit state (its mixture lives in GuidingFitLobe records).
@@ -67,6 +72,23 @@ struct GuidingFitRegion {
     float log_likelihood; // the last fit's weighted mean log density
     uint pending;         // lit samples kept from earlier frames (not fitted yet) ...
     float pending_zero;   // ... and the unlit ones they came with (only counted)
+    uint received;        // samples received since the region was made (refinement; saturating)
+};
+
+// What the host's refinement reads of a region (12 bytes), written by EM and REFINE.
+struct GuidingFitTally {
+    uint received;  // samples received since the region was made; 0 without a mixture
+    uint samples;   // GuidingFitRegion.samples, fits: a child inherits them (as the host
+    uint fits;      // field's records do), so the session's stats subtract them
+};
+
+// One region split by the host (RegionTree::split): `parent` keeps the lower half of its box
+// along `axis`, the new region `child` the upper half (position[axis] >= plane).
+struct GuidingFitSplit {
+    uint parent;
+    uint child;
+    uint axis;
+    float plane;
 };
 
 // One lobe of a region's mixture and its sufficient statistics (em.h ComponentStats):

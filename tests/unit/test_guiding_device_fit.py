@@ -230,6 +230,84 @@ def test_deterministic_and_the_records_the_sampler_reads():
         assert not lobes[16 * r + k: 16 * (r + 1)].any()
 
 
+def test_refinement_matches_the_host_field():
+    """Adaptive refinement (device_fit.h refine, the REFINE pass) against the host field's
+    (field.cpp fit): the same frames split the same regions at the same planes (threshold,
+    only regions with a mixture, region order, the max_regions cap); a child inherits the
+    mixture and records with half of the statistics on both sides, the pending lit samples
+    go to the half holding them, their unlit count in proportion; the next fits agree."""
+    rng = np.random.default_rng(97)
+    p = g.GuidingParams()
+    p.region_splits, p.min_samples, p.region_threshold, p.max_regions = 1, 64, 300, 4
+    p.max_components, p.split_merge, p.parallax = 4, 0, 0
+    field = g.GuidingField(np.zeros(3), np.array([4.0, 1.0, 1.0]), p, seed=1, options=options(max_iterations=1),
+                           threads=1)
+    f = g.DeviceFit.for_field(field, device=DEVICE)
+
+    def frame(boxes):
+        """Samples uniform in each (x0, x1, count, unlit) slab, three-lobe directions."""
+        parts = []
+        for x0, x1, n, unlit in boxes:
+            x = rng.random((n, 3))
+            x[:, 0] = x0 + (x1 - x0) * x[:, 0]
+            d, w, pdf = three_lobes(rng, n)
+            w[:unlit] = 0.0
+            parts.append((x, d, w, pdf))
+        x, d, w, pdf = (np.concatenate(c) for c in zip(*parts))
+        return records(d, w, pdf, positions=x, regions=field.region_of(x)), x, w
+
+    def step(boxes, splits):
+        recs, x, w = frame(boxes)
+        field.add_samples(recs)
+        f.fit(recs)
+        before = [f.state(r) for r in range(f.region_count)]
+        assert field.fit()["refinements"] == splits
+        assert f.refine(p.region_threshold, p.max_regions) == splits
+        assert f.region_count == field.region_count == len(before) + splits
+        np.testing.assert_array_equal(f.nodes(), field.nodes())  # the same tree, planes included
+        dev, host = f.regions(), field.regions()
+        np.testing.assert_array_equal(dev[:, [0, 1, 2, 4, 5, 6]], host[:, [0, 1, 2, 4, 5, 6]])  # boxes
+        return before, x, w
+
+    # Frame 1: region 1 (received 350 > 300, fitted) splits; region 0 (250) does not.
+    before, _, _ = step([(0.0, 2.0, 250, 50), (2.0, 4.0, 350, 50)], 1)
+    s1, s2 = f.state(1), f.state(2)
+    assert s1["components"] == s2["components"] == before[1]["components"] > 0
+    assert s1["stat_weight"] == s2["stat_weight"] == pytest.approx(0.5 * before[1]["stat_weight"], rel=1e-6)
+    assert s1["stat_count"] == pytest.approx(0.5 * before[1]["stat_count"], rel=1e-6)
+    assert s1["received"] == s2["received"] == 0 and f.state(0)["received"] == 250
+    assert s2["samples"] == before[1]["samples"] == 350 and s2["fits"] == before[1]["fits"] == 1
+    lobes = f.lobes()
+    np.testing.assert_array_equal(lobes[32:48], lobes[16:32])  # the sampler's records: inherited
+    np.testing.assert_array_equal(f.regions()[2, 8:11], f.regions()[1, 8:11])  # pivot
+    for r in range(3):
+        assert_same_mixture(f.mixture(r), field.mixture(r))
+    # Frame 2: region 0 receives 60 (received 310 > 300), 40 of them lit: too few to fit, they
+    # wait; it splits and they are partitioned. Region 2 (320 since its split) would split too,
+    # but max_regions (4) stops it: region order decides.
+    before, x, w = step([(0.0, 2.0, 60, 20), (3.0, 4.0, 320, 20)], 1)
+    assert before[0]["pending"] == 40 and before[0]["pending_zero"] == pytest.approx(20.0)
+    plane = field.region_info(3)["min"][0]
+    upper = int(np.sum((x[:60, 0] >= plane) & (w[:60] > 0)))
+    assert 0 < upper < 40
+    s0, s3 = f.state(0), f.state(3)
+    assert (s0["pending"], s3["pending"]) == (40 - upper, upper)
+    assert (field.region_info(0)["pending"], field.region_info(3)["pending"]) == (40 - upper, upper)
+    assert s3["pending_zero"] == pytest.approx(20.0 * upper / 40, rel=1e-6)
+    assert s0["pending_zero"] + s3["pending_zero"] == pytest.approx(20.0, rel=1e-6)
+    # Frame 3: every region fits (the halves on their pending samples and half the statistics).
+    step([(0.0, 1.0, 120, 20), (1.0, 2.0, 120, 20), (2.0, 3.0, 120, 20), (3.0, 4.0, 120, 20)], 0)
+    for r in range(4):
+        assert f.state(r)["pending"] == 0 and f.state(r)["fits"] == field.region_info(r)["fits"]
+        dev, host = f.mixture(r), field.mixture(r)
+        assert_same_mixture(dev, host, atol=1e-3, rtol=1e-2)
+        np.testing.assert_allclose(dev["pivot"], host["pivot"], atol=1e-5)
+    # The session's stats: what children inherited is counted once.
+    samples, fits = f.inherited
+    assert sum(f.state(r)["samples"] for r in range(4)) - samples == 600 + 380 + 480
+    assert sum(f.state(r)["fits"] for r in range(4)) - fits == field.fit()["region_fits"] == 2 + 1 + 4
+
+
 def test_bad_input_is_a_clear_error():
     with pytest.raises(ValueError, match="regions"):
         g.DeviceFit(0, device=DEVICE)

@@ -5,7 +5,8 @@
 // Ruppert, Herholz & Lensch 2020) on that batch: weighted stepwise EM with the previous
 // statistics decayed, MAP priors on the weights and the mean cosine, split (chi^2 divergence
 // and PCA) and merge (closed-form chi^2 of two lobes against one), parallax distances, and
-// writes the GuidingRegion/GuidingLobe records the sampler reads. Every reduction has a fixed
+// writes the GuidingRegion/GuidingLobe records the sampler reads. REFINE applies the host's
+// adaptive refinement (device_fit.h) to the fit state. Every reduction has a fixed
 // order (fixed per-thread sample ranges, then a fixed tree): no float atomics, so a fixed
 // input gives the same mixtures from run to run. In float, where the host is double. Loops are
 // [[dont_unroll]]: llvmpipe compiles the unrolled shader 4x slower (lavapipe's first dispatch).
@@ -22,13 +23,15 @@ layout(local_size_x = GUIDING_FIT_GROUP) in;
 layout(push_constant, scalar) uniform PushBlock { GuidingFitPush pc; };
 layout(set = 0, binding = GUIDING_FIT_BINDING_SAMPLES, scalar) readonly buffer Samples { GuidingSample samples[]; };
 layout(set = 0, binding = GUIDING_FIT_BINDING_REGIONS, scalar) buffer Regions { GuidingRegion regions[]; };
-layout(set = 0, binding = GUIDING_FIT_BINDING_LOBES, scalar) writeonly buffer Lobes { GuidingLobe lobes[]; };
+layout(set = 0, binding = GUIDING_FIT_BINDING_LOBES, scalar) buffer Lobes { GuidingLobe lobes[]; };
 layout(set = 0, binding = GUIDING_FIT_BINDING_STATE, scalar) buffer State { GuidingFitRegion states[]; };
 layout(set = 0, binding = GUIDING_FIT_BINDING_STATE_LOBES, scalar) buffer StateLobes { GuidingFitLobe state_lobes[]; };
 layout(set = 0, binding = GUIDING_FIT_BINDING_COUNTS, scalar) buffer Counts { uint counts[]; };
 layout(set = 0, binding = GUIDING_FIT_BINDING_STARTS, scalar) buffer Starts { uint starts[]; };
 layout(set = 0, binding = GUIDING_FIT_BINDING_SORTED, scalar) buffer Sorted { uint sorted_index[]; };
 layout(set = 0, binding = GUIDING_FIT_BINDING_PENDING, scalar) buffer Pending { GuidingSample pending_samples[]; };
+layout(set = 0, binding = GUIDING_FIT_BINDING_TALLY, scalar) buffer Tally { GuidingFitTally tally[]; };
+layout(set = 0, binding = GUIDING_FIT_BINDING_SPLITS, scalar) readonly buffer Splits { GuidingFitSplit splits[]; };
 
 const float PI = 3.14159265358979;
 const float KAPPA_MIN = 1e-3;  // GUIDING_KAPPA_MIN, kKappaMin
@@ -579,6 +582,29 @@ uint merge_lobes() {
     return merges;
 }
 
+// Exclusive prefix sum of `v` over the workgroup (in scan_part; thread 0 adds the G values)
+// and the total.
+const uint RUN = 16u;  // samples per thread and step of the pending compaction
+shared uint s_scan_total;
+uint prefix_sum(uint v, out uint total) {
+    uint t = gl_LocalInvocationID.x;
+    barrier();
+    scan_part[t] = v;
+    barrier();
+    if (t == 0u) {
+        uint run = 0u;
+        [[dont_unroll]] for (uint j = 0u; j < G; ++j) {
+            uint c = scan_part[j];
+            scan_part[j] = run;
+            run += c;
+        }
+        s_scan_total = run;
+    }
+    barrier();
+    total = s_scan_total;
+    return scan_part[t];
+}
+
 void pass_em() {
     uint r = gl_WorkGroupID.x;
     uint t = gl_LocalInvocationID.x;
@@ -603,6 +629,7 @@ void pass_em() {
         st.position_mean += (red_a[0].xyz / batch_n - st.position_mean) * (batch_n / total);
         st.position_count = total;
         st.samples = uint(min(float(st.samples) + batch_n, 4294967040.0));
+        st.received = uint(min(float(st.received) + batch_n, 4294967040.0));
     }
     // A region fits once it has min_samples lit samples, and more than 2K ("EM only when
     // N > 2K", em.cpp fit_batch); until then its lit samples wait in pending_samples across
@@ -612,23 +639,35 @@ void pass_em() {
     bool fit = lit >= float(max(pc.min_samples, 2u * k0 + 1u));
     uint pend_base = r * pc.pending_capacity;
     if (!fit) {
-        if (t == 0u) {  // keep this frame's lit samples, in order
-            uint p = st.pending;
-            [[dont_unroll]] for (uint j = lo; j < hi && p < pc.pending_capacity; ++j) {
+        // Keep this frame's lit samples, in order, G * RUN at a time: thread t counts the lit
+        // samples of its run of RUN, an exclusive scan of the counts gives each run its first
+        // slot, and each thread copies its run's (the whole workgroup, not one thread).
+        uint p = st.pending;
+        [[dont_unroll]] for (uint j0 = lo; j0 < hi && p < pc.pending_capacity; j0 += G * RUN) {
+            uint a = min(hi, j0 + t * RUN), b = min(hi, a + RUN);
+            uint lit = 0u;
+            [[dont_unroll]] for (uint j = a; j < b; ++j) lit += samples[sorted_index[j]].weight > 0.0 ? 1u : 0u;
+            uint total;
+            uint o = p + prefix_sum(lit, total);
+            [[dont_unroll]] for (uint j = a; j < b && o < pc.pending_capacity && lit != 0u; ++j) {
                 uint i = sorted_index[j];
                 if (!(samples[i].weight > 0.0)) continue;
-                uint o = pend_base + p++;
-                pending_samples[o].position = samples[i].position;
-                pending_samples[o].region = samples[i].region;
-                pending_samples[o].direction = samples[i].direction;
-                pending_samples[o].pdf = samples[i].pdf;
-                pending_samples[o].weight = samples[i].weight;
-                pending_samples[o].distance = samples[i].distance;
+                uint d = pend_base + o++;
+                pending_samples[d].position = samples[i].position;
+                pending_samples[d].region = samples[i].region;
+                pending_samples[d].direction = samples[i].direction;
+                pending_samples[d].pdf = samples[i].pdf;
+                pending_samples[d].weight = samples[i].weight;
+                pending_samples[d].distance = samples[i].distance;
             }
+            p = min(pc.pending_capacity, p + total);
+        }
+        if (t == 0u) {
             st.pending = p;
             st.pending_zero += batch_n - nonzero;
             states[r] = st;
             regions[r].samples = st.samples;
+            tally[r] = GuidingFitTally(st.count != 0u ? st.received : 0u, st.samples, st.fits);
         }
         return;
     }
@@ -754,12 +793,66 @@ void pass_em() {
         regions[r].fits = st.fits;
         regions[r].pivot = s_pivot;
         regions[r].samples = st.samples;
+        tally[r] = GuidingFitTally(n != 0u ? st.received : 0u, st.samples, st.fits);
     }
+}
+
+// ---- adaptive refinement (field.cpp GuidingField::refine; thesis 4.6.3) -------------------
+// The host split region `parent` at `plane` (device_fit.cpp); the new region `child` inherits
+// its mixture, records and pivot. Each half keeps half of the statistics and of new_samples;
+// the pending lit samples go to the half holding their position (in order), their unlit count
+// in the same proportion; both start counting received samples and their pivot afresh.
+void pass_refine() {
+    uint i = gl_WorkGroupID.x;
+    uint t = gl_LocalInvocationID.x;
+    if (i >= pc.split_count) return;
+    GuidingFitSplit sp = splits[i];
+    uint p = sp.parent, c = sp.child;
+    if (t < K_MAX) {
+        GuidingFitLobe l = state_lobes[p * K_MAX + t];
+        l.stat_direction *= 0.5;
+        l.stat_weight *= 0.5;
+        l.stat_count *= 0.5;
+        l.stat_inv_distance *= 0.5;
+        state_lobes[p * K_MAX + t] = l;
+        state_lobes[c * K_MAX + t] = l;
+        lobes[c * K_MAX + t] = lobes[p * K_MAX + t];
+    }
+    if (t != 0u) return;
+    GuidingFitRegion st = states[p];
+    uint base_p = p * pc.pending_capacity, base_c = c * pc.pending_capacity;
+    uint lower = 0u, upper = 0u;
+    [[dont_unroll]] for (uint j = 0u; j < st.pending; ++j) {
+        uint src = base_p + j;
+        uint dst = pending_samples[src].position[sp.axis] >= sp.plane ? base_c + upper++ : base_p + lower++;
+        if (dst != src) pending_samples[dst] = pending_samples[src];  // dst <= src on the parent's side
+    }
+    float kept = float(st.pending);
+    float fl = kept > 0.0 ? float(lower) / kept : 0.5, fu = kept > 0.0 ? float(upper) / kept : 0.5;
+    st.new_samples *= 0.5;
+    st.position_count = 0.0;
+    st.received = 0u;
+    GuidingFitRegion sc = st;
+    sc.pending = upper;
+    sc.pending_zero = st.pending_zero * fu;
+    st.pending = lower;
+    st.pending_zero *= fl;
+    states[p] = st;
+    states[c] = sc;
+    GuidingRegion rp = regions[p];
+    GuidingRegion rc = rp;
+    rp.aabb_max[sp.axis] = sp.plane;
+    rc.aabb_min[sp.axis] = sp.plane;
+    regions[p] = rp;
+    regions[c] = rc;
+    tally[p].received = 0u;
+    tally[c] = tally[p];
 }
 
 void main() {
     if (pc.pass == GUIDING_FIT_PASS_COUNT) pass_count();
     else if (pc.pass == GUIDING_FIT_PASS_SCAN) { if (gl_WorkGroupID.x == 0u) pass_scan(); }
     else if (pc.pass == GUIDING_FIT_PASS_SCATTER) pass_scatter();
-    else pass_em();
+    else if (pc.pass == GUIDING_FIT_PASS_EM) pass_em();
+    else pass_refine();
 }

@@ -31,7 +31,7 @@ void barrier(VkCommandBuffer cmd) {
 }  // namespace
 
 DeviceFit::DeviceFit(Context& ctx, uint32_t regions, const FitOptions& o, bool parallax, uint32_t min_samples)
-    : ctx_(ctx), regions_(regions) {
+    : ctx_(ctx), regions_(regions), capacity_(regions) {
     validate_fit_options(o);
     if (regions < 1 || regions > (1u << 22)) throw std::invalid_argument("device fit: regions must be in [1, 2^22]");
     if (min_samples < 1 || min_samples > (1u << 24)) throw std::invalid_argument("device fit: min_samples must be in [1, 2^24]");
@@ -66,6 +66,11 @@ DeviceFit::DeviceFit(Context& ctx, uint32_t regions, const FitOptions& o, bool p
     set_->bind_buffer(GUIDING_FIT_BINDING_STATE, states_);
     set_->bind_buffer(GUIDING_FIT_BINDING_STATE_LOBES, lobes_state_);
     set_->bind_buffer(GUIDING_FIT_BINDING_STARTS, starts_);
+    tally_ = Buffer(ctx_, size_t(regions) * sizeof(GuidingFitTally), kStorageUsage, true, true);
+    tally_.fill_zero();
+    set_->bind_buffer(GUIDING_FIT_BINDING_TALLY, tally_);
+    splits_ = Buffer(ctx_, sizeof(GuidingFitSplit), kStorageUsage, true);
+    set_->bind_buffer(GUIDING_FIT_BINDING_SPLITS, splits_);
     ensure_capacity(1);
     fit_pipeline(ctx_, set_->layout());
 }
@@ -124,6 +129,84 @@ void DeviceFit::record(VkCommandBuffer cmd, uint32_t sample_count) {
     pc.pass = GUIDING_FIT_PASS_EM;
     p.dispatch(cmd, set_->set(), &pc, sizeof(pc), regions_);
     barrier(cmd);
+    // The tally reaches the host (refine() reads it after the fence).
+    VkMemoryBarrier h{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    h.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
+    h.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &h, 0, nullptr, 0,
+                         nullptr);
+}
+
+uint32_t DeviceFit::refine(RegionTree& tree, uint32_t threshold, uint32_t max_regions, Buffer& regions,
+                           Buffer& lobes) {
+    if (tree.size() != regions_) throw std::invalid_argument("device fit: the region tree has other regions");
+    if (threshold == 0 || regions_ >= max_regions) return 0;
+    std::vector<GuidingFitTally> tally(regions_);
+    tally_.download(tally.data(), tally.size() * sizeof(GuidingFitTally));
+    const double min_extent = 1e-6 * length(tree.root().extent());
+    std::vector<GuidingFitSplit> splits;
+    for (uint32_t r = 0; r < regions_ && regions_ + splits.size() < max_regions; ++r) {
+        if (tally[r].received <= threshold) continue;  // 0: no mixture (its children would inherit none)
+        const Aabb& b = tree.bounds(r);
+        const int axis = b.longest_axis();
+        if (b.extent()[axis] <= min_extent) continue;
+        const uint32_t child = tree.split(r);
+        splits.push_back({r, child, uint32_t(axis), float(tree.bounds(child).lo[axis])});
+        inherited_samples_ += tally[r].samples;
+        inherited_fits_ += tally[r].fits;
+    }
+    if (splits.empty()) return 0;
+    const uint32_t count = regions_ + uint32_t(splits.size());
+    const size_t split_bytes = splits.size() * sizeof(GuidingFitSplit);
+    if (splits_.size() < split_bytes) {
+        splits_ = Buffer(ctx_, split_bytes, kStorageUsage, true);
+        set_->bind_buffer(GUIDING_FIT_BINDING_SPLITS, splits_);
+    }
+    splits_.upload(splits.data(), split_bytes);
+    std::vector<Buffer> old;  // kept until the copies completed
+    ctx_.submit_and_wait([&](VkCommandBuffer cmd) {
+        // Grown with a copy: the fit's buffers to twice the regions (amortised), the records to fit.
+        const auto grow = [&](Buffer& b, size_t bytes, bool host_visible = false) {
+            if (b.size() >= bytes) return false;
+            Buffer n(ctx_, bytes, kStorageUsage, host_visible, host_visible);
+            const VkBufferCopy c{0, 0, b.size()};
+            vkCmdCopyBuffer(cmd, b.handle(), n.handle(), 1, &c);
+            old.push_back(std::move(b));
+            b = std::move(n);
+            return true;
+        };
+        if (count > capacity_) {
+            capacity_ = std::max(count, std::min(2 * capacity_, max_regions));
+            grow(states_, size_t(capacity_) * sizeof(GuidingFitRegion));
+            grow(lobes_state_, size_t(capacity_) * GUIDING_MAX_COMPONENTS * sizeof(GuidingFitLobe));
+            grow(pending_, size_t(capacity_) * push_.pending_capacity * sizeof(GuidingSample));
+            grow(starts_, (size_t(capacity_) + 2) * sizeof(uint32_t));
+            grow(tally_, size_t(capacity_) * sizeof(GuidingFitTally), true);
+            set_->bind_buffer(GUIDING_FIT_BINDING_STATE, states_);
+            set_->bind_buffer(GUIDING_FIT_BINDING_STATE_LOBES, lobes_state_);
+            set_->bind_buffer(GUIDING_FIT_BINDING_PENDING, pending_);
+            set_->bind_buffer(GUIDING_FIT_BINDING_STARTS, starts_);
+            set_->bind_buffer(GUIDING_FIT_BINDING_TALLY, tally_);
+        }
+        grow(regions, size_t(capacity_) * sizeof(GuidingRegion));
+        grow(lobes, size_t(capacity_) * GUIDING_MAX_COMPONENTS * sizeof(GuidingLobe));
+        set_->bind_buffer(GUIDING_FIT_BINDING_REGIONS, regions);
+        set_->bind_buffer(GUIDING_FIT_BINDING_LOBES, lobes);
+        VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+        b.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_HOST_WRITE_BIT;
+        b.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
+        vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1, &b,
+                             0, nullptr, 0, nullptr);
+        GuidingFitPush pc = push_;
+        pc.pass = GUIDING_FIT_PASS_REFINE;
+        pc.region_count = count;
+        pc.split_count = uint32_t(splits.size());
+        fit_pipeline(ctx_, set_->layout()).dispatch(cmd, set_->set(), &pc, sizeof(pc), pc.split_count);
+        barrier(cmd);
+    });
+    regions_ = count;
+    push_.region_count = count;
+    return uint32_t(splits.size());
 }
 
 std::vector<GuidingFitRegion> DeviceFit::read_states() const {

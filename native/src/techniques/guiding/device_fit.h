@@ -7,10 +7,16 @@
 // Differences from the host field (field.h), by design: each frame's samples of a region are
 // batch of stepwise EM (the previous statistics decayed) once the region has guiding_min_samples
 // lit samples, those of earlier frames kept on the device until then (as the host field's
-// reservoir, without its cap of max_batch: a batch is all of them); and the regions stay the initial 2^guiding_region_splits (no adaptive
-// refinement). Samples without a valid region are dropped (the trace loop sets one).
+// reservoir, without its cap of max_batch: a batch is all of them). Samples without a valid
+// region are dropped (the trace loop sets one).
+// Adaptive refinement (refine()) is split between host and device: the host reads 12 bytes per
+// region (GuidingFitTally: samples received since the region was made), decides the splits
+// by the host field's rule and splits its region tree (the tree, the node buffer and the TLAS
+// stay host-built); the REFINE pass then gives each child its parent's mixture and half of the
+// statistics and moves the pending samples, on the device. The buffers grow with a copy.
 #pragma once
 #include "techniques/guiding/em.h"
+#include "techniques/guiding/regions.h"
 #include "vk/pipeline.h"
 
 #include <memory>
@@ -35,6 +41,18 @@ public:
     // before (the trace's writes) and after (the sampler's reads).
     void record(VkCommandBuffer cmd, uint32_t sample_count);
     uint32_t region_count() const { return regions_; }
+    // Adaptive refinement, GuidingField::fit's rule (field.cpp): after a record() has completed,
+    // reads its received counts and splits, in region order, each region of `tree` (whose
+    // regions are this fit's) with a mixture that received more than `threshold` samples since
+    // it was made, while there are fewer than `max_regions` regions and its box is longer than
+    // 1e-6 of the root's diagonal. The splits go to the device (the REFINE pass; submitted and
+    // waited for), growing the fit's buffers and `regions`/`lobes` (re-created with a copy and
+    // bound: the caller rebinds them elsewhere). Returns the regions split.
+    uint32_t refine(RegionTree& tree, uint32_t threshold, uint32_t max_regions, Buffer& regions, Buffer& lobes);
+    // What children inherited (GuidingFitRegion samples and fits, counted again in each child):
+    // the sums over the regions less these are the samples received and the fits run.
+    uint64_t inherited_samples() const { return inherited_samples_; }
+    uint64_t inherited_fits() const { return inherited_fits_; }
 
     // Readbacks for tests, stats and benchmarks (never in the frame loop).
     std::vector<GuidingFitRegion> read_states() const;
@@ -49,10 +67,12 @@ public:
 private:
     void ensure_capacity(uint32_t sample_count);
     Context& ctx_;
-    uint32_t regions_;
+    uint32_t regions_, capacity_;  // regions, and those the buffers hold
     GuidingFitPush push_{};
     std::unique_ptr<DescriptorSet> set_;
     Buffer states_, lobes_state_, counts_, starts_, sorted_, pending_;
+    Buffer tally_, splits_;  // host-visible: read / written by refine()
+    uint64_t inherited_samples_ = 0, inherited_fits_ = 0;
     uint32_t block_size_ = 0, block_count_ = 0, sorted_capacity_ = 0;
     size_t samples_bytes_ = 0;
 };

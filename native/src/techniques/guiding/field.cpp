@@ -256,17 +256,7 @@ void GuidingField::write_lobes(std::vector<GuidingLobe>& out) const {
         write_gpu_lobes(regions_[r].state.vmm, params_.parallax != 0, &out[size_t(r) * GUIDING_MAX_COMPONENTS]);
 }
 
-void GuidingField::write_aabbs(std::vector<float>& out) const {
-    out.resize(regions_.size() * 6);
-    const double pad = 1e-5 * length(scene_.extent());
-    for (uint32_t r = 0; r < regions_.size(); ++r) {
-        const Aabb& b = tree_.bounds(r);
-        for (int a = 0; a < 3; ++a) {
-            out[6 * r + a] = float(b.lo[a] - pad);
-            out[6 * r + 3 + a] = float(b.hi[a] + pad);
-        }
-    }
-}
+void GuidingField::write_aabbs(std::vector<float>& out) const { tree_.write_aabbs(out); }
 
 }  // namespace guiding
 }  // namespace px

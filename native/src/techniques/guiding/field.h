@@ -75,6 +75,8 @@ public:
     void write_lobes(std::vector<GuidingLobe>& out) const;
     void write_aabbs(std::vector<float>& out) const;
     void write_nodes(std::vector<GuidingNode>& out) const { tree_.write_nodes(out); }
+    // The region tree (the device fit refines a copy of it: device_fit.h).
+    const RegionTree& tree() const { return tree_; }
     // GPU bytes per region: its record, its lobes, its AABB and the tree's two nodes per leaf.
     static size_t gpu_bytes_per_region() {
         return sizeof(GuidingRegion) + GUIDING_MAX_COMPONENTS * sizeof(GuidingLobe) + 6 * sizeof(float) +

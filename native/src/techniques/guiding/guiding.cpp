@@ -118,6 +118,7 @@ void Guiding::configure(const GuidingParams& params, const SceneHost& scene, uin
     if (params_.fit == GUIDING_FIT_DEVICE) {
         device_fit_ = std::make_unique<guiding::DeviceFit>(ctx_, uint32_t(field_->region_count()), field_->fit_options(),
                                                            params_.parallax != 0, params_.min_samples);
+        device_tree_ = field_->tree();
         device_fit_->bind(samples_, regions_, lobes_);
     }
 }
@@ -144,24 +145,29 @@ void Guiding::upload(DescriptorSet* set) {
     regions_.upload(regions.data(), n * sizeof(GuidingRegion));
     lobes_.upload(lobes.data(), lobes.size() * sizeof(GuidingLobe));
     if (field_->layout_version() != built_layout_) {
-        // The regions' boxes in the tree's depth-first order (lavapipe's BVH builder splits
-        // in input order); primitive i is region order[i].
-        std::vector<float> boxes, sorted(n * 6);
-        field_->write_aabbs(boxes);
-        const std::vector<uint32_t> order = field_->spatial_order();
-        for (size_t i = 0; i < n; ++i) std::copy_n(&boxes[size_t(order[i]) * 6], 6, &sorted[i * 6]);
-        order_ = Buffer::with_vector(ctx_, order, kStorageUsage);
-        std::vector<GuidingNode> nodes;
-        field_->write_nodes(nodes);
-        nodes_ = Buffer::with_vector(ctx_, nodes, kStorageUsage);
-        aabbs_ = Buffer::with_data(ctx_, sorted.data(), sorted.size() * sizeof(float),
-                                   kStorageUsage | VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR);
-        tlas_.reset();
-        blas_ = build_aabb_blas(ctx_, aabbs_, uint32_t(n));
-        tlas_ = build_tlas_over(ctx_, *blas_, HIT_GROUP_GUIDING);
+        upload_layout(field_->tree());
         built_layout_ = field_->layout_version();
     }
     if (set) bind(*set);
+}
+
+void Guiding::upload_layout(const guiding::RegionTree& tree) {
+    // The regions' boxes in the tree's depth-first order (lavapipe's BVH builder splits in
+    // input order); primitive i is region order[i].
+    const size_t n = tree.size();
+    std::vector<float> boxes, sorted(n * 6);
+    tree.write_aabbs(boxes);
+    const std::vector<uint32_t> order = tree.spatial_order();
+    for (size_t i = 0; i < n; ++i) std::copy_n(&boxes[size_t(order[i]) * 6], 6, &sorted[i * 6]);
+    order_ = Buffer::with_vector(ctx_, order, kStorageUsage);
+    std::vector<GuidingNode> nodes;
+    tree.write_nodes(nodes);
+    nodes_ = Buffer::with_vector(ctx_, nodes, kStorageUsage);
+    aabbs_ = Buffer::with_data(ctx_, sorted.data(), sorted.size() * sizeof(float),
+                               kStorageUsage | VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR);
+    tlas_.reset();
+    blas_ = build_aabb_blas(ctx_, aabbs_, uint32_t(n));
+    tlas_ = build_tlas_over(ctx_, *blas_, HIT_GROUP_GUIDING);
 }
 
 void Guiding::record_frame_start(VkCommandBuffer cmd) const {
@@ -175,6 +181,17 @@ void Guiding::after_frame(DescriptorSet& set, double frame_milliseconds) {
         const uint32_t slots = record_paths_ * GUIDING_PATH_VERTICES;
         ctx_.submit_and_wait([&](VkCommandBuffer cmd) { device_fit_->record(cmd, slots); });
         stats_.fit_milliseconds += ms_since(start);
+        // Adaptive refinement, as the host fit's (after the fit): the regions split before the
+        // next frame traces, which then looks samples up in the refined tree.
+        const auto refine_start = std::chrono::steady_clock::now();
+        const uint32_t split =
+            device_fit_->refine(device_tree_, params_.region_threshold, params_.max_regions, regions_, lobes_);
+        if (split) {
+            stats_.refinements += split;
+            upload_layout(device_tree_);
+            bind(set);
+        }
+        stats_.upload_milliseconds += ms_since(refine_start);
         stats_.frame_milliseconds += frame_milliseconds;
         ++training_frames_;
         return;
@@ -229,7 +246,7 @@ GuidingStats Guiding::stats() const {
     s.training_frames = training_frames_;
     if (!field_) return s;
     const guiding::FieldStats& f = field_->stats();
-    s.regions = uint32_t(field_->region_count());
+    s.regions = uint32_t(device_fit_ ? device_fit_->region_count() : field_->region_count());
     s.samples_added = f.samples_added;
     s.samples_dropped = f.samples_dropped;
     s.region_fits = f.region_fits;
@@ -241,6 +258,8 @@ GuidingStats Guiding::stats() const {
             s.samples_added += r.samples;
             s.region_fits += r.fits;
         }
+        s.samples_added -= device_fit_->inherited_samples();  // counted in both halves of a split
+        s.region_fits -= device_fit_->inherited_fits();
     } else {
         for (uint32_t r = 0; r < s.regions; ++r) {
             const uint32_t k = field_->mixture(r).count;

@@ -11,8 +11,11 @@
 //   refinement changed the regions). The frames thus trace with the field one frame behind,
 //   the same for every run (deterministic); the last training frame waits for its own fit,
 //   so that the image accumulates with the finished field.
-//   With guiding_fit = device the fit is compute passes instead (device_fit.h): no readback or
-//   upload; the host field then only provides the initial regions (no refinement).
+//   With guiding_fit = device the fit is compute passes instead (device_fit.h): no sample
+//   readback or upload; the host field then only provides the initial regions. Adaptive
+//   refinement reads 12 bytes per region back after the fit's passes, splits a copy of the
+//   region tree on the host (node buffer, AABBs and TLAS rebuilt as for the host fit) and
+//   hands the splits to the device (DeviceFit::refine).
 // The field survives camera moves, probe changes and guiding being switched off and on; new
 // geometry or lights, the seed or any other guiding setting start it over (configure).
 #pragma once
@@ -77,6 +80,7 @@ public:
 private:
     void finish_fit() const;  // waits for the fit in flight and adds its figures to stats_
     void upload(DescriptorSet* set);  // regions and lobes; AABBs, order and TLAS if the layout changed
+    void upload_layout(const guiding::RegionTree& tree);  // AABBs, order, nodes, BLAS/TLAS
     void build_placeholder();
     Context& ctx_;
     GuidingParams params_{};
@@ -86,6 +90,7 @@ private:
     uint32_t record_paths_ = 0;  // path slots of the sample buffer
     std::unique_ptr<guiding::GuidingField> field_;
     std::unique_ptr<guiding::DeviceFit> device_fit_;  // guiding_fit = device
+    guiding::RegionTree device_tree_;                 // its regions (refined on the host)
     Buffer regions_, lobes_, order_, aabbs_, nodes_, samples_;
     std::unique_ptr<AccelerationStructure> blas_, tlas_;
     uint64_t built_layout_ = ~0ull;

@@ -79,6 +79,18 @@ void RegionTree::write_nodes(std::vector<GuidingNode>& out) const {
     }
 }
 
+void RegionTree::write_aabbs(std::vector<float>& out) const {
+    out.resize(leaf_node_.size() * 6);
+    const double pad = 1e-5 * length(root().extent());
+    for (uint32_t r = 0; r < leaf_node_.size(); ++r) {
+        const Aabb& b = bounds(r);
+        for (int a = 0; a < 3; ++a) {
+            out[6 * r + a] = float(b.lo[a] - pad);
+            out[6 * r + 3 + a] = float(b.hi[a] + pad);
+        }
+    }
+}
+
 std::vector<uint32_t> RegionTree::spatial_order() const {
     std::vector<uint32_t> order;
     order.reserve(leaf_node_.size());

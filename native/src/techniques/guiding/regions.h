@@ -31,6 +31,9 @@ public:
     std::vector<uint32_t> spatial_order() const;
     // The tree for the GPU's walk (GuidingNode, shaders/shared/guiding.h); node 0 is the root.
     void write_nodes(std::vector<GuidingNode>& out) const;
+    // 6 floats per region (VkAabbPositionsKHR), enlarged by a hair (1e-5 of the root's
+    // diagonal) so lookups never fall between regions (thesis 4.6.1).
+    void write_aabbs(std::vector<float>& out) const;
 
 private:
     struct Node {
