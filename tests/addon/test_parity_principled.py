@@ -1,90 +1,28 @@
-"""Parity with Cycles for the Principled BSDF (issue 14): a grid of patches, roughness x
-metallic x IOR Level x transmission, plus coat, sheen, an F82-tinted metal and smooth
-(roughness 0) dielectric and glass patches, each patch's mean radiance within 5% of Cycles'.
-
-The patches are quads in the plane z = 0 under a uniform world and a sun, seen at 45 degrees
-by an orthographic camera (so every pixel of a patch sees it at the same angle, and a patch
-maps to a rectangle of pixels); nothing lies below them, so transmitted rays see the world.
+"""Parity with Cycles for the Principled BSDF (issue 14): every patch of the material grid
+(blender_scenes/principled_grid.py: roughness x metallic x IOR Level x transmission, coat,
+sheen, F82-tinted metal, smooth dielectric and glass) within 5% of Cycles' mean radiance.
 Cycles is set up as for the .blend scenes (blender_scenes/build.py). Both engines render
 seeds 0 and 1; a patch's value is the mean over the pixels well inside it, both seeds.
 """
-import math
+import importlib.util
 import os
 
 import numpy as np
-from blender_helpers import load_scene_builder, render_engine
+from blender_helpers import SCENES, render_engine
 
-W, H, ORTHO = 90, 32, 9.0        # pixel = 0.1 m across; rows see y / sqrt(2)
+_spec = importlib.util.spec_from_file_location("principled_grid", os.path.join(SCENES, "principled_grid.py"))
+grid = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(grid)
+
 SAMPLES = int(os.environ.get("PARALLAX_PARITY_SAMPLES", 256))
-BASE = (0.8, 0.5, 0.25)
-COLUMNS, PITCH, INSIDE = 7, 1.25, 0.35  # patch centres PITCH apart; pixels within INSIDE of one
-
-
-def patches():
-    """[(label, Principled inputs)]: the 16 grid patches, then the others."""
-    out = []
-    for roughness in (0.2, 0.5):
-        for metallic in (0.0, 1.0):
-            for level in (0.5, 1.0):
-                for transmission in (0.0, 1.0):
-                    out.append((f"r{roughness} m{metallic:g} s{level} t{transmission:g}",
-                                {"Roughness": roughness, "Metallic": metallic,
-                                 "Specular IOR Level": level, "Transmission Weight": transmission}))
-    out.append(("coat", {"Roughness": 0.5, "Coat Weight": 1.0, "Coat Roughness": 0.1,
-                         "Coat Tint": (0.9, 0.95, 1.0, 1.0)}))
-    out.append(("sheen", {"Base Color": (0.1, 0.15, 0.4, 1.0), "Roughness": 0.5, "Sheen Weight": 1.0,
-                          "Sheen Roughness": 0.5}))
-    out.append(("metal f82", {"Roughness": 0.3, "Metallic": 1.0, "Specular Tint": (0.5, 0.8, 1.0, 1.0)}))
-    out.append(("r0 dielectric", {"Roughness": 0.0}))
-    out.append(("r0 glass", {"Roughness": 0.0, "Transmission Weight": 1.0}))
-    return out
-
-
-def centre(k):
-    return ((k % COLUMNS - (COLUMNS - 1) / 2) * PITCH, (1 - k // COLUMNS) * PITCH)
-
-
-def build(bpy):
-    from mathutils import Vector
-
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = bpy.context.scene
-    scene.render.engine = "CYCLES"
-    b = load_scene_builder()
-    for k, (label, inputs) in enumerate(patches()):
-        mat, bsdf = b._material(label, "ShaderNodeBsdfPrincipled", **{"Base Color": (*BASE, 1.0), **inputs})
-        b.add_rect(label, 1.0, 1.0, mat, (*centre(k), 0.0))
-    b.add_sun_light("Sun", (0.25, -0.8, -0.6), 2.0, 5.0)
-    b.set_world((1.0, 1.0, 1.0), 0.5)
-    cam = bpy.data.cameras.new("Camera")
-    cam.type, cam.ortho_scale, cam.sensor_fit = "ORTHO", ORTHO, "AUTO"
-    rotation = Vector((0.0, 1.0, -1.0)).to_track_quat("-Z", "Y").to_euler()
-    scene.camera = b.add_object("Camera", cam, (0.0, -10.0, 10.0), rotation)
-    b.configure_render(scene, W, H)
-    return scene
-
-
-def patch_means(image):
-    """(patches, 3) mean radiance over the pixels well inside each patch."""
-    u = ((np.arange(W) + 0.5) / W - 0.5) * ORTHO
-    v = (0.5 - (np.arange(H) + 0.5) / H) * ORTHO * H / W
-    x, y = np.meshgrid(u, v * math.sqrt(2.0))  # rows: image top first
-    out = []
-    for k in range(len(patches())):
-        cx, cy = centre(k)
-        mask = (np.abs(x - cx) < INSIDE) & (np.abs(y - cy) < INSIDE)
-        assert mask.sum() >= 20
-        out.append(image[mask].mean(axis=0))
-    return np.array(out)
-
 
 
 def test_principled_grid_matches_cycles(bpy, tmp_path):
-    scene = build(bpy)
-    ours = sum(patch_means(render_engine(bpy, tmp_path, scene, "PARALLAX", s, SAMPLES)) for s in (0, 1)) / 2
-    theirs = sum(patch_means(render_engine(bpy, tmp_path, scene, "CYCLES", s, SAMPLES)) for s in (0, 1)) / 2
+    scene = grid.build(bpy)
+    ours = sum(grid.patch_means(render_engine(bpy, tmp_path, scene, "PARALLAX", s, SAMPLES)) for s in (0, 1)) / 2
+    theirs = sum(grid.patch_means(render_engine(bpy, tmp_path, scene, "CYCLES", s, SAMPLES)) for s in (0, 1)) / 2
     ratio = ours / theirs  # per patch and channel
-    for (label, _), r, o, t in zip(patches(), ratio, ours, theirs):
+    for (label, _), r, o, t in zip(grid.patches(), ratio, ours, theirs):
         print(f"{label:24s} ratio {np.round(r, 3)}  ours {np.round(o, 4)}  Cycles {np.round(t, 4)}")
     worst = np.abs(ratio - 1.0).max(axis=1)
-    assert np.all(worst < 0.05), [(label, round(float(w), 3)) for (label, _), w in zip(patches(), worst)]
+    assert np.all(worst < 0.05), [(label, round(float(w), 3)) for (label, _), w in zip(grid.patches(), worst)]
