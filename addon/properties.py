@@ -39,6 +39,23 @@ GUIDING_FIT_ITEMS = (
     ("device", "Device", "Fit the mixtures in compute shaders where the samples are: no sample "
                          "readback; regions refine as with the CPU fit (a few bytes per region read back)"),
 )
+# What the Rendered viewport can show (as Cycles' viewport Render Pass): the combined image or
+# one of the technique's visualisation passes, read from the same session (passes.py).
+VIEWPORT_PASS_ITEMS = (
+    ("combined", "Combined", "The rendered image"),
+    ("normal", "Normal", "First-hit shading normal"),
+    ("albedo", "Albedo", "First-hit albedo (the denoising albedo)"),
+    ("depth", "Depth", "Distance to the first hit"),
+    ("ray_depth", "Ray Depth", "Mean path length"),
+    ("ic_irradiance", "IC Irradiance", "Irradiance cache: interpolated irradiance (cache on)"),
+    ("ic_gradients", "IC Gradients", "Irradiance cache: gradient magnitudes (cache on)"),
+    ("adrrs_estimate", "ADRRS Estimate", "ADRRS: the adjoint estimate (ADRRS on)"),
+    ("adrrs_splits", "ADRRS Splits", "ADRRS: splits per pixel sample (ADRRS on)"),
+    ("guiding_regions", "Guiding Regions", "Path guiding: a colour per region (guiding on)"),
+    ("guiding_components", "Guiding Components", "Path guiding: active lobes / max (guiding on)"),
+    ("guiding_lobes", "Guiding Lobes", "Path guiding: the probe pixel's mixture as an inset, and "
+                                        "a sphere per trained region coloured by its pdf (guiding on)"),
+)
 ADRRS_ESTIMATE_ITEMS = (
     ("ic", "Irradiance Cache", "Estimate frames after the cache's prepare frames: paths to the "
                                "first non-specular hit, lit by NEE and the cache (thesis 4.5)"),
@@ -70,6 +87,10 @@ class ParallaxRenderSettings(bpy.types.PropertyGroup):
         "time", items=(("AUTO", "Automatic", "From the measured frame time"),
                        ("1", "1", "Full resolution at once"), ("2", "2", "2x2 pixels"),
                        ("4", "4", "4x4 pixels"), ("8", "8", "8x8 pixels")), default="AUTO")
+    viewport_pass: EnumProperty(
+        name="Viewport Pass", description="What the Rendered viewport shows: the image or a "
+        "visualisation pass, live (switching keeps the samples and the trained guiding field)",
+        items=VIEWPORT_PASS_ITEMS, default="combined")
     # Light paths
     max_depth: IntProperty(
         name="Max Bounces", description="Maximum number of non-specular bounces (Cycles' Max "

@@ -29,7 +29,7 @@ class _RenderPanel(_ParallaxPanel):
 class PARALLAX_PT_sampling(_RenderPanel, bpy.types.Panel):
     bl_label = "Sampling"
     properties = ("samples", "time_limit", "viewport_samples", "viewport_start_pixel_size",
-                  "samples_per_frame", "seed")
+                  "viewport_pass", "samples_per_frame", "seed")
 
 
 class PARALLAX_PT_light_paths(_RenderPanel, bpy.types.Panel):

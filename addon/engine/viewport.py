@@ -74,7 +74,7 @@ def changed_parts(depsgraph):
 class _Worker(threading.Thread):
     """Renders the viewport image; takes scene, camera, size and settings changes at any time."""
 
-    def __init__(self, device, params, target_samples, pixel_size):
+    def __init__(self, device, params, target_samples, pixel_size, display="combined"):
         super().__init__(name="parallax-viewport", daemon=True)
         self.device = device
         self.frame = None      # latest (image (H, W, 4), samples, pixel size, generation)
@@ -83,6 +83,7 @@ class _Worker(threading.Thread):
         self._lock = threading.Condition()
         self._scene, self._parts, self._size, self._params = None, set(), None, params
         self._target, self._pixel_size = target_samples, pixel_size
+        self._display, self._display_changed = display, False  # the core pass shown (viewport_pass)
         self._stopped = False
         self._full = self._preview = None  # sessions: full size, and pixel size 2-8 (or none)
         self._preview_factor = 1
@@ -98,8 +99,16 @@ class _Worker(threading.Thread):
 
     # -- Blender's thread --
 
-    def submit(self, scene=None, parts=(), size=None, params=None, target=None, pixel_size=None):
+    @property
+    def display(self):
+        return self._display
+
+    def submit(self, scene=None, parts=(), size=None, params=None, target=None, pixel_size=None,
+               display=None):
         with self._lock:
+            if display is not None and display != self._display:
+                # Another pass of the same session: shown from the next frame on, samples kept.
+                self._display, self._display_changed = display, True
             if scene is not None:
                 self._scene = scene
                 self._parts |= set(parts)
@@ -194,6 +203,9 @@ class _Worker(threading.Thread):
             self._publish(self._preview, self._preview_factor)
         samples = self._full.samples
         if target and samples >= target:
+            shown = self.frame
+            if self._display_changed or shown is None or shown[1] != samples or shown[2] != 1:
+                self._publish(self._full, 1)  # the last frame may have come too soon to publish
             self.done = True
             return True
         seconds = self._render_frame()
@@ -247,7 +259,11 @@ class _Worker(threading.Thread):
         return 8
 
     def _publish(self, session, pixel_size):
-        image = session.read("combined")
+        display = self._display
+        if display != "combined" and session is not self._full:
+            return  # the quick preview renders without the techniques whose passes these are
+        self._display_changed = False
+        image = _as_rgba(session.read(display))
         samples = session.samples
         self.frame = (image, samples, pixel_size, self._rendering)
         self._published = time.perf_counter()
@@ -259,6 +275,15 @@ class _Worker(threading.Thread):
                 parts, handed_over = self._submitted.pop(generation)
                 if generation == self._rendering:
                     self.latencies.append((parts, self._published - handed_over))
+
+
+def _as_rgba(image):
+    """A pass as the float RGBA image view_draw shows: one channel as grey, alpha 1."""
+    image = np.asarray(image, dtype=np.float32)
+    if image.shape[2] == 4:
+        return image
+    rgb = np.repeat(image[..., :1], 3, axis=2) if image.shape[2] == 1 else image[..., :3]
+    return np.concatenate([rgb, np.ones_like(rgb[..., :1])], axis=2)
 
 
 class ViewportRender:
@@ -277,12 +302,12 @@ class ViewportRender:
         s = scene.parallax
         params = s.render_params()
         pixel_size = 0 if s.viewport_start_pixel_size == "AUTO" else int(s.viewport_start_pixel_size)
-        return params, s.viewport_samples, pixel_size, s.device
+        return params, s.viewport_samples, pixel_size, s.device, s.viewport_pass
 
     def update(self, engine, context, depsgraph):
         """view_update: the scene changed (or this is the first call)."""
         scene = depsgraph.scene
-        params, target, pixel_size, device = self._settings_of(scene)
+        params, target, pixel_size, device, display = self._settings_of(scene)
         try:
             # A worker stopped by an error (a scene past the memory budget) starts over on
             # the next edit, which may have fixed it.
@@ -291,7 +316,7 @@ class ViewportRender:
                 width, height = _region_size(context)
                 camera = _context_camera(context)
                 data, warnings = self.exporter.full(depsgraph, width, height, view_camera=camera)
-                self.worker = _Worker(device, params, target, pixel_size)
+                self.worker = _Worker(device, params, target, pixel_size, display)
                 self.worker.submit(data, parts={"geometry"}, size=(width, height))
                 self.worker.start()
                 self._camera_key, self._size = _camera_key(camera), (width, height)
@@ -302,7 +327,9 @@ class ViewportRender:
                     parts, warnings = self.exporter.update(depsgraph, parts)
                 if parts or (params, target, pixel_size) != self._settings:
                     self.worker.submit(self.exporter.data, parts=parts, params=params,
-                                       target=target, pixel_size=pixel_size)
+                                       target=target, pixel_size=pixel_size, display=display)
+                elif display != self.worker.display:
+                    self.worker.submit(display=display)
         except (ImportError, ValueError, RuntimeError, MemoryError) as e:
             engine.update_stats("", f"Parallax: {e}")
             engine.report({"ERROR"}, f"Parallax: {e}")

@@ -122,6 +122,64 @@ def test_guiding_setting_change_restarts_the_viewport(fresh):
     assert len(view.worker.submitted) == 2 and view.worker.submitted[-1]["params"]["guiding"] is True
 
 
+def test_viewport_pass_switches_without_a_restart(fresh):
+    """Viewport Pass hands the worker another pass to show, not new settings (which would
+    restart the image and the guiding field)."""
+    from test_ic_settings import _FakeDepsgraph, _FakeWorker
+    from addon.engine import viewport
+
+    view = viewport.ViewportRender()
+    view.worker = _FakeWorker()
+    depsgraph = _FakeDepsgraph(fresh)
+    view.update(None, None, depsgraph)
+    assert fresh.parallax.viewport_pass == "combined"
+    fresh.parallax.viewport_pass = "guiding_lobes"
+    view.update(None, None, depsgraph)
+    assert view.worker.submitted[-1] == {"display": "guiding_lobes"}
+
+
+def test_viewport_worker_shows_a_guiding_pass_live():
+    """The viewport worker publishes the chosen pass of its full-size session (RGBA, grey for one
+    channel), and switching back to Combined keeps the samples and the trained field."""
+    import time
+
+    from addon.engine import viewport
+    from parallax_core import scenes
+
+    params = {**dataclasses.asdict(parallax_core.RenderParams()), "method": "mis", "samples_per_frame": 4,
+              "guiding": True, "guiding_min_samples": 32, "guiding_region_splits": 3,
+              "guiding_probe_x": 6, "guiding_probe_y": 6}
+    worker = viewport._Worker("auto", params, 8, 1, display="guiding_lobes")
+    worker.submit(scenes.cornell_box(16, 16), parts={"geometry"}, size=(16, 16))
+    worker.start()
+
+    def wait_done():  # an event, not a rate: the worker reaches its sample target
+        while not worker.done and worker.error is None and worker.is_alive():
+            time.sleep(0.05)
+        assert worker.error is None and worker.done
+
+    try:
+        wait_done()
+        lobes, samples, pixel_size, _ = worker.frame
+        session = worker._full
+        assert pixel_size == 1 and samples == 8 and lobes.shape == (16, 16, 4)
+        np.testing.assert_array_equal(lobes[..., :3], session.read("guiding_lobes"))
+        assert np.allclose(lobes[6, 6, :3], 1.0)  # the probe's cross
+        fits = session.stats()["guiding_region_fits"]
+        worker.submit(display="guiding_components")
+        wait_done()
+        components = worker.frame[0]
+        np.testing.assert_array_equal(components[..., 0], session.read("guiding_components")[..., 0])
+        assert np.array_equal(components[..., 0], components[..., 2]) and (components[..., 3] == 1).all()
+        worker.submit(display="combined")
+        wait_done()
+        image, samples, _, _ = worker.frame
+        assert samples == 8 and session.stats()["guiding_region_fits"] == fits
+        np.testing.assert_array_equal(image, session.read("combined"))
+    finally:
+        worker.stop(wait=300)
+
+
 def test_guiding_status_line():
     assert final.guiding_status({"guiding_trained_regions": 3, "guiding_regions": 16, "guiding_lobes": 24,
                                  "guiding_training_frames": 8}) == \

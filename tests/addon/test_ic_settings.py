@@ -112,6 +112,7 @@ def test_set_parses_ic_settings_for_blend_files(fresh):
 class _FakeWorker:
     device = "auto"
     error = None  # a worker stopped by an error would be replaced
+    display = "combined"
 
     def __init__(self):
         self.submitted = []
