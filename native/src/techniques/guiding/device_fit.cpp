@@ -87,6 +87,12 @@ void DeviceFit::ensure_capacity(uint32_t sample_count) {
         counts_ = Buffer(ctx_, count_bytes, kStorageUsage);
         set_->bind_buffer(GUIDING_FIT_BINDING_COUNTS, counts_);
     }
+    // The scan's tiles: a partial sum each (SCAN_REDUCE), then a prefix (SCAN_PARTIALS).
+    const uint32_t tiles = uint32_t((bins * blocks + GUIDING_FIT_SCAN_TILE - 1) / GUIDING_FIT_SCAN_TILE);
+    if (!scan_partials_.valid() || scan_partials_.size() < size_t(tiles) * sizeof(uint32_t)) {
+        scan_partials_ = Buffer(ctx_, size_t(tiles) * sizeof(uint32_t), kStorageUsage);
+        set_->bind_buffer(GUIDING_FIT_BINDING_SCAN_PARTIALS, scan_partials_);
+    }
     if (sample_count > sorted_capacity_) {
         sorted_ = Buffer(ctx_, size_t(sample_count) * sizeof(uint32_t), kStorageUsage);
         set_->bind_buffer(GUIDING_FIT_BINDING_SORTED, sorted_);
@@ -94,6 +100,7 @@ void DeviceFit::ensure_capacity(uint32_t sample_count) {
     }
     block_size_ = block;
     block_count_ = blocks;
+    scan_tiles_ = tiles;
 }
 
 void DeviceFit::bind(const Buffer& samples, const Buffer& regions, const Buffer& lobes) {
@@ -117,11 +124,20 @@ void DeviceFit::record(VkCommandBuffer cmd, uint32_t sample_count) {
     pc.block_count = block_count_;
     const uint32_t block_groups = (block_count_ + GUIDING_FIT_GROUP - 1) / GUIDING_FIT_GROUP;
     barrier(cmd);
+    // COUNT adds to zeroed counts (a fill runs at the memory's bandwidth).
+    vkCmdFillBuffer(cmd, counts_.handle(), 0, VkDeviceSize(block_count_) * (regions_ + 1) * sizeof(uint32_t), 0);
+    barrier(cmd);
     pc.pass = GUIDING_FIT_PASS_COUNT;
     p.dispatch(cmd, set_->set(), &pc, sizeof(pc), block_groups);
     barrier(cmd);
-    pc.pass = GUIDING_FIT_PASS_SCAN;
+    pc.pass = GUIDING_FIT_PASS_SCAN_REDUCE;
+    p.dispatch(cmd, set_->set(), &pc, sizeof(pc), scan_tiles_);
+    barrier(cmd);
+    pc.pass = GUIDING_FIT_PASS_SCAN_PARTIALS;
     p.dispatch(cmd, set_->set(), &pc, sizeof(pc), 1);
+    barrier(cmd);
+    pc.pass = GUIDING_FIT_PASS_SCAN_APPLY;
+    p.dispatch(cmd, set_->set(), &pc, sizeof(pc), scan_tiles_);
     barrier(cmd);
     pc.pass = GUIDING_FIT_PASS_SCATTER;
     p.dispatch(cmd, set_->set(), &pc, sizeof(pc), block_groups);
