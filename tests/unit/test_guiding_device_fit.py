@@ -83,8 +83,9 @@ def random_set(rng, n):
 
 @pytest.mark.parametrize("n, count", [(3000, 5), (70_000, 300)])
 def test_counting_sort_is_stable_and_drops_bad_records(n, count):
-    # 70k samples in 300 regions: 274 blocks of 256, 82k counts, 81 scan tiles of 1024 (over
-    # the 64 of one workgroup: the tile prefixes' pass runs two per thread, the last tile short).
+    # 70k samples in 300 regions: 547 blocks of 128, 165k counts, 161 scan tiles of 1024 (over
+    # the 64 threads of one workgroup: the tile prefixes' pass runs three per thread, the last
+    # tile short).
     rng = np.random.default_rng(90)
     d, w, p = random_set(rng, n)
     regions = rng.integers(0, count, n)
