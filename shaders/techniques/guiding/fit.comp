@@ -56,10 +56,10 @@ void pass_count() {
     [[dont_unroll]] for (uint i = b * pc.block_size; i < end; ++i) counts[bin_of(i) * pc.block_count + b] += 1u;
 }
 
-// The exclusive prefix sum of counts[0 .. (regions + 1) * blocks) in three passes (a
-// the classic reduce-then-scan, as surveyed by Merrill & Garland 2016),
-// over tiles of GUIDING_FIT_SCAN_TILE entries, one workgroup each. Integer sums: exact, so the
-// order of additions does not matter and the result is the serial scan's.
+// The exclusive prefix sum of counts[0 .. (regions + 1) * blocks) in three passes over tiles
+// of GUIDING_FIT_SCAN_TILE counts, a workgroup each (the classic reduce-then-scan, as surveyed
+// by Merrill & Garland 2016): REDUCE, PARTIALS, APPLY. Integer sums are exact, so the order of
+// the additions does not matter: the result is the serial scan's.
 uint scan_total() { return (pc.region_count + 1u) * pc.block_count; }
 
 // SCAN_REDUCE: partials[tile] = the sum of the tile's counts (coalesced strided reads).
