@@ -18,17 +18,22 @@ PX_CONST uint GUIDING_FIT_BINDING_PENDING = 8;     // GuidingSample[regions * pe
 PX_CONST uint GUIDING_FIT_BINDING_TALLY = 9;       // GuidingFitTally[regions] (host-visible: the host's
                                                    // refinement reads it after the fit)
 PX_CONST uint GUIDING_FIT_BINDING_SPLITS = 10;     // GuidingFitSplit[split_count]: the REFINE pass' work
-PX_CONST uint GUIDING_FIT_BINDING_COUNT = 11;
+PX_CONST uint GUIDING_FIT_BINDING_SCAN_PARTIALS = 11; // uint[tiles]: a sum, then a prefix, per scan tile
+PX_CONST uint GUIDING_FIT_BINDING_COUNT = 12;
 
 PX_CONST uint GUIDING_FIT_GROUP = 64;  // threads per workgroup (the EM: one workgroup per region)
+PX_CONST uint GUIDING_FIT_SCAN_TILE = 1024;  // counts per workgroup of the scan (a multiple of the group)
 
-// Passes of fit.comp, dispatched in this order with a barrier after each:
-PX_CONST uint GUIDING_FIT_PASS_COUNT = 0;    // a thread per block: its samples' bins
-PX_CONST uint GUIDING_FIT_PASS_SCAN = 1;     // one workgroup: exclusive prefix sum (bin, block)
-PX_CONST uint GUIDING_FIT_PASS_SCATTER = 2;  // a thread per block: stable scatter
-PX_CONST uint GUIDING_FIT_PASS_EM = 3;       // a workgroup per region: EM, split/merge, records
+// Passes of fit.comp, dispatched in this order with a barrier after each (counts[] zeroed first):
+PX_CONST uint GUIDING_FIT_PASS_COUNT = 0;          // a thread per block: its samples' bins
+// the exclusive prefix sum over (bin, block), bin-major, in tiles of GUIDING_FIT_SCAN_TILE:
+PX_CONST uint GUIDING_FIT_PASS_SCAN_REDUCE = 1;    // a workgroup per tile: the tile's sum
+PX_CONST uint GUIDING_FIT_PASS_SCAN_PARTIALS = 2;  // one workgroup: the tiles' prefixes, the total
+PX_CONST uint GUIDING_FIT_PASS_SCAN_APPLY = 3;     // a workgroup per tile: first slots, starts[]
+PX_CONST uint GUIDING_FIT_PASS_SCATTER = 4;        // a thread per block: stable scatter
+PX_CONST uint GUIDING_FIT_PASS_EM = 5;             // a workgroup per region: EM, split/merge, records
 // After EM, only when the host decided to refine regions (device_fit.h), a workgroup per split:
-PX_CONST uint GUIDING_FIT_PASS_REFINE = 4;   // the child inherits the parent's state (field.cpp refine)
+PX_CONST uint GUIDING_FIT_PASS_REFINE = 6;   // the child inherits the parent's state (field.cpp refine)
 
 // Push constants: the pass, sizes and the FitOptions (em.h) in float.
 struct GuidingFitPush {

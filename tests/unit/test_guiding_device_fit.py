@@ -81,21 +81,24 @@ def random_set(rng, n):
     return d, w, np.full(n, 1 / (4 * math.pi))
 
 
-def test_counting_sort_is_stable_and_drops_bad_records():
+@pytest.mark.parametrize("n, count", [(3000, 5), (70_000, 300)])
+def test_counting_sort_is_stable_and_drops_bad_records(n, count):
+    # 70k samples in 300 regions: 547 blocks of 128, 165k counts, 161 scan tiles of 1024 (over
+    # the 64 threads of one workgroup: the tile prefixes' pass runs three per thread, the last
+    # tile short).
     rng = np.random.default_rng(90)
-    n = 3000
     d, w, p = random_set(rng, n)
-    regions = rng.integers(0, 5, n)
-    regions[::97] = 9  # no such region
+    regions = rng.integers(0, count, n)
+    regions[::97] = count + 4  # no such region
     p[::89] = 0.0      # an empty slot
     w[::83] = np.nan   # rejected, as add_samples rejects it
-    f = g.DeviceFit(5, options(), device=DEVICE)
+    f = g.DeviceFit(count, options(), device=DEVICE)
     f.fit(records(d, w, p, regions=regions))
     starts, order = f.bins()
-    bins = np.where((regions < 5) & (p > 0) & np.isfinite(w), regions, 5)
+    bins = np.where((regions < count) & (p > 0) & np.isfinite(w), regions, count)
     want = np.argsort(bins, kind="stable")
     np.testing.assert_array_equal(order, want)
-    np.testing.assert_array_equal(starts, np.concatenate([[0], np.cumsum(np.bincount(bins, minlength=6))]))
+    np.testing.assert_array_equal(starts, np.concatenate([[0], np.cumsum(np.bincount(bins, minlength=count + 1))]))
 
 
 def test_one_em_step_matches_the_host_fit_in_several_regions():

@@ -32,6 +32,7 @@ layout(set = 0, binding = GUIDING_FIT_BINDING_SORTED, scalar) buffer Sorted { ui
 layout(set = 0, binding = GUIDING_FIT_BINDING_PENDING, scalar) buffer Pending { GuidingSample pending_samples[]; };
 layout(set = 0, binding = GUIDING_FIT_BINDING_TALLY, scalar) buffer Tally { GuidingFitTally tally[]; };
 layout(set = 0, binding = GUIDING_FIT_BINDING_SPLITS, scalar) readonly buffer Splits { GuidingFitSplit splits[]; };
+layout(set = 0, binding = GUIDING_FIT_BINDING_SCAN_PARTIALS, scalar) buffer ScanPartials { uint scan_partials[]; };
 
 const float PI = 3.14159265358979;
 const float KAPPA_MIN = 1e-3;  // GUIDING_KAPPA_MIN, kKappaMin
@@ -47,40 +48,98 @@ uint bin_of(uint i) {
     return ok && s.region < pc.region_count ? s.region : pc.region_count;
 }
 
+// COUNT: a thread per block counts its samples per bin (counts[] was zeroed by the host).
 void pass_count() {
     uint b = gl_GlobalInvocationID.x;
     if (b >= pc.block_count) return;
-    [[dont_unroll]] for (uint r = 0u; r <= pc.region_count; ++r) counts[r * pc.block_count + b] = 0u;
     uint end = min(pc.sample_count, (b + 1u) * pc.block_size);
     [[dont_unroll]] for (uint i = b * pc.block_size; i < end; ++i) counts[bin_of(i) * pc.block_count + b] += 1u;
 }
 
+// The exclusive prefix sum of counts[0 .. (regions + 1) * blocks) in three passes over tiles
+// of GUIDING_FIT_SCAN_TILE counts, a workgroup each (the classic reduce-then-scan, as surveyed
+// by Merrill & Garland 2016): REDUCE, PARTIALS, APPLY. Integer sums are exact, so the order of
+// the additions does not matter: the result is the serial scan's.
+uint scan_total() { return (pc.region_count + 1u) * pc.block_count; }
+
+// SCAN_REDUCE: partials[tile] = the sum of the tile's counts (coalesced strided reads).
 shared uint scan_part[G];
-void pass_scan() {  // one workgroup: counts[bin * blocks + block] becomes its first slot
-    uint t = gl_LocalInvocationID.x;
-    uint total = (pc.region_count + 1u) * pc.block_count;
-    uint chunk = (total + G - 1u) / G;
-    uint lo = min(total, t * chunk), hi = min(total, lo + chunk);
+void pass_scan_reduce() {
+    uint t = gl_LocalInvocationID.x, total = scan_total();
+    uint lo = gl_WorkGroupID.x * GUIDING_FIT_SCAN_TILE, hi = min(total, lo + GUIDING_FIT_SCAN_TILE);
     uint sum = 0u;
-    [[dont_unroll]] for (uint j = lo; j < hi; ++j) sum += counts[j];
+    [[dont_unroll]] for (uint j = lo + t; j < hi; j += G) sum += counts[j];
     scan_part[t] = sum;
-    barrier();
-    if (t == 0u) {
-        uint run = 0u;
-        [[dont_unroll]] for (uint j = 0u; j < G; ++j) {
-            uint c = scan_part[j];
-            scan_part[j] = run;
-            run += c;
-        }
-        starts[pc.region_count + 1u] = run;
+    [[dont_unroll]] for (uint s = G / 2u; s > 0u; s >>= 1u) {
+        barrier();
+        if (t < s) scan_part[t] += scan_part[t + s];
     }
+    if (t == 0u) scan_partials[gl_WorkGroupID.x] = scan_part[0];
+}
+
+// Exclusive scan of scan_part[0 .. G) in place (Hillis & Steele 1986; log2 G steps); returns
+// the sum of all G values.
+uint scan_group() {
+    uint t = gl_LocalInvocationID.x;
     barrier();
+    uint own = scan_part[t];
+    [[dont_unroll]] for (uint s = 1u; s < G; s <<= 1u) {
+        uint add = t >= s ? scan_part[t - s] : 0u;
+        barrier();
+        scan_part[t] += add;
+        barrier();
+    }
+    uint total = scan_part[G - 1u];
+    barrier();
+    scan_part[t] -= own;  // inclusive -> exclusive
+    barrier();
+    return total;
+}
+
+// SCAN_PARTIALS (one workgroup): partials[] becomes each tile's exclusive prefix; thread t
+// owns a contiguous run of the tiles. starts[regions + 1] = the total.
+void pass_scan_partials() {
+    uint t = gl_LocalInvocationID.x;
+    uint tiles = (scan_total() + GUIDING_FIT_SCAN_TILE - 1u) / GUIDING_FIT_SCAN_TILE;
+    uint run_len = (tiles + G - 1u) / G;
+    uint lo = min(tiles, t * run_len), hi = min(tiles, lo + run_len);
+    uint sum = 0u;
+    [[dont_unroll]] for (uint j = lo; j < hi; ++j) sum += scan_partials[j];
+    scan_part[t] = sum;
+    uint total = scan_group();
     uint run = scan_part[t];
     [[dont_unroll]] for (uint j = lo; j < hi; ++j) {
-        uint c = counts[j];
-        counts[j] = run;
-        if (j % pc.block_count == 0u) starts[j / pc.block_count] = run;
+        uint c = scan_partials[j];
+        scan_partials[j] = run;
         run += c;
+    }
+    if (t == 0u) starts[pc.region_count + 1u] = total;
+}
+
+// SCAN_APPLY: each tile, staged in shared memory (coalesced), is scanned locally (thread t a
+// run of GUIDING_FIT_SCAN_TILE / G entries) and offset by its prefix: counts[bin * blocks +
+// block] becomes that (bin, block)'s first sorted slot and starts[bin] its block 0's.
+shared uint scan_tile[GUIDING_FIT_SCAN_TILE];
+void pass_scan_apply() {
+    const uint R = GUIDING_FIT_SCAN_TILE / G;
+    uint t = gl_LocalInvocationID.x, total = scan_total();
+    uint lo = gl_WorkGroupID.x * GUIDING_FIT_SCAN_TILE, hi = min(total, lo + GUIDING_FIT_SCAN_TILE);
+    [[dont_unroll]] for (uint j = lo + t; j < hi; j += G) scan_tile[j - lo] = counts[j];
+    barrier();
+    uint sum = 0u;
+    [[dont_unroll]] for (uint k = t * R; k < t * R + R && lo + k < hi; ++k) sum += scan_tile[k];
+    scan_part[t] = sum;
+    scan_group();
+    uint run = scan_partials[gl_WorkGroupID.x] + scan_part[t];
+    [[dont_unroll]] for (uint k = t * R; k < t * R + R && lo + k < hi; ++k) {
+        uint c = scan_tile[k];
+        scan_tile[k] = run;
+        run += c;
+    }
+    barrier();
+    [[dont_unroll]] for (uint j = lo + t; j < hi; j += G) {
+        counts[j] = scan_tile[j - lo];
+        if (j % pc.block_count == 0u) starts[j / pc.block_count] = scan_tile[j - lo];
     }
 }
 
@@ -851,7 +910,9 @@ void pass_refine() {
 
 void main() {
     if (pc.pass == GUIDING_FIT_PASS_COUNT) pass_count();
-    else if (pc.pass == GUIDING_FIT_PASS_SCAN) { if (gl_WorkGroupID.x == 0u) pass_scan(); }
+    else if (pc.pass == GUIDING_FIT_PASS_SCAN_REDUCE) pass_scan_reduce();
+    else if (pc.pass == GUIDING_FIT_PASS_SCAN_PARTIALS) { if (gl_WorkGroupID.x == 0u) pass_scan_partials(); }
+    else if (pc.pass == GUIDING_FIT_PASS_SCAN_APPLY) pass_scan_apply();
     else if (pc.pass == GUIDING_FIT_PASS_SCATTER) pass_scatter();
     else if (pc.pass == GUIDING_FIT_PASS_EM) pass_em();
     else pass_refine();

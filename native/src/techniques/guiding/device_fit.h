@@ -1,9 +1,9 @@
 // Guiding mixtures fitted on the device (issue 13; shaders/techniques/guiding/fit.comp): the
-// frame's training samples stay where the trace loop wrote them; four compute passes bin them
-// by region (a stable counting sort) and run the host fit's algorithm (em.h) per region, one
-// workgroup each, writing the GuidingRegion/GuidingLobe records the sampler reads. The host
-// only records the dispatches: no readback, no upload. The fit state (statistics, mixtures,
-// pivots) lives in device buffers across frames.
+// frame's training samples stay where the trace loop wrote them; compute passes bin them by
+// region (a stable counting sort: count, a three-pass parallel scan, scatter) and run the host
+// fit's algorithm (em.h) per region, one workgroup each, writing the GuidingRegion/GuidingLobe
+// records the sampler reads. The host only records the dispatches: no readback, no upload. The
+// fit state (statistics, mixtures, pivots) lives in device buffers across frames.
 // Differences from the host field (field.h), by design: each frame's samples of a region are
 // batch of stepwise EM (the previous statistics decayed) once the region has guiding_min_samples
 // lit samples, those of earlier frames kept on the device until then (as the host field's
@@ -37,7 +37,7 @@ public:
     // The frame's sample buffer and the records the sampler reads (regions: GuidingRegion[regions],
     // lobes: GuidingLobe[regions * GUIDING_MAX_COMPONENTS]); again whenever one is re-created.
     void bind(const Buffer& samples, const Buffer& regions, const Buffer& lobes);
-    // Records the four passes over the first `sample_count` GuidingSample slots, with barriers
+    // Records the passes over the first `sample_count` GuidingSample slots, with barriers
     // before (the trace's writes) and after (the sampler's reads).
     void record(VkCommandBuffer cmd, uint32_t sample_count);
     uint32_t region_count() const { return regions_; }
@@ -70,10 +70,10 @@ private:
     uint32_t regions_, capacity_;  // regions, and those the buffers hold
     GuidingFitPush push_{};
     std::unique_ptr<DescriptorSet> set_;
-    Buffer states_, lobes_state_, counts_, starts_, sorted_, pending_;
+    Buffer states_, lobes_state_, counts_, starts_, sorted_, pending_, scan_partials_;
     Buffer tally_, splits_;  // host-visible: read / written by refine()
     uint64_t inherited_samples_ = 0, inherited_fits_ = 0;
-    uint32_t block_size_ = 0, block_count_ = 0, sorted_capacity_ = 0;
+    uint32_t block_size_ = 0, block_count_ = 0, scan_tiles_ = 0, sorted_capacity_ = 0;
     size_t samples_bytes_ = 0;
 };
 
