@@ -34,6 +34,7 @@ GUIDING_SETTINGS = ("guiding", "guiding_prob", "guiding_parallax", "guiding_trai
                     "guiding_region_splits", "guiding_region_threshold", "guiding_max_regions",
                     "guiding_probe_x", "guiding_probe_y", "guiding_fit")
 GUIDING_FIT_ITEMS = (
+    ("auto", "Automatic", "Device on a GPU, CPU on lavapipe: where each was measured faster"),
     ("cpu", "CPU", "Fit the mixtures on the CPU: the samples are read back after each training "
                    "frame, kept per region until there are enough, and regions refine"),
     ("device", "Device", "Fit the mixtures in compute shaders where the samples are: no sample "
@@ -240,7 +241,7 @@ class ParallaxRenderSettings(bpy.types.PropertyGroup):
         default=4096, min=1, max=2**22)
     guiding_fit: EnumProperty(
         name="Fit On", description="Where the guiding mixtures are fitted", items=GUIDING_FIT_ITEMS,
-        default="cpu")
+        default="auto")
     guiding_probe_x: IntProperty(
         name="Probe X", description="Pixel column whose first hit's mixture the Guiding Lobes "
         "pass plots (-1 = the image centre)", default=-1, min=-1, max=16383)

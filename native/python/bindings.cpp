@@ -264,6 +264,7 @@ NB_MODULE(_native, m) {
                  d["guiding_samples_dropped"] = g.samples_dropped;
                  d["guiding_region_fits"] = g.region_fits;
                  d["guiding_refinements"] = g.refinements;
+                 d["guiding_fit_on"] = g.device_fit ? "device" : "cpu";
                  d["guiding_frame_milliseconds"] = g.frame_milliseconds;
                  d["guiding_readback_milliseconds"] = g.readback_milliseconds;
                  d["guiding_fit_milliseconds"] = g.fit_milliseconds;

@@ -19,6 +19,7 @@ PX_CONST uint GUIDING_KEEP_TRAINING = 0;
 // guiding_fit: where the mixtures are fitted (issue 13).
 PX_CONST uint GUIDING_FIT_CPU = 0;     // the host (field.h): readback, reservoirs, refinement
 PX_CONST uint GUIDING_FIT_DEVICE = 1;  // compute passes (device_fit.h): no readback
+PX_CONST uint GUIDING_FIT_AUTO = 2;    // device on a GPU, cpu on lavapipe (where each is faster)
 
 // User settings (issue 12; the same names with a guiding_ prefix in Session.set_params and
 // --set). The host validates them (validate_guiding_params) before a field uses them.
@@ -37,7 +38,7 @@ struct GuidingParams {
     int probe_y PX_DEFAULT(-1);              // guiding_probe_y
     uint record_stride PX_DEFAULT(1);        // derived by the host: pixel i records in frames f
                                              // with i % stride == f % stride, into path slot i / stride
-    uint fit PX_DEFAULT(0);                  // guiding_fit: GUIDING_FIT_CPU or GUIDING_FIT_DEVICE
+    uint fit PX_DEFAULT(2);                  // guiding_fit: GUIDING_FIT_CPU, _DEVICE or _AUTO
 };
 
 // Training samples: each recording path fills up to GUIDING_PATH_VERTICES slots (its first

@@ -17,7 +17,7 @@ import parallax_core
 DEFAULTS = dict(guiding=False, guiding_prob=0.5, guiding_parallax=True, guiding_training_spp=32,
                 guiding_min_samples=128, guiding_max_components=16, guiding_split_merge=True,
                 guiding_region_splits=8, guiding_region_threshold=10000, guiding_max_regions=4096,
-                guiding_probe_x=-1, guiding_probe_y=-1, guiding_fit="cpu")
+                guiding_probe_x=-1, guiding_probe_y=-1, guiding_fit="auto")
 CHANGED = dict(guiding=True, guiding_prob=0.7, guiding_parallax=False, guiding_training_spp=0,
                guiding_min_samples=100, guiding_max_components=6, guiding_split_merge=False,
                guiding_region_splits=3, guiding_region_threshold=0, guiding_max_regions=64,

@@ -178,13 +178,19 @@ def test_bad_settings_are_rejected(name, value):
 def test_device_fit_agrees_with_the_cpu_fit():
     """guiding_fit = device (issue 13: the mixtures fitted by compute passes, no readback): the
     regions train and, past a low region threshold, refine (device_fit.h refine), and the guided
-    image agrees per block with the CPU fit's (z-test)."""
+    image agrees per block with the CPU fit's (z-test). auto (the default) fits on the device on
+    a GPU and on the host on lavapipe."""
     scene = glass_room(16)
-    cpu_mean, cpu_se, session, cpu_means = batches(scene, "mis", BATCHES, SPP, spp_per_frame=SPP_PER_FRAME, **GUIDING)
+    _, auto = render(scene, "mis", spp=1, spp_per_frame=1, **GUIDING)
+    assert auto.params.guiding_fit == "auto"
+    assert auto.stats()["guiding_fit_on"] == ("cpu" if auto.device_type == "cpu" else "device")
+    cpu_mean, cpu_se, session, cpu_means = batches(scene, "mis", BATCHES, SPP, spp_per_frame=SPP_PER_FRAME,
+                                                   guiding_fit="cpu", **GUIDING)
+    assert session.stats()["guiding_fit_on"] == "cpu"
     mean, se, session, means = batches(scene, "mis", BATCHES, SPP, session=session, spp_per_frame=SPP_PER_FRAME,
                                        guiding_fit="device", guiding_region_threshold=300, **GUIDING)
     st = session.stats()
-    assert session.params.guiding_fit == "device"
+    assert session.params.guiding_fit == "device" and st["guiding_fit_on"] == "device"
     assert st["guiding_training_frames"] == GUIDING["guiding_training_spp"]
     assert st["guiding_refinements"] > 0 and st["guiding_regions"] == 16 + st["guiding_refinements"], st
     assert st["guiding_trained_regions"] > 0 and st["guiding_lobes"] > 0 and st["guiding_region_fits"] > 0, st

@@ -27,7 +27,7 @@ __all__ = ["Session", "RenderParams", "devices", "METHODS", "PASSES", "PARTS", "
 PASSES = tuple(_NativeSession.pass_names())
 HEURISTICS = ("balance", "power")
 ADRRS_ESTIMATES = ("ic", "image")  # px::ADRRS_ESTIMATE_IC, ADRRS_ESTIMATE_IMAGE
-GUIDING_FITS = ("cpu", "device")  # px::GUIDING_FIT_CPU, GUIDING_FIT_DEVICE
+GUIDING_FITS = ("cpu", "device", "auto")  # px::GUIDING_FIT_CPU, GUIDING_FIT_DEVICE, GUIDING_FIT_AUTO
 SIGNED_FIELDS = ("guiding_probe_x", "guiding_probe_y")  # -1: the image centre
 
 
@@ -85,7 +85,7 @@ class RenderParams:
     guiding_max_regions: int = 4096  # adaptive refinement stops here
     guiding_probe_x: int = -1       # pixel of the Guiding Lobes inset; -1 = image centre
     guiding_probe_y: int = -1
-    guiding_fit: str = "cpu"        # where mixtures are fitted: cpu (readback) | device (compute passes)
+    guiding_fit: str = "auto"       # where mixtures are fitted: cpu (readback) | device (compute passes) | auto
 
     def validate(self) -> None:
         if self.method not in METHODS:
@@ -95,7 +95,7 @@ class RenderParams:
         if self.adrrs_estimate not in ADRRS_ESTIMATES:
             raise ValueError(f"unknown adrrs_estimate {self.adrrs_estimate!r} (ic or image)")
         if self.guiding_fit not in GUIDING_FITS:
-            raise ValueError(f"unknown guiding_fit {self.guiding_fit!r} (cpu or device)")
+            raise ValueError(f"unknown guiding_fit {self.guiding_fit!r} (cpu, device or auto)")
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
             if f.name in SIGNED_FIELDS:

@@ -22,7 +22,8 @@ void validate_guiding_params(const GuidingParams& p) {
     if (p.max_regions < (1u << p.region_splits))
         fail("guiding_max_regions must be at least 2^guiding_region_splits (" + std::to_string(1u << p.region_splits) + ")");
     if (p.max_regions > (1u << 22)) fail("guiding_max_regions must be at most 2^22");
-    if (p.fit != GUIDING_FIT_CPU && p.fit != GUIDING_FIT_DEVICE) fail("guiding_fit must be 'cpu' or 'device'");
+    if (p.fit != GUIDING_FIT_CPU && p.fit != GUIDING_FIT_DEVICE && p.fit != GUIDING_FIT_AUTO)
+        fail("guiding_fit must be 'cpu', 'device' or 'auto'");
     if (p.probe_x < -1 || p.probe_y < -1) fail("guiding_probe_x/y must be >= -1 (-1: the image centre)");
 }
 

@@ -39,6 +39,7 @@ struct GuidingStats {
     uint64_t samples_dropped = 0;
     uint64_t region_fits = 0;
     uint32_t refinements = 0;      // regions split, all time
+    bool device_fit = false;       // the field is fitted by compute passes (guiding_fit device/auto)
     // Training cost, summed over the recording frames: the frame (submission to completion),
     // the sample readback, the fit (on a worker thread, overlapped with the next frame), the
     // part of the fit the host waited for after that frame, the upload (with tree and TLAS
