@@ -25,8 +25,10 @@ venv: $(STAMP)
 build: venv
 	@$(PIP) install -q --no-build-isolation --no-deps .
 
+# Two workers (pytest-xdist), a test file each at a time: lavapipe compiles a pipeline on one
+# thread, so one worker's compiles overlap the other's renders.
 test: setup
-	@$(PY) -m pytest -q -p no:cacheprovider
+	@$(PY) -m pytest -q -p no:cacheprovider -n 2 --dist loadfile
 
 # The core built with AddressSanitizer + UndefinedBehaviorSanitizer + LeakSanitizer (into
 # build-asan/), running the unit and render tiers against it: scripts/asan.sh.
