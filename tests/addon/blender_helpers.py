@@ -92,14 +92,19 @@ def parity_ratio(p0, p1, c0, c1, block):
     return float(difference.sum() / max(noise.sum(), 1e-30)), rel_mse
 
 
-def load_scene_builder():
-    """blender_scenes/build.py as a module (its helpers build scenes with bpy)."""
+def load_scene_module(name):
+    """blender_scenes/NAME.py as a module (the scene scripts there build scenes with bpy)."""
     import importlib.util
 
-    spec = importlib.util.spec_from_file_location("parallax_scene_build", os.path.join(SCENES, "build.py"))
+    spec = importlib.util.spec_from_file_location(f"parallax_scene_{name}", os.path.join(SCENES, name + ".py"))
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+def load_scene_builder():
+    """blender_scenes/build.py (its helpers build scenes with bpy)."""
+    return load_scene_module("build")
 
 
 def assert_params(params, expected):

@@ -4,15 +4,12 @@ sheen, F82-tinted metal, smooth dielectric and glass) within 5% of Cycles' mean 
 Cycles is set up as for the .blend scenes (blender_scenes/build.py). Both engines render
 seeds 0 and 1; a patch's value is the mean over the pixels well inside it, both seeds.
 """
-import importlib.util
 import os
 
 import numpy as np
-from blender_helpers import SCENES, render_engine
+from blender_helpers import load_scene_module, render_engine
 
-_spec = importlib.util.spec_from_file_location("principled_grid", os.path.join(SCENES, "principled_grid.py"))
-grid = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(grid)
+grid = load_scene_module("principled_grid")
 
 SAMPLES = int(os.environ.get("PARALLAX_PARITY_SAMPLES", 256))
 
