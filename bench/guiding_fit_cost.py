@@ -20,7 +20,10 @@ add up; the Markdown table of all rows goes to --md):
   path, at most GUIDING_MAX_RECORD_PATHS paths), spread over 2^--region-splits regions of a
   unit box with three lights: the host field's add_samples + fit (all threads) against
   DeviceFit.fit (upload excluded: the samples are on the device already in a render). Median
-  of 5 iterations after 2 warm-up ones.
+  of 5 iterations after 2 warm-up ones. On a GPU a frame of a Cornell box at the same size is
+  rendered before each device fit, as in the training loop: a GPU left idle for a second drops
+  its clocks (an H200 from 1980 to 345-600 MHz, `nvidia-smi --query-gpu=clocks.sm`), and fits
+  timed on an idle GPU took 3.7-7 ms instead of 1.3 ms.
 """
 from __future__ import annotations
 
@@ -123,7 +126,19 @@ def measure_synthetic(device, width, height, region_splits, iterations=5, warm_u
                      stall_ms=statistics.median(times[warm_up:])))
     o = g.FitOptions()
     fitter = g.DeviceFit(1 << region_splits, o, parallax=True, device=device)
-    times = [fitter.fit(records) for _ in range(warm_up + iterations)]
+    import parallax_core as pc
+    from parallax_core import scenes
+
+    busy = pc.Session(width, height, device)  # keeps a GPU's clocks up, as the frames of a render do
+    if busy.device_type == "cpu":
+        busy = None
+    else:
+        busy.update(scenes.cornell_box(width, height))
+    times = []
+    for _ in range(warm_up + iterations):
+        if busy is not None:
+            busy.render(1)
+        times.append(fitter.fit(records))
     rows.append(dict(what=f"synthetic {width}x{height}", fit="device", regions=fitter.region_count,
                      slots_per_iteration=len(records), fit_ms=statistics.median(times[warm_up:]),
                      stall_ms=statistics.median(times[warm_up:])))

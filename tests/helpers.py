@@ -25,13 +25,16 @@ def render(scene, method="mis", spp=64, spp_per_frame=None, seed=0, session=None
     return s.read("combined")[..., :3], s
 
 
-def batches(scene, method, n_batches=8, spp=64, session=None, **params):
+def batches(scene, method, n_batches=8, spp=64, session=None, stats=None, **params):
     """From n_batches independent renders (seeds differ): the mean image, its per-pixel
-    standard error, the session, and each batch's whole-image mean."""
+    standard error, the session, and each batch's whole-image mean. `stats`, a list, gets
+    each batch's session stats."""
     images = []
     for b in range(n_batches):
         img, session = render(scene, method, spp, seed=1000 + b, session=session, **params)
         images.append(img)
+        if stats is not None:
+            stats.append(session.stats())
     stack = np.stack(images)
     return stack.mean(0), stack.std(0, ddof=1) / np.sqrt(n_batches), session, stack.mean(axis=(1, 2, 3))
 

@@ -126,7 +126,7 @@ bool trace_shadow(vec3 origin, vec3 dir, float t_max, uint self_instance, uint s
 // MixMaterial resolves a mix to one material at the intersection (pbrt-v3's MixMaterial
 // instead sums scaled BxDFs), i.e. Veach's one-sample model over lobes (Veach 1997,
 // sec. 9.2.4). The host guarantees the chain ends within MIX_CHAIN_MAX materials.
-Material select_mix_material(Material head, inout uint rng) {
+Material select_mix_material(Material head, inout Rng rng) {
     Material m = head;
     if (!HAS(FEATURE_MIX) || head.mix_next < 0) return m;
     float u = rnd(rng);
@@ -147,7 +147,7 @@ float emission_weight(bool prev_delta, float prev_pdf, float light_pdf, uint lig
     return mis_weight(prev_pdf, float(light_samples) * light_pdf);
 }
 
-PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptions opt, inout uint rng) {
+PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptions opt, inout Rng rng) {
     PathResult res;
     res.radiance = vec3(0.0);
     res.first_t = INFINITY_F;
@@ -306,7 +306,7 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         if ((METHOD != METHOD_PT || last_vertex) && !delta && !resumed) {
             for (uint k = 0u; k < opt.light_samples; ++k) {
                 LightSample ls;
-                vec3 u = vec3(rnd(rng), rnd(rng), rnd(rng));
+                vec3 u = rnd3(rng);
                 if (!sample_light(sh.p, sh.ng, u, ls)) continue;
                 vec3 wi_local = vec3(dot(ls.wi, tangent), dot(ls.wi, bitangent), dot(ls.wi, ns));
                 float bsdf_pdf;
@@ -369,13 +369,13 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         // weight is f cos / (p p_vmm + (1 - p) p_bsdf) whichever technique drew it).
         BsdfSample bs;
         if (USES(TECH_GUIDING) && g_prob > 0.0 && rnd(rng) < g_prob) {
-            vec3 wi = guiding_vmm_sample(g_first, g_lobes, sh.p, vec3(rnd(rng), rnd(rng), rnd(rng)));
+            vec3 wi = guiding_vmm_sample(g_first, g_lobes, sh.p, rnd3(rng).zxy);
             bs.wi = vec3(dot(wi, tangent), dot(wi, bitangent), dot(wi, ns));
             vec3 f = bsdf_eval(surf, wo_local, bs.wi, bs.pdf);
             if (max3(f) <= 0.0 || !(bs.pdf > 0.0)) break;
             bs.weight = f / bs.pdf;  // as if the BSDF had sampled it; the mixture pdf follows
             bs.delta = false;
-        } else if (!bsdf_sample(surf, wo_local, vec3(rnd(rng), rnd(rng), rnd(rng)), bs)) {
+        } else if (!bsdf_sample(surf, wo_local, rnd3(rng), bs)) {
             break;
         }
         if (USES(TECH_GUIDING) && g_prob > 0.0 && !bs.delta) {

@@ -305,6 +305,9 @@ PX_CONST uint TEST_DIELECTRIC_MS = 10;
 // (sheen_roughness, multiscatter, 0, 0)); test_param0 = ior, test_params = (wo, unused).
 PX_CONST uint TEST_PRINCIPLED = 11;
 PX_CONST uint PRINCIPLED_TEST_VEC4S = 6;
+// The path sampler (shaders/lib/rng.glsl): sample i of pixel test_params.x in stream seed;
+// out (rnd2, rnd) of slots test_param0 and test_param0 + 1, then (rnd2, rnd) of the next two.
+PX_CONST uint TEST_RNG = 12;
 
 #include "techniques.h"
 

@@ -79,7 +79,7 @@ void main() {
     if (i >= params.test_count) return;
     uint routine = params.test_routine % TEST_EVAL;
     bool eval_mode = params.test_routine >= TEST_EVAL;
-    uint rng = tea(i, params.seed);
+    Rng rng = rng_stream(tea(i, params.seed));
 
     if (routine == TEST_LIGHT) {
         vec3 p = params.test_params.xyz;
@@ -97,6 +97,13 @@ void main() {
         return;
     }
 
+    if (routine == TEST_RNG) {
+        Rng r = rng_pixel(uint(params.test_params.x), params.seed, i);
+        r.slot = uint(params.test_param0);
+        io[2u * i] = vec4(rnd2(r), rnd(r), 0.0);
+        io[2u * i + 1u] = vec4(rnd2(r), rnd(r), 0.0);
+        return;
+    }
     if (routine == TEST_ADRRS) {  // test_params = (r = v/C, s, rr_min, splitting)
         vec4 t = params.test_params;
         float q = adrrs_window_factor(t.x, t.y, t.z, t.w != 0.0);

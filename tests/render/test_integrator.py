@@ -128,6 +128,25 @@ def test_progressive_accumulation_adds_frames(cornell):
     assert np.allclose(incremental, s.read("combined"), rtol=1e-5, atol=1e-6)
 
 
+def test_samples_are_numbered_across_frames(cornell):
+    # Sample k of a pixel has the same random numbers whether it is traced in a frame of 4
+    # samples or as the k-th frame of 1 (rng.glsl): the Sobol sequence goes on across frames.
+    sc, s = cornell
+    s.update(sc)
+    s.set_params(method="mis", samples_per_frame=4, seed=3)
+    s.reset()
+    s.render(2)
+    four = s.read("combined")
+    s.set_params(samples_per_frame=1)
+    s.reset()
+    s.render(8)
+    assert np.allclose(four, s.read("combined"), rtol=1e-4, atol=1e-6)
+    s.set_params(seed=4)
+    s.reset()
+    s.render(8)
+    assert not np.allclose(four, s.read("combined"), rtol=1e-4, atol=1e-6)
+
+
 def test_passes(cornell):
     sc, s = cornell
     s.update(sc)

@@ -43,7 +43,9 @@ def test_conductor_furnace(session, roughness, mu):
     f, pdf = r[ok, 1, 1], r[ok, 1, 2]
     np.testing.assert_allclose(r[ok, 1, 0], f / pdf, rtol=2e-3)
     single, _, _ = sample(session, TEST_CONDUCTOR, mu, roughness)
-    assert single.mean() < 0.99 and weight.mean() > single.mean() + 0.01
+    # Single scattering loses energy (about 1% at roughness 0.3 seen head-on: 0.9901 by
+    # quadrature), and the compensation gives most of it back.
+    assert single.mean() < 0.995 and weight.mean() - single.mean() > 0.8 * (1.0 - single.mean())
 
 
 @pytest.mark.parametrize("roughness", [0.3, 0.7, 1.0])

@@ -167,7 +167,9 @@ def test_vmf_chi2_glsl(session, kappa):
     # the shader's own pdf: sampler == eval mode == the C++ density
     e = glsl(session, TEST_GUIDING_VMF + EVAL, m, [0, 0, 0], 20_000, directions=r[:20_000, 0, :3])[:, 1, 1]
     ref = g.vmf_pdf(mu, kappa, d[:20_000])
-    np.testing.assert_allclose(r[:20_000, 0, 3], e, rtol=1e-5)
+    # float32: at kappa 5e4 the density of a direction moves by 2e-5 between the sampler's
+    # internal and the stored direction
+    np.testing.assert_allclose(r[:20_000, 0, 3], e, rtol=1e-4 if kappa > 1e3 else 1e-5)
     np.testing.assert_allclose(e, ref, rtol=2e-3 if kappa > 1e3 else 1e-4)
     check_mean_cosine(d, mu, kappa)
     check_chi2(f"glsl vmf kappa={kappa}", grid_for(mu, kappa), d, lambda w: g.vmf_pdf(mu, kappa, w), N)
