@@ -3,7 +3,7 @@ number of samples, for a few sample counts; the image mean over the reference's 
 shows there); samples per second.
 
     .venv/bin/python -m bench.sampler [--scenes cornell_box,veach_mis] [--width 160]
-        [--spp 16,64,256] [--seeds 4]
+        [--spp 16,64,256] [--seeds 4] [--npz DIR] [--reference-seconds 120] [--device auto]
 
 Run it with two builds of the core (PYTHONPATH) to compare samplers at equal samples: the
 relMSE is the mean over --seeds renders, MIS, the scene's blender_scenes file exported as
@@ -23,15 +23,18 @@ def main(argv=None):
     ap.add_argument("--width", type=int, default=160)
     ap.add_argument("--spp", default="16,64,256")
     ap.add_argument("--seeds", type=int, default=4)
+    ap.add_argument("--npz", help="read DIR/NAME.npz (bench.converge --export-only) instead of exporting")
+    ap.add_argument("--reference-seconds", type=float, default=120.0)
+    ap.add_argument("--device", default="auto")
     args = ap.parse_args(argv)
 
     import parallax_core as pc
     from bench.converge import MAX_DEPTH, load_scene, reference_image, rel_mse
 
     for name in args.scenes.split(","):
-        scene = load_scene(name, args.width, None)
-        reference = reference_image(name, scene, 120.0, "auto")
-        s = pc.Session(scene.width, scene.height)
+        scene = load_scene(name, args.width, args.npz)
+        reference = reference_image(name, scene, args.reference_seconds, args.device)
+        s = pc.Session(scene.width, scene.height, args.device)
         s.update(scene)
         for spp in (int(x) for x in args.spp.split(",")):
             errors, ratios, seconds = [], [], 0.0
