@@ -62,6 +62,15 @@ Rng rng_pixel(uint pixel_index, uint stream, uint index) {
     return Rng(hash_u32(pixel_index ^ hash_u32(stream)), index, 0u);
 }
 
+// Sample `s` of this dispatch at a pixel (FrameParams, common.glsl): samples are numbered per
+// pixel across frames and dispatch shares; the special frames (cache prepare, ADRRS estimate,
+// guiding training) carry a flag in their frame number's high bits and have streams of their
+// own (their mode).
+Rng rng_frame_sample(uint pixel_index, uint s) {
+    uint first = (params.frame & 0x0fffffffu) * params.samples_per_frame + params.sample_offset;
+    return rng_pixel(pixel_index, params.seed * 0x9e3779b9u + params.mode, first + s);
+}
+
 // An independent uniform stream (one scrambled point per slot) from a seed.
 Rng rng_stream(uint seed) { return Rng(hash_u32(seed ^ 0x5bd1e995u), 0u, 0u); }
 
