@@ -234,8 +234,8 @@ class ParallaxRenderSettings(bpy.types.PropertyGroup):
         name="Region Splits", description="The scene box is halved this many times along its "
         "longest axis: 2^n regions to start with", default=8, min=0, max=20)
     guiding_region_threshold: IntProperty(
-        name="Region Threshold", description="A region that received this many samples splits in "
-        "two, both halves keeping its mixture (0 = never)", default=10000, min=0, max=2**31 - 1)
+        name="Region Threshold", description="A region that received this many lit samples (paths "
+        "that found light) splits in two, both halves keeping its mixture (0 = never)", default=10000, min=0, max=2**31 - 1)
     guiding_max_regions: IntProperty(
         name="Max Regions", description="Adaptive refinement stops at this many regions",
         default=4096, min=1, max=2**22)

@@ -22,6 +22,8 @@ nb::ndarray<nb::numpy, float> to_numpy(std::vector<float>&& data, std::vector<si
 }  // namespace
 
 void bind_guiding(nb::module_& m);  // guiding_bindings.cpp
+nb::dict guiding_mixture_at(const px::guiding::GuidingField& field,
+                            nb::ndarray<const double, nb::c_contig, nb::device::cpu> point);
 
 NB_MODULE(_native, m) {
     m.doc() = "Parallax native core: Vulkan ray-tracing path tracer";
@@ -229,6 +231,14 @@ NB_MODULE(_native, m) {
         .def_prop_ro("samples", &px::Session::samples, "Samples per pixel accumulated (cheap: no "
                      "download, unlike stats()).")
         .def("reset", &px::Session::reset, nb::call_guard<nb::gil_scoped_release>())
+        .def("guiding_mixture",
+             [](px::Session& s, nb::ndarray<const double, nb::c_contig, nb::device::cpu> point) {
+                 const px::guiding::GuidingField* f = s.guiding_field();
+                 if (!f) throw std::invalid_argument("guiding_mixture needs guiding on with guiding_fit = cpu");
+                 return guiding_mixture_at(*f, point);
+             }, "point"_a,
+             "The guiding region holding `point` and its mixture (weights, mus, kappas, distances, pivot; "
+             "region, fits, min, max), as the host fit (guiding_fit = cpu) last made it.")
         .def("stats",
              [](px::Session& s) {
                  px::SessionStats st;

@@ -214,6 +214,21 @@ struct DeviceFitter {
 
 }  // namespace
 
+// Session.guiding_mixture (bindings.cpp): the region holding `point` and its mixture.
+nb::dict guiding_mixture_at(const GuidingField& field, nb::ndarray<const double, nb::c_contig, nb::device::cpu> point) {
+    if (point.size() != 3) throw std::invalid_argument("point must have 3 coordinates");
+    const Vec3 p(point.data()[0], point.data()[1], point.data()[2]);
+    const uint32_t r = field.region_of(p);
+    if (r == px::NO_INDEX) throw std::invalid_argument("the point lies in no guiding region");
+    nb::dict d = to_dict(field.mixture(r));
+    const Aabb& b = field.region_bounds(r);
+    d["region"] = r;
+    d["fits"] = field.region_info(r).fits;
+    d["min"] = nb::make_tuple(b.lo.x, b.lo.y, b.lo.z);
+    d["max"] = nb::make_tuple(b.hi.x, b.hi.y, b.hi.z);
+    return d;
+}
+
 void bind_guiding(nb::module_& parent) {
     nb::module_ m = parent.def_submodule("guiding", "Path guiding library (vMF mixtures, EM, regions): tests only");
 

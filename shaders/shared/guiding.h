@@ -32,7 +32,7 @@ struct GuidingParams {
     uint max_components PX_DEFAULT(16);      // guiding_max_components, <= GUIDING_MAX_COMPONENTS
     uint split_merge PX_DEFAULT(1);          // guiding_split_merge
     uint region_splits PX_DEFAULT(8);        // guiding_region_splits: 2^k initial regions
-    uint region_threshold PX_DEFAULT(10000); // guiding_region_threshold: samples before a region splits (0: never)
+    uint region_threshold PX_DEFAULT(10000); // guiding_region_threshold: lit samples before a region splits (0: never)
     uint max_regions PX_DEFAULT(4096);       // adaptive refinement stops at this many regions
     int probe_x PX_DEFAULT(-1);              // guiding_probe_x: pixel of the Guiding Lobes pass (-1: centre)
     int probe_y PX_DEFAULT(-1);              // guiding_probe_y

@@ -77,12 +77,12 @@ struct GuidingFitRegion {
     float log_likelihood; // the last fit's weighted mean log density
     uint pending;         // lit samples kept from earlier frames (not fitted yet) ...
     float pending_zero;   // ... and the unlit ones they came with (only counted)
-    uint received;        // samples received since the region was made (refinement; saturating)
+    uint received;        // lit samples received since the region was made (refinement; saturating)
 };
 
 // What the host's refinement reads of a region (12 bytes), written by EM and REFINE.
 struct GuidingFitTally {
-    uint received;  // samples received since the region was made; 0 without a mixture
+    uint received;  // lit samples received since the region was made; 0 without a mixture
     uint samples;   // GuidingFitRegion.samples, fits: a child inherits them (as the host
     uint fits;      // field's records do), so the session's stats subtract them
 };

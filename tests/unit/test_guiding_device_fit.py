@@ -238,10 +238,11 @@ def test_refinement_matches_the_host_field():
     (field.cpp fit): the same frames split the same regions at the same planes (threshold,
     only regions with a mixture, region order, the max_regions cap); a child inherits the
     mixture and records with half of the statistics on both sides, the pending lit samples
-    go to the half holding them, their unlit count in proportion; the next fits agree."""
+    go to the half holding them, their unlit count in proportion; the next fits agree. The
+    threshold counts lit samples (non-zero weight) only."""
     rng = np.random.default_rng(97)
     p = g.GuidingParams()
-    p.region_splits, p.min_samples, p.region_threshold, p.max_regions = 1, 64, 300, 4
+    p.region_splits, p.min_samples, p.region_threshold, p.max_regions = 1, 64, 230, 4
     p.max_components, p.split_merge, p.parallax = 4, 0, 0
     field = g.GuidingField(np.zeros(3), np.array([4.0, 1.0, 1.0]), p, seed=1, options=options(max_iterations=1),
                            threads=1)
@@ -272,21 +273,21 @@ def test_refinement_matches_the_host_field():
         np.testing.assert_array_equal(dev[:, [0, 1, 2, 4, 5, 6]], host[:, [0, 1, 2, 4, 5, 6]])  # boxes
         return before, x, w
 
-    # Frame 1: region 1 (received 350 > 300, fitted) splits; region 0 (250) does not.
+    # Frame 1: region 1 (300 lit > 230, fitted) splits; region 0 (200 lit) does not.
     before, _, _ = step([(0.0, 2.0, 250, 50), (2.0, 4.0, 350, 50)], 1)
     s1, s2 = f.state(1), f.state(2)
     assert s1["components"] == s2["components"] == before[1]["components"] > 0
     assert s1["stat_weight"] == s2["stat_weight"] == pytest.approx(0.5 * before[1]["stat_weight"], rel=1e-6)
     assert s1["stat_count"] == pytest.approx(0.5 * before[1]["stat_count"], rel=1e-6)
-    assert s1["received"] == s2["received"] == 0 and f.state(0)["received"] == 250
+    assert s1["received"] == s2["received"] == 0 and f.state(0)["received"] == 200
     assert s2["samples"] == before[1]["samples"] == 350 and s2["fits"] == before[1]["fits"] == 1
     lobes = f.lobes()
     np.testing.assert_array_equal(lobes[32:48], lobes[16:32])  # the sampler's records: inherited
     np.testing.assert_array_equal(f.regions()[2, 8:11], f.regions()[1, 8:11])  # pivot
     for r in range(3):
         assert_same_mixture(f.mixture(r), field.mixture(r))
-    # Frame 2: region 0 receives 60 (received 310 > 300), 40 of them lit: too few to fit, they
-    # wait; it splits and they are partitioned. Region 2 (320 since its split) would split too,
+    # Frame 2: region 0 receives 60, 40 of them lit (240 lit > 230): too few to fit, they
+    # wait; it splits and they are partitioned. Region 2 (300 lit since its split) would split too,
     # but max_regions (4) stops it: region order decides.
     before, x, w = step([(0.0, 2.0, 60, 20), (3.0, 4.0, 320, 20)], 1)
     assert before[0]["pending"] == 40 and before[0]["pending_zero"] == pytest.approx(20.0)

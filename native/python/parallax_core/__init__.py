@@ -81,7 +81,7 @@ class RenderParams:
     guiding_max_components: int = 16  # lobes per region (1..16)
     guiding_split_merge: bool = True  # split and merge lobes (Ruppert et al. 2020, sec. 4)
     guiding_region_splits: int = 8  # 2^k initial regions (halvings of the scene box)
-    guiding_region_threshold: int = 10000  # samples before a region splits; 0 = never
+    guiding_region_threshold: int = 10000  # lit samples (non-zero weight) before a region splits; 0 = never
     guiding_max_regions: int = 4096  # adaptive refinement stops here
     guiding_probe_x: int = -1       # pixel of the Guiding Lobes inset; -1 = image centre
     guiding_probe_y: int = -1

@@ -554,6 +554,11 @@ std::vector<float> Session::read(const std::string& pass, uint32_t& channels) {
     return out;
 }
 
+const guiding::GuidingField* Session::guiding_field() const {
+    if (!guiding_ || !guiding_->enabled() || guiding_->fits_on_device()) return nullptr;
+    return guiding_->field();
+}
+
 SessionStats Session::stats() {
     std::lock_guard<std::mutex> lock(mutex_);
     const size_t pixels = size_t(width_) * height_;

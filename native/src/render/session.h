@@ -94,6 +94,9 @@ public:
     std::vector<float> read(const std::string& pass, uint32_t& channels);
     void reset();
     SessionStats stats();
+    // The guiding field the host fits (guiding_fit = cpu), its fit in flight finished; null
+    // without guiding or with the device fit (whose mixtures live on the GPU only).
+    const guiding::GuidingField* guiding_field() const;
 
     // Runs shaders/tests/sampling_test.comp: see that file. Returns count * 8 floats.
     std::vector<float> test_sampling(uint32_t routine, const std::vector<float>& params, uint32_t count,

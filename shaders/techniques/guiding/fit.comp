@@ -688,7 +688,7 @@ void pass_em() {
         st.position_mean += (red_a[0].xyz / batch_n - st.position_mean) * (batch_n / total);
         st.position_count = total;
         st.samples = uint(min(float(st.samples) + batch_n, 4294967040.0));
-        st.received = uint(min(float(st.received) + batch_n, 4294967040.0));
+        st.received = uint(min(float(st.received) + nonzero, 4294967040.0));  // lit: refinement
     }
     // A region fits once it has min_samples lit samples, and more than 2K ("EM only when
     // N > 2K", em.cpp fit_batch); until then its lit samples wait in pending_samples across
@@ -860,7 +860,7 @@ void pass_em() {
 // The host split region `parent` at `plane` (device_fit.cpp); the new region `child` inherits
 // its mixture, records and pivot. Each half keeps half of the statistics and of new_samples;
 // the pending lit samples go to the half holding their position (in order), their unlit count
-// in the same proportion; both start counting received samples and their pivot afresh.
+// in the same proportion; both start counting received lit samples and their pivot afresh.
 void pass_refine() {
     uint i = gl_WorkGroupID.x;
     uint t = gl_LocalInvocationID.x;

@@ -110,6 +110,7 @@ void GuidingField::add_samples(const GuidingSample* samples, size_t count) {
             continue;
         }
         reg.seen_nonzero += 1.0;
+        ++reg.lit;
         const Vec3 w = unpack_direction(s.direction);
         const TrainingSample t{{s.position.x, s.position.y, s.position.z},
                                {float(w.x), float(w.y), float(w.z)},
@@ -170,6 +171,7 @@ void GuidingField::refine(uint32_t r) {
     parent.position_sum = Vec3();
     parent.position_count = 0.0;
     parent.received = 0;
+    parent.lit = 0;
     regions_.push_back(std::move(child));
 }
 
@@ -210,7 +212,7 @@ const FieldStats& GuidingField::fit() {
             // Only a region with a mixture splits (its children inherit it): splitting untrained
             // regions would divide their few lit samples where light is rare and keep them from
             // ever reaching min_samples.
-            if (regions_[r].received <= params_.region_threshold || regions_[r].state.vmm.count == 0) continue;
+            if (regions_[r].lit <= params_.region_threshold || regions_[r].state.vmm.count == 0) continue;
             const Aabb& b = tree_.bounds(r);
             if (b.extent()[b.longest_axis()] <= min_extent) continue;
             refine(r);

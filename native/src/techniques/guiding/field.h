@@ -55,7 +55,9 @@ public:
     // its position is looked up from the position.
     void add_samples(const GuidingSample* samples, size_t count);
     // Fits every region with enough samples, then splits the regions with a mixture that
-    // received more than region_threshold samples.
+    // received more than region_threshold samples of non-zero weight (zero-weight samples
+    // say nothing about the light: counted, they split rarely lit regions into pieces that
+    // never gather min_samples again, and their mixtures stop learning).
     const FieldStats& fit();
     // Drops everything learnt: 2^region_splits untrained regions again.
     void reset();
@@ -96,7 +98,8 @@ private:
         double seen_nonzero = 0, seen_zero = 0;
         Vec3 position_sum;
         double position_count = 0;
-        uint64_t received = 0;        // since the region was made (refinement)
+        uint64_t received = 0;        // since the region was made
+        uint64_t lit = 0;             // ... of them with a non-zero weight (refinement)
         uint64_t received_total = 0;  // incl. the parent's, for the GPU record
         FitReport last;
     };

@@ -77,6 +77,7 @@ public:
     GuidingStats stats() const;
     // The field, its fit in flight finished (its mixtures reach the GPU at the next after_frame).
     const guiding::GuidingField* field() const;
+    bool fits_on_device() const { return device_fit_ != nullptr; }
 
 private:
     void finish_fit() const;  // waits for the fit in flight and adds its figures to stats_
