@@ -159,6 +159,12 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
     res.ic_gradients = vec2(0.0);
     bool ic_recorded = false;
     vec3 throughput = opt.throughput;
+    // Russian roulette's view of the throughput: as if the BSDF had sampled every direction.
+    // A guided direction's weight carries 1/p of the mixture, small where the mixture aims at
+    // the light; roulette on it would end the very paths guiding sends towards the light (the
+    // lamp behind glass is reached only after the roulette depth). Any survival probability
+    // keeps the estimate unbiased: the path's weight is divided by it.
+    vec3 roulette_throughput = opt.throughput;
     vec3 albedo_throughput = vec3(1.0);
     bool albedo_done = false;
     bool prev_delta = true;  // the camera ray counts as delta: nothing to weigh it against
@@ -346,12 +352,14 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
             if (q < 1.0) {
                 if (rnd(rng) >= q) break;
                 throughput /= q;
+                roulette_throughput /= q;
             } else if (q > 1.0) {
                 // Within the pixel's split budget: q is capped before the expected-value
                 // split, so every copy's weight 1/q stays exact.
                 q = min(q, 1.0 + float(adrrs_copies_left(opt.adrrs_local, opt.adrrs_samples)));
                 uint copies = adrrs_split_copies(q, rnd(rng));
                 throughput /= q;
+                roulette_throughput /= q;
                 if (copies > 1u) {
                     uint flags = (opt.from_camera && res.segments == 1u) ? ADRRS_SPLIT_CAMERA_RAY : 0u;
                     uint seed = uint(rnd(rng) * 4294967040.0) ^ (res.segments << 24);
@@ -378,6 +386,7 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         } else if (!bsdf_sample(surf, wo_local, rnd3(rng), bs)) {
             break;
         }
+        roulette_throughput *= bs.weight;
         if (USES(TECH_GUIDING) && g_prob > 0.0 && !bs.delta) {
             vec3 wi = normalize(bs.wi.x * tangent + bs.wi.y * bitangent + bs.wi.z * ns);
             float p = mix(bs.pdf, guiding_vmm_pdf(g_first, g_lobes, sh.p, wi), g_prob);
@@ -412,9 +421,10 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         if (max3(throughput) <= 0.0) break;
         // Russian roulette on the throughput (survival probability max(throughput), at most 1).
         if (opt.rr_start_depth > 0u && bounces >= opt.rr_start_depth && !adrrs_decided) {
-            float survive = min(1.0, max3(throughput));
+            float survive = min(1.0, max3(USES(TECH_GUIDING) ? roulette_throughput : throughput));
             if (rnd(rng) >= survive) break;
             throughput /= survive;
+            roulette_throughput /= survive;
         }
     }
     if (USES(TECH_GUIDING)) {
