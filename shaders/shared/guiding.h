@@ -38,11 +38,15 @@ struct GuidingParams {
     int probe_y PX_DEFAULT(-1);              // guiding_probe_y
     uint record_stride PX_DEFAULT(1);        // derived by the host: pixel i records in frames f
                                              // with i % stride == f % stride, into path slot i / stride
+    uint record_samples PX_DEFAULT(1);       // derived by the host: with stride 1, a pixel's samples
+                                             // s < record_samples of a frame record, into slot
+                                             // s * pixels + i (a frame's samples train, up to
+                                             // GUIDING_MAX_RECORD_PATHS paths)
     uint fit PX_DEFAULT(2);                  // guiding_fit: GUIDING_FIT_CPU, _DEVICE or _AUTO
 };
 
 // Training samples: each recording path fills up to GUIDING_PATH_VERTICES slots (its first
-// guided vertices); at most GUIDING_MAX_RECORD_PATHS paths record per frame.
+// guided vertices); at most GUIDING_MAX_RECORD_PATHS paths record per frame (32 MB of records).
 PX_CONST uint GUIDING_PATH_VERTICES = 4;
 PX_CONST uint GUIDING_MAX_RECORD_PATHS = 1u << 18;
 // Guided (and recording) vertices: diffuse, or glossy with roughness above this (the

@@ -85,7 +85,8 @@ void Session::reset_accumulation(bool keep_cache) {
     ic_->bind(*set_);  // configure may have made new buffers and a new TLAS
     adrrs_->configure(params_.adrrs, width_, height_, params_.samples_per_frame);
     adrrs_->bind(*set_);
-    guiding_->configure(params_.guiding, scene_->host(), scene_version_, params_.seed, width_, height_);
+    guiding_->configure(params_.guiding, scene_->host(), scene_version_, params_.seed, width_, height_,
+                        params_.samples_per_frame);
     guiding_->bind(*set_);
     upload_technique_params();
 }

@@ -52,7 +52,7 @@ void scene_bounds(const SceneHost& scene, float lo[3], float hi[3]) {
 GuidingParams field_key(GuidingParams p) {
     p.enabled = 1;
     p.probe_x = p.probe_y = -1;  // visualisation only
-    p.record_stride = 0;         // derived from the image size: the field does not depend on it
+    p.record_stride = p.record_samples = 0;  // derived from the frame's size: the field does not depend on them
     return p;
 }
 
@@ -87,13 +87,20 @@ void Guiding::build_placeholder() {
 }
 
 void Guiding::configure(const GuidingParams& params, const SceneHost& scene, uint64_t scene_version, uint32_t seed,
-                        uint32_t width, uint32_t height) {
+                        uint32_t width, uint32_t height, uint32_t samples_per_frame) {
     validate_guiding_params(params);
     params_ = params;
     const uint64_t pixels = uint64_t(width) * height;
+    // Every path of a frame records while GUIDING_MAX_RECORD_PATHS allows (a GPU's frames
+    // hold many samples per pixel: recording only the first starved the training); beyond
+    // it the first sample of every stride-th pixel.
     params_.record_stride = uint32_t((pixels + GUIDING_MAX_RECORD_PATHS - 1) / GUIDING_MAX_RECORD_PATHS);
+    params_.record_samples = params_.record_stride == 1
+        ? uint32_t(std::clamp<uint64_t>(GUIDING_MAX_RECORD_PATHS / std::max<uint64_t>(pixels, 1), 1, std::max(samples_per_frame, 1u)))
+        : 1u;
     if (!enabled()) return;  // a trained field stays (switching guiding back on reuses it)
-    record_paths_ = uint32_t((pixels + params_.record_stride - 1) / params_.record_stride);
+    record_paths_ = params_.record_stride == 1 ? uint32_t(pixels * params_.record_samples)
+                                               : uint32_t((pixels + params_.record_stride - 1) / params_.record_stride);
     const size_t sample_bytes = size_t(record_paths_) * GUIDING_PATH_VERTICES * sizeof(GuidingSample);
     if (samples_.size() != sample_bytes) {
         samples_ = Buffer(ctx_, sample_bytes, kStorageUsage);

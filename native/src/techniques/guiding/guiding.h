@@ -58,9 +58,9 @@ public:
     // depends on changed: the guiding settings (the probe and on/off aside), the seed and
     // `scene_version` (the session bumps it for every update but a camera-only one).
     void configure(const GuidingParams& params, const SceneHost& scene, uint64_t scene_version, uint32_t seed,
-                   uint32_t width, uint32_t height);
+                   uint32_t width, uint32_t height, uint32_t samples_per_frame);
     void bind(DescriptorSet& set) const;
-    const GuidingParams& params() const { return params_; }  // record_stride filled in
+    const GuidingParams& params() const { return params_; }  // record_stride, record_samples filled in
     bool enabled() const { return params_.enabled != 0; }
     // Training frames still to run before the image accumulates.
     bool needs_training_frame() const {
