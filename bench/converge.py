@@ -443,7 +443,8 @@ def run(scenes=SCENES, seconds=120.0, device="auto", methods=("pt", "nee", "mis"
         npz_dir=None, out=None, reference_dir=os.path.join(HERE, "references"), append=False, warm=False):
     """Runs the comparison; returns {scene: [row, ...]} (rows without images). With `append`,
     rows of renderers not run now are kept from the earlier results.json in `out` (their
-    images from out/raw/)."""
+    images from out/raw/, their final relMSE against the reference of this run: `--methods ,
+    --peers "" --append` rescores a run against a new reference)."""
     kind, device_name = device_kind(device)
     core = core_identity()  # now: the module file may be rebuilt while this runs
     out = out or os.path.join(HERE, "results", kind)
@@ -496,7 +497,8 @@ def run(scenes=SCENES, seconds=120.0, device="auto", methods=("pt", "nee", "mis"
         for old in previous.get(name, []):
             image_file = os.path.join(raw, f"{name}__{_slug(old['renderer'])}.npy")
             if old["renderer"] not in run_now and os.path.exists(image_file):
-                rows.append({**old, "image": np.load(image_file)})
+                image = np.load(image_file)  # scored against today's reference (its curve is as recorded)
+                rows.append({**old, "image": image, "rel_mse": rel_mse(image, reference)})
         write_outputs(out, name, rows, reference)
         results[name] = [{k: v for k, v in r.items() if k != "image"} for r in rows]
         with open(os.path.join(out, "results.json"), "w") as f:
