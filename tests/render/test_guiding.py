@@ -138,12 +138,18 @@ def test_camera_moves_keep_the_field_and_edits_remake_it():
 
 def test_keep_training_records_every_frame():
     """guiding_training_spp = 0: the image accumulates from the first frame while every frame
-    trains the field."""
+    trains the field, on all of its paths."""
     scene = glass_room()
     _, s = render(scene, "mis", spp=24, spp_per_frame=1, **dict(GUIDING, guiding_training_spp=0))
     st = s.stats()
     assert st["samples"] == 24 and st["guiding_training_frames"] == 24
     assert st["guiding_samples"] > 0 and st["guiding_trained_regions"] > 0
+    # Every path of a frame records, not only a pixel's first: 6 frames of 4 spp train on
+    # about as many samples as the 24 frames of 1 spp.
+    _, s4 = render(scene, "mis", spp=24, spp_per_frame=4, **dict(GUIDING, guiding_training_spp=0))
+    st4 = s4.stats()
+    assert st4["guiding_training_frames"] == 6
+    assert 0.7 < st4["guiding_samples"] / st["guiding_samples"] < 1.3, (st4["guiding_samples"], st["guiding_samples"])
 
 
 def test_trained_mixtures_point_at_the_lamp_through_the_glass():
