@@ -10,7 +10,7 @@
 // reservoir, without its cap of max_batch: a batch is all of them). Samples without a valid
 // region are dropped (the trace loop sets one).
 // Adaptive refinement (refine()) is split between host and device: the host reads 12 bytes per
-// region (GuidingFitTally: samples received since the region was made), decides the splits
+// region (GuidingFitTally: lit samples received since the region was made), decides the splits
 // by the host field's rule and splits its region tree (the tree, the node buffer and the TLAS
 // stay host-built); the REFINE pass then gives each child its parent's mixture and half of the
 // statistics and moves the pending samples, on the device. The buffers grow with a copy.
@@ -43,7 +43,7 @@ public:
     uint32_t region_count() const { return regions_; }
     // Adaptive refinement, GuidingField::fit's rule (field.cpp): after a record() has completed,
     // reads its received counts and splits, in region order, each region of `tree` (whose
-    // regions are this fit's) with a mixture that received more than `threshold` samples since
+    // regions are this fit's) with a mixture that received more than `threshold` lit samples since
     // it was made, while there are fewer than `max_regions` regions and its box is longer than
     // 1e-6 of the root's diagonal. The splits go to the device (the REFINE pass; submitted and
     // waited for), growing the fit's buffers and `regions`/`lobes` (re-created with a copy and

@@ -103,7 +103,6 @@ void GuidingField::add_samples(const GuidingSample* samples, size_t count) {
         Region& reg = regions_[r];
         reg.position_sum += p;
         reg.position_count += 1.0;
-        ++reg.received;
         ++reg.received_total;
         if (s.weight == 0.0f) {
             reg.seen_zero += 1.0;
@@ -170,7 +169,6 @@ void GuidingField::refine(uint32_t r) {
     parent.pending = std::move(lower);
     parent.position_sum = Vec3();
     parent.position_count = 0.0;
-    parent.received = 0;
     parent.lit = 0;
     regions_.push_back(std::move(child));
 }

@@ -98,8 +98,7 @@ private:
         double seen_nonzero = 0, seen_zero = 0;
         Vec3 position_sum;
         double position_count = 0;
-        uint64_t received = 0;        // since the region was made
-        uint64_t lit = 0;             // ... of them with a non-zero weight (refinement)
+        uint64_t lit = 0;             // samples of non-zero weight since the region was made (refinement)
         uint64_t received_total = 0;  // incl. the parent's, for the GPU record
         FitReport last;
     };
