@@ -33,6 +33,7 @@ GUIDING_SETTINGS = ("guiding", "guiding_prob", "guiding_parallax", "guiding_trai
                     "guiding_min_samples", "guiding_max_components", "guiding_split_merge",
                     "guiding_region_splits", "guiding_region_threshold", "guiding_max_regions",
                     "guiding_probe_x", "guiding_probe_y", "guiding_fit")
+LOBES_LOOP_FRAMES = 48  # Animate Lobes: frames per loop of the spheres through their regions (2 s at 24 fps)
 GUIDING_FIT_ITEMS = (
     ("auto", "Automatic", "Device on a GPU, CPU on lavapipe: where each was measured faster"),
     ("cpu", "CPU", "Fit the mixtures on the CPU: the samples are read back after each training "
@@ -222,7 +223,7 @@ class ParallaxRenderSettings(bpy.types.PropertyGroup):
         default=32, min=0, max=65536)
     guiding_min_samples: IntProperty(
         name="Min Samples", description="A region fits its mixture once it has accumulated this "
-        "many lit samples (across frames, so rarely lit regions train too)", default=128, min=1,
+        "many lit samples (across frames, so rarely lit regions train too)", default=64, min=1,
         max=2**24)
     guiding_max_components: IntProperty(
         name="Max Components", description="Most lobes per region's mixture", default=16, min=1,
@@ -232,7 +233,7 @@ class ParallaxRenderSettings(bpy.types.PropertyGroup):
         "lobes that say the same (Ruppert et al. 2020)", default=True)
     guiding_region_splits: IntProperty(
         name="Region Splits", description="The scene box is halved this many times along its "
-        "longest axis: 2^n regions to start with", default=8, min=0, max=20)
+        "longest axis: 2^n regions to start with, split further as they gather light", default=3, min=0, max=20)
     guiding_region_threshold: IntProperty(
         name="Region Threshold", description="A region that received this many lit samples (paths "
         "that found light) splits in two, both halves keeping its mixture (0 = never)", default=10000, min=0, max=2**31 - 1)
@@ -248,6 +249,11 @@ class ParallaxRenderSettings(bpy.types.PropertyGroup):
     guiding_probe_y: IntProperty(
         name="Probe Y", description="Pixel row (from the top) whose first hit's mixture the Guiding "
         "Lobes pass plots (-1 = the image centre)", default=-1, min=-1, max=16383)
+    guiding_animate_lobes: BoolProperty(
+        name="Animate Lobes", description="Guiding Lobes pass: the spheres move through their "
+        f"regions with the timeline (a loop every {LOBES_LOOP_FRAMES} frames) and show the mixture "
+        "where they are, so parallax-aware lobes turn to keep aiming at their lights (thesis fig. 4.20)",
+        default=False)
     # Device
     device: EnumProperty(
         name="Device", description="Vulkan device to render on", items=DEVICE_ITEMS, default="auto")
@@ -260,7 +266,15 @@ class ParallaxRenderSettings(bpy.types.PropertyGroup):
             depth_leeway=self.depth_leeway,
             rr_start_depth=self.rr_start_depth if self.use_russian_roulette else 0,
             light_samples=self.light_samples, light_tree=self.light_tree, seed=self.seed,
+            guiding_lobes_phase=self.guiding_lobes_phase(),
             **{name: getattr(self, name) for name in IC_SETTINGS + ADRRS_SETTINGS + GUIDING_SETTINGS})
+
+    def guiding_lobes_phase(self):
+        """Where the Guiding Lobes spheres are: -1 at their regions' centres, or with Animate
+        Lobes the scene's frame along their loop, in [0, 1)."""
+        if not self.guiding_animate_lobes:
+            return -1.0
+        return (self.id_data.frame_current % LOBES_LOOP_FRAMES) / LOBES_LOOP_FRAMES
 
 
 class ParallaxViewLayerSettings(bpy.types.PropertyGroup):

@@ -155,7 +155,7 @@ class PARALLAX_PT_guiding_regions(_GuidingSubPanel, bpy.types.Panel):
 
 class PARALLAX_PT_guiding_visualisation(_GuidingSubPanel, bpy.types.Panel):
     bl_label = "Visualisation"
-    properties = ("guiding_probe_x", "guiding_probe_y")
+    properties = ("guiding_probe_x", "guiding_probe_y", "guiding_animate_lobes")
 
 
 class PARALLAX_PT_device(_RenderPanel, bpy.types.Panel):

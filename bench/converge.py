@@ -47,11 +47,12 @@ EXTRA_SCENES = ("sun_room", "clocks")  # sun_room: indirect light through a wind
 THESIS_SUITE = ("atrium", "thesis_veach_mis", "cornell_dielectric", "clocks", "thesis_irradiance_cache")
 # ic: MIS + the irradiance cache; adrrs: MIS + ADRRS; guiding: MIS + path guiding (defaults);
 # guiding_pt: guiding without NEE; guiding_noparallax: guiding with parallax off; guiding_device:
-# guiding fitted by compute passes on the device (guiding_fit = device).
+# guiding fitted by compute passes on the device (guiding_fit = device); guiding_pt_device: both.
 METHODS = ("pt", "nee", "mis", "ic", "ic_noupdate", "adrrs", "guiding", "guiding_pt", "guiding_noparallax",
-           "guiding_device")
+           "guiding_device", "guiding_pt_device")
 # Every method row of the thesis' tables 5.1-5.4 (ic_noupdate: the cache never refreshes an entry).
-THESIS_METHODS = ("pt", "nee", "mis", "ic_noupdate", "ic", "adrrs", "guiding_pt", "guiding", "guiding_device")
+THESIS_METHODS = ("pt", "nee", "mis", "ic_noupdate", "ic", "adrrs", "guiding_pt", "guiding", "guiding_device",
+                  "guiding_pt_device")
 MAX_DEPTH = 8  # Cycles' Max Bounces in every scene; Parallax with no discrete leeway
 # The reference's method per scene (default mis): where every light is behind glass, NEE's
 # shadow rays all fail, and plain path tracing converges fastest to the same image.
@@ -149,9 +150,9 @@ def method_params(method):
         # trains the field, whose fits run inside the measured time. Training frames first (the
         # default, 32) would spend most of a short lavapipe budget (10-60 s at 1-3 spp/s) on
         # frames that are thrown away.
-        return dict(off, method="pt" if method == "guiding_pt" else "mis", guiding=True,
+        return dict(off, method="pt" if method.startswith("guiding_pt") else "mis", guiding=True,
                     guiding_parallax=method != "guiding_noparallax", guiding_training_spp=0,
-                    guiding_fit="device" if method == "guiding_device" else "cpu")
+                    guiding_fit="device" if method.endswith("_device") else "cpu")
     if method.startswith("ic"):
         return dict(off, method="mis", ic=True, **({"ic_update_prob": 0.0} if method == "ic_noupdate" else {}))
     return dict(off, method=method)

@@ -26,6 +26,7 @@ THESIS_METHOD_NAMES = {
     "pt": "Path Tracer", "nee": "NEE", "mis": "NEE + MIS", "ic_noupdate": "IC no updates",
     "ic": "Irradiance Cache", "adrrs": "ADRRS", "guiding_pt": "Guiding Parallax",
     "guiding": "Guiding Parallax + NEE", "guiding_device": "Guiding Parallax + NEE, device fit",
+    "guiding_pt_device": "Guiding Parallax, device fit",
 }
 
 # Table -> (our scene of the same class, seconds, {method: (relMSE, spp)}). Mitsuba's columns

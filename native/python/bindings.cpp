@@ -164,6 +164,7 @@ NB_MODULE(_native, m) {
         PX_GUIDING_FIELD("guiding_max_regions", max_regions)
         PX_GUIDING_FIELD("guiding_probe_x", probe_x)
         PX_GUIDING_FIELD("guiding_probe_y", probe_y)
+        PX_GUIDING_FIELD("guiding_lobes_phase", lobes_phase)
         PX_GUIDING_FIELD("guiding_fit", fit);
 #undef PX_GUIDING_FIELD
 #undef PX_ADRRS_FIELD

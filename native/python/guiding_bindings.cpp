@@ -398,6 +398,7 @@ void bind_guiding(nb::module_& parent) {
         .def_rw("max_regions", &px::GuidingParams::max_regions)
         .def_rw("probe_x", &px::GuidingParams::probe_x)
         .def_rw("probe_y", &px::GuidingParams::probe_y)
+        .def_rw("lobes_phase", &px::GuidingParams::lobes_phase)
         .def_rw("fit", &px::GuidingParams::fit);
     m.def("validate_params", &px::validate_guiding_params, "params"_a);
 

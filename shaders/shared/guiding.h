@@ -28,14 +28,18 @@ struct GuidingParams {
     float prob PX_DEFAULT(0.5f);             // guiding_prob: one-sample MIS, P(sample the VMM)
     uint parallax PX_DEFAULT(1);             // guiding_parallax: lobes aim at their targets
     uint training_spp PX_DEFAULT(32);        // guiding_training_spp (GUIDING_KEEP_TRAINING: always)
-    uint min_samples PX_DEFAULT(128);        // guiding_min_samples: a region fits once it has these
+    uint min_samples PX_DEFAULT(64);         // guiding_min_samples: a region fits once it has these
     uint max_components PX_DEFAULT(16);      // guiding_max_components, <= GUIDING_MAX_COMPONENTS
     uint split_merge PX_DEFAULT(1);          // guiding_split_merge
-    uint region_splits PX_DEFAULT(8);        // guiding_region_splits: 2^k initial regions
+    uint region_splits PX_DEFAULT(3);        // guiding_region_splits: 2^k initial regions
     uint region_threshold PX_DEFAULT(10000); // guiding_region_threshold: lit samples before a region splits (0: never)
     uint max_regions PX_DEFAULT(4096);       // adaptive refinement stops at this many regions
     int probe_x PX_DEFAULT(-1);              // guiding_probe_x: pixel of the Guiding Lobes pass (-1: centre)
     int probe_y PX_DEFAULT(-1);              // guiding_probe_y
+    float lobes_phase PX_DEFAULT(-1.0f);     // guiding_lobes_phase: the Guiding Lobes pass' spheres sit
+                                             // at their regions' centres (-1) or, in [0, 1), move
+                                             // through them (thesis fig. 4.20; the add-on's Animate
+                                             // Lobes derives it from the timeline)
     uint record_stride PX_DEFAULT(1);        // derived by the host: pixel i records in frames f
                                              // with i % stride == f % stride, into path slot i / stride
     uint record_samples PX_DEFAULT(1);       // derived by the host: with stride 1, a pixel's samples

@@ -18,10 +18,20 @@ layout(set = 0, binding = BINDING_GUIDING_NODES, scalar) readonly buffer Guiding
 #define GUIDING_FETCH_LOBE(i) guiding_lobes[i]
 #include "guiding.glsl"
 
-// The sphere of the lobes pass: at the region's centre, a quarter of its shortest side.
+// The sphere of the lobes pass: a quarter of the region's shortest side, at its centre, or with
+// guiding_lobes_phase = phase in [0, 1) on a closed curve through the region (thesis fig. 4.20:
+// the mixture is shown where the sphere is, so parallax-aware lobes turn to keep aiming at their
+// targets as it moves). The curve keeps the sphere inside the box (0.2 + 0.25 < 0.5 of a side).
 float guiding_sphere_radius(GuidingRegion g) {
     vec3 e = g.aabb_max - g.aabb_min;
     return 0.25 * min(e.x, min(e.y, e.z));
+}
+
+vec3 guiding_sphere_centre(GuidingRegion g, float phase) {
+    vec3 c = 0.5 * (g.aabb_min + g.aabb_max);
+    if (phase < 0.0) return c;
+    float a = 2.0 * PI * phase;
+    return c + 0.2 * (g.aabb_max - g.aabb_min) * vec3(sin(a), sin(2.0 * a), cos(a));
 }
 
 #ifndef PX_NO_TRACE
@@ -68,16 +78,16 @@ vec3 guiding_region_colour(uint r) {
     return vec3(float(h & 0xffu), float((h >> 8) & 0xffu), float((h >> 16) & 0xffu)) / 255.0 * 0.8 + 0.2;
 }
 
-// Guiding Lobes pass, outside the inset: the sphere at a trained region's centre that the
-// camera ray (o, d) meets before t_max, coloured by that region's VMM pdf of the direction of
-// its normal (as seen from the centre: thesis fig. 4.19). Black where there is none.
-vec3 guiding_sphere_colour(vec3 o, vec3 d, float t_max) {
+// Guiding Lobes pass, outside the inset: the sphere of a trained region (guiding_sphere_centre)
+// that the camera ray (o, d) meets before t_max, coloured by that region's VMM pdf, queried at the
+// sphere's centre, of the direction of its normal (thesis figs. 4.19, 4.20). Black where there is none.
+vec3 guiding_sphere_colour(vec3 o, vec3 d, float t_max, float phase) {
     guiding_query.region = NO_INDEX;
     traceRayEXT(guiding_tlas, gl_RayFlagsOpaqueEXT, 0xff, 0, 0, MISS_GUIDING_QUERY, o, 0.0, d, t_max, 3);
     uint r = guiding_query.region;
     if (r == NO_INDEX) return vec3(0.0);
     GuidingRegion g = guiding_regions[r];
-    vec3 c = 0.5 * (g.aabb_min + g.aabb_max);
+    vec3 c = guiding_sphere_centre(g, phase);
     vec3 n = normalize(o + guiding_query.t * d - c);
     return guiding_heat(guiding_vmm_pdf(r * GUIDING_MAX_COMPONENTS, g.lobe_count, c, n));
 }

@@ -15,12 +15,12 @@ from blender_helpers import assert_params, open_scene, render, save_and_reopen
 import parallax_core
 
 DEFAULTS = dict(guiding=False, guiding_prob=0.5, guiding_parallax=True, guiding_training_spp=32,
-                guiding_min_samples=128, guiding_max_components=16, guiding_split_merge=True,
-                guiding_region_splits=8, guiding_region_threshold=10000, guiding_max_regions=4096,
+                guiding_min_samples=64, guiding_max_components=16, guiding_split_merge=True,
+                guiding_region_splits=3, guiding_region_threshold=10000, guiding_max_regions=4096,
                 guiding_probe_x=-1, guiding_probe_y=-1, guiding_fit="auto")
 CHANGED = dict(guiding=True, guiding_prob=0.7, guiding_parallax=False, guiding_training_spp=0,
                guiding_min_samples=100, guiding_max_components=6, guiding_split_merge=False,
-               guiding_region_splits=3, guiding_region_threshold=0, guiding_max_regions=64,
+               guiding_region_splits=5, guiding_region_threshold=0, guiding_max_regions=64,
                guiding_probe_x=5, guiding_probe_y=7, guiding_fit="device")
 RANGES = dict(guiding_prob=(0.0, 1.0), guiding_training_spp=(0, None), guiding_min_samples=(1, 2**24),
               guiding_max_components=(1, 16), guiding_region_splits=(0, 20), guiding_region_threshold=(0, None),
@@ -62,8 +62,23 @@ def test_guiding_panel_shows_every_setting(bpy):
                   bpy.types.PARALLAX_PT_guiding_visualisation):
         assert panel.bl_parent_id == "PARALLAX_PT_guiding"
         shown += panel.properties
-    assert sorted(shown) == sorted(GUIDING_SETTINGS)
+    assert sorted(shown) == sorted(GUIDING_SETTINGS + ("guiding_animate_lobes",))
     assert bpy.types.PARALLAX_PT_guiding.bl_label == "Path Guiding"
+
+
+def test_animate_lobes_follows_the_timeline(fresh):
+    """Animate Lobes (thesis fig. 4.20): the spheres' phase is the scene's frame along a loop of
+    LOBES_LOOP_FRAMES frames; off, they stay at their regions' centres (-1)."""
+    from addon.properties import LOBES_LOOP_FRAMES
+
+    assert fresh.parallax.render_params()["guiding_lobes_phase"] == -1.0
+    apply_settings(fresh, ["guiding_animate_lobes=on"])
+    session = parallax_core.Session(8, 8, "cpu")
+    for frame in (0, 12, LOBES_LOOP_FRAMES + 6):
+        fresh.frame_current = frame
+        phase = fresh.parallax.render_params()["guiding_lobes_phase"]
+        assert phase == pytest.approx((frame % LOBES_LOOP_FRAMES) / LOBES_LOOP_FRAMES)
+        session.set_params(**fresh.parallax.render_params())  # the core takes it
 
 
 def test_set_parses_guiding_settings_for_blend_files(fresh):

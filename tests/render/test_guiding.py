@@ -192,11 +192,37 @@ def test_passes():
         assert not off.read(name).any(), name
 
 
+def test_animated_lobes_move_the_spheres_and_keep_the_field():
+    """guiding_lobes_phase (thesis fig. 4.20): the Guiding Lobes pass' spheres move through their
+    regions, each coloured by its mixture where it is; the field is only viewed, never retrained,
+    and the same phase gives the same picture again."""
+    scene = glass_room()
+    _, s = render(scene, "mis", spp=4, spp_per_frame=4, **GUIDING)
+    trained = s.stats()
+    centre = s.read("guiding_lobes")
+    assert centre[: SIZE - SIZE // 6].max() > 0.1  # spheres in view above the inset
+    moved = []
+    for phase in (0.25, 0.5):
+        s.set_params(guiding_lobes_phase=phase)
+        s.render(1)
+        moved.append(s.read("guiding_lobes"))
+        st = s.stats()
+        assert (st["guiding_region_fits"], st["guiding_training_frames"]) == \
+            (trained["guiding_region_fits"], trained["guiding_training_frames"])
+    for a, b in ((centre, moved[0]), (moved[0], moved[1])):
+        changed = np.abs(a - b).max(axis=-1) > 0.05
+        assert changed.mean() > 0.02, changed.mean()
+    s.set_params(guiding_lobes_phase=-1.0)
+    s.render(1)
+    assert np.allclose(s.read("guiding_lobes"), centre, atol=1e-5)
+
+
 @pytest.mark.parametrize("name,value", [("guiding", 2), ("guiding_prob", 1.5), ("guiding_prob", float("nan")),
                                         ("guiding_max_components", 0), ("guiding_max_components", 17),
                                         ("guiding_min_samples", 0), ("guiding_region_splits", 21),
                                         ("guiding_probe_x", -2), ("guiding_parallax", 2),
-                                        ("guiding_max_regions", 1)])
+                                        ("guiding_max_regions", 1), ("guiding_lobes_phase", 1.0),
+                                        ("guiding_lobes_phase", -0.5)])
 def test_bad_settings_are_rejected(name, value):
     s = pc.Session(8, 8)
     with pytest.raises(ValueError, match=name):

@@ -77,14 +77,15 @@ class RenderParams:
     guiding_prob: float = 0.5       # one-sample MIS: probability of sampling the VMM (else the BSDF)
     guiding_parallax: bool = True   # lobes aim at their target points (thesis eq. 4.5)
     guiding_training_spp: int = 32  # 1-spp training frames before the image accumulates; 0 = keep training
-    guiding_min_samples: int = 128  # a region fits once it has accumulated this many samples
+    guiding_min_samples: int = 64  # a region fits once it has accumulated this many lit samples
     guiding_max_components: int = 16  # lobes per region (1..16)
     guiding_split_merge: bool = True  # split and merge lobes (Ruppert et al. 2020, sec. 4)
-    guiding_region_splits: int = 8  # 2^k initial regions (halvings of the scene box)
+    guiding_region_splits: int = 3  # 2^k initial regions (halvings of the scene box), refined as they gather light
     guiding_region_threshold: int = 10000  # lit samples (non-zero weight) before a region splits; 0 = never
     guiding_max_regions: int = 4096  # adaptive refinement stops here
     guiding_probe_x: int = -1       # pixel of the Guiding Lobes inset; -1 = image centre
     guiding_probe_y: int = -1
+    guiding_lobes_phase: float = -1.0  # Guiding Lobes spheres: at the regions' centres (-1) or moving through them, [0, 1) (fig. 4.20)
     guiding_fit: str = "auto"       # where mixtures are fitted: cpu (readback) | device (compute passes) | auto
 
     def validate(self) -> None:

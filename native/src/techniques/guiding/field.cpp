@@ -25,6 +25,8 @@ void validate_guiding_params(const GuidingParams& p) {
     if (p.fit != GUIDING_FIT_CPU && p.fit != GUIDING_FIT_DEVICE && p.fit != GUIDING_FIT_AUTO)
         fail("guiding_fit must be 'cpu', 'device' or 'auto'");
     if (p.probe_x < -1 || p.probe_y < -1) fail("guiding_probe_x/y must be >= -1 (-1: the image centre)");
+    if (!(p.lobes_phase == -1.0f || (p.lobes_phase >= 0.0f && p.lobes_phase < 1.0f)))
+        fail("guiding_lobes_phase must be -1 (spheres at the regions' centres) or in [0, 1)");
 }
 
 namespace guiding {

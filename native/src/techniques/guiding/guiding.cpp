@@ -52,6 +52,7 @@ void scene_bounds(const SceneHost& scene, float lo[3], float hi[3]) {
 GuidingParams field_key(GuidingParams p) {
     p.enabled = 1;
     p.probe_x = p.probe_y = -1;  // visualisation only
+    p.lobes_phase = -1.0f;
     p.record_stride = p.record_samples = 0;  // derived from the frame's size: the field does not depend on them
     return p;
 }
