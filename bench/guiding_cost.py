@@ -2,14 +2,15 @@
 
     .venv/bin/python -m bench.guiding_cost [--scenes light_behind_glass,clocks] [--width 160]
         [--npz bench/npz/w160] [--frames 6] [--spp-per-frame 2] [--training-spp 32] [--device auto]
-        [--json OUT]
+        [--method mis|pt] [--fit auto|cpu|device] [--json OUT]
 
 Per scene, three sessions with the same samples per frame, each timed over `--frames` frames
-after a first one (pipeline compile, training frames):
-  mis        MIS without guiding: the baseline frame;
-  guided     MIS + guiding after --training-spp training frames, recording nothing: the
+after a first one (pipeline compile, training frames), all with --method (MIS or PT) and the
+guiding settings' defaults, the fit on --fit:
+  mis        --method without guiding: the baseline frame (keyed "mis" whatever the method);
+  guided     --method + guiding after --training-spp training frames, recording nothing: the
              guided frame's own cost (region lookup and mixture evaluation at every vertex);
-  training   MIS + guiding, keep training: every frame also records samples, reads them back,
+  training   --method + guiding, keep training: every frame also records samples, reads them back,
              fits (on a worker thread, overlapped with the next frame) and uploads.
 For `training`, the session's guiding stats per iteration: frame (submission to completion),
 readback, fit (worker thread), fit wait (the part of the fit the host waited for), upload;
@@ -30,11 +31,12 @@ VARIANTS = {
 COSTS = ("frame", "readback", "fit", "fit_wait", "upload")
 
 
-def measure(scene, variant, frames, spp_per_frame, training_spp, device):
+def measure(scene, variant, frames, spp_per_frame, training_spp, device, method="mis", fit="auto"):
     import parallax_core as pc
 
     session = pc.Session(scene.width, scene.height, device)
-    params = dict(VARIANTS[variant], samples_per_frame=spp_per_frame, max_depth=MAX_DEPTH, depth_leeway=0, seed=0)
+    params = dict(VARIANTS[variant], method=method, samples_per_frame=spp_per_frame, max_depth=MAX_DEPTH,
+                  depth_leeway=0, seed=0, guiding_fit=fit)
     if variant == "guided":
         params["guiding_training_spp"] = training_spp
     session.set_params(**params)
@@ -60,18 +62,19 @@ def measure(scene, variant, frames, spp_per_frame, training_spp, device):
     return row
 
 
-def run(scenes, width=160, npz=None, frames=6, spp_per_frame=2, training_spp=32, device="auto"):
+def run(scenes, width=160, npz=None, frames=6, spp_per_frame=2, training_spp=32, device="auto", method="mis",
+        fit="auto"):
     out = {}
     for name in scenes:
         scene = load_scene(name, width, npz)
-        out[name] = [measure(scene, v, frames, spp_per_frame, training_spp, device) for v in VARIANTS]
+        out[name] = [measure(scene, v, frames, spp_per_frame, training_spp, device, method, fit) for v in VARIANTS]
         for row in out[name]:
             print(name, json.dumps(row), file=sys.stderr)
     return out
 
 
-def markdown(results):
-    lines = ["| scene | mis ms/frame | guided ms/frame | training ms/frame | " + " | ".join(
+def markdown(results, method="mis"):
+    lines = [f"| scene | {method} ms/frame | guided ms/frame | training ms/frame | " + " | ".join(
         f"{c} ms/iter" for c in COSTS) + " | regions | bytes/region | sample buffer |",
              "|---" * (8 + len(COSTS) - 1) + "|"]
     for name, rows in results.items():
@@ -92,10 +95,13 @@ def main(argv=None):
     p.add_argument("--spp-per-frame", type=int, default=2)
     p.add_argument("--training-spp", type=int, default=32)
     p.add_argument("--device", default="auto")
+    p.add_argument("--method", choices=("mis", "pt"), default="mis")
+    p.add_argument("--fit", choices=("auto", "cpu", "device"), default="auto")
     p.add_argument("--json", default=None)
     a = p.parse_args(argv)
-    results = run(a.scenes.split(","), a.width, a.npz, a.frames, a.spp_per_frame, a.training_spp, a.device)
-    print(markdown(results))
+    results = run(a.scenes.split(","), a.width, a.npz, a.frames, a.spp_per_frame, a.training_spp, a.device,
+                  a.method, a.fit)
+    print(markdown(results, a.method))
     if a.json:
         with open(a.json, "w") as f:
             json.dump(results, f, indent=1)
