@@ -557,7 +557,8 @@ void bind_guiding(nb::module_& parent) {
             std::vector<uint32_t> st = f.fit->read_starts(), so = f.fit->read_sorted(f.last_count);
             const size_t a = st.size(), b = so.size();
             return nb::make_tuple(owned(std::move(st), {a}), owned(std::move(so), {b}));
-        }, "The last fit's bins: (first slot per region, the dropped bin's, total) and the sorted sample indices.")
+        }, "The last fit's bins: (first slot of each region's lit then unlit samples, the dropped bin's, "
+           "total) and the sorted sample indices.")
         .def("regions", [](const DeviceFitter& f) {
             std::vector<float> words(size_t(f.fit->region_count()) * 12);
             f.regions.download(words.data(), words.size() * sizeof(float));

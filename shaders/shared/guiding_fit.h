@@ -10,8 +10,8 @@ PX_CONST uint GUIDING_FIT_BINDING_REGIONS = 1;     // GuidingRegion[], what the 
 PX_CONST uint GUIDING_FIT_BINDING_LOBES = 2;       // GuidingLobe[regions * GUIDING_MAX_COMPONENTS]
 PX_CONST uint GUIDING_FIT_BINDING_STATE = 3;       // GuidingFitRegion[regions]
 PX_CONST uint GUIDING_FIT_BINDING_STATE_LOBES = 4; // GuidingFitLobe[regions * GUIDING_MAX_COMPONENTS]
-PX_CONST uint GUIDING_FIT_BINDING_COUNTS = 5;      // uint[(regions + 1) * blocks], bin-major; then offsets
-PX_CONST uint GUIDING_FIT_BINDING_STARTS = 6;      // uint[regions + 2]: first sorted slot of each bin, total
+PX_CONST uint GUIDING_FIT_BINDING_COUNTS = 5;      // uint[(2 regions + 1) * blocks], bin-major; then offsets
+PX_CONST uint GUIDING_FIT_BINDING_STARTS = 6;      // uint[2 regions + 2]: first sorted slot of each bin, total
 PX_CONST uint GUIDING_FIT_BINDING_SORTED = 7;      // uint[samples]: sample indices, by bin, stable
 PX_CONST uint GUIDING_FIT_BINDING_PENDING = 8;     // GuidingSample[regions * pending_capacity]: lit
                                                    // samples of regions still below min_samples
@@ -19,7 +19,8 @@ PX_CONST uint GUIDING_FIT_BINDING_TALLY = 9;       // GuidingFitTally[regions] (
                                                    // refinement reads it after the fit)
 PX_CONST uint GUIDING_FIT_BINDING_SPLITS = 10;     // GuidingFitSplit[split_count]: the REFINE pass' work
 PX_CONST uint GUIDING_FIT_BINDING_SCAN_PARTIALS = 11; // uint[tiles]: a sum, then a prefix, per scan tile
-PX_CONST uint GUIDING_FIT_BINDING_COUNT = 12;
+PX_CONST uint GUIDING_FIT_BINDING_POSITION_PARTS = 12; // vec4[regions * position_parts]: POSITIONS' sums
+PX_CONST uint GUIDING_FIT_BINDING_COUNT = 13;
 
 PX_CONST uint GUIDING_FIT_GROUP = 64;  // threads per workgroup (the EM: one workgroup per region)
 PX_CONST uint GUIDING_FIT_SCAN_TILE = 1024;  // counts per workgroup of the scan (a multiple of the group)
@@ -31,15 +32,16 @@ PX_CONST uint GUIDING_FIT_PASS_SCAN_REDUCE = 1;    // a workgroup per tile: the 
 PX_CONST uint GUIDING_FIT_PASS_SCAN_PARTIALS = 2;  // one workgroup: the tiles' prefixes, the total
 PX_CONST uint GUIDING_FIT_PASS_SCAN_APPLY = 3;     // a workgroup per tile: first slots, starts[]
 PX_CONST uint GUIDING_FIT_PASS_SCATTER = 4;        // a thread per block: stable scatter
-PX_CONST uint GUIDING_FIT_PASS_EM = 5;             // a workgroup per region: EM, split/merge, records
+PX_CONST uint GUIDING_FIT_PASS_POSITIONS = 5;      // position_parts workgroups per region: position sums
+PX_CONST uint GUIDING_FIT_PASS_EM = 6;             // a workgroup per region: EM, split/merge, records
 // After EM, only when the host decided to refine regions (device_fit.h), a workgroup per split:
-PX_CONST uint GUIDING_FIT_PASS_REFINE = 6;   // the child inherits the parent's state (field.cpp refine)
+PX_CONST uint GUIDING_FIT_PASS_REFINE = 7;   // the child inherits the parent's state (field.cpp refine)
 
 // Push constants: the pass, sizes and the FitOptions (em.h) in float.
 struct GuidingFitPush {
     uint pass;
     uint sample_count;      // GuidingSample slots
-    uint region_count;      // bins 0 .. region_count - 1; bin region_count: no sample (dropped)
+    uint region_count;      // bins 2 r (lit), 2 r + 1 (unlit) of region r; bin 2 region_count: dropped
     uint block_size;        // samples per block of the counting sort
     uint block_count;
     uint max_components;
@@ -61,6 +63,7 @@ struct GuidingFitPush {
     uint min_samples;       // guiding_min_samples: a region fits once it has this many lit samples
     uint pending_capacity;  // max(min_samples, 2 max_components + 1)
     uint split_count;       // GuidingFitSplit records (REFINE)
+    uint position_parts;    // POSITIONS splits each region's samples into this many equal parts
 };
 
 // A region's fit state (its mixture lives in GuidingFitLobe records).

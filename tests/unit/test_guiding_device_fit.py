@@ -95,10 +95,35 @@ def test_counting_sort_is_stable_and_drops_bad_records(n, count):
     f = g.DeviceFit(count, options(), device=DEVICE)
     f.fit(records(d, w, p, regions=regions))
     starts, order = f.bins()
-    bins = np.where((regions < count) & (p > 0) & np.isfinite(w), regions, count)
+    # region r's lit samples in bin 2 r, its unlit ones in bin 2 r + 1 (the EM reads only the lit)
+    bins = np.where((regions < count) & (p > 0) & np.isfinite(w), 2 * regions + (w == 0), 2 * count)
     want = np.argsort(bins, kind="stable")
     np.testing.assert_array_equal(order, want)
-    np.testing.assert_array_equal(starts, np.concatenate([[0], np.cumsum(np.bincount(bins, minlength=count + 1))]))
+    np.testing.assert_array_equal(starts, np.concatenate([[0], np.cumsum(np.bincount(bins, minlength=2 * count + 1))]))
+
+
+def test_pivots_average_every_sample_over_the_position_parts():
+    """POSITIONS sums each region's samples (lit and unlit) in parts, a workgroup each, when
+    regions are few and full (here 4 parts: 53k samples in 3 regions); the pivot is the mean of
+    all of a region's positions, over frames, whatever the parts' boundaries."""
+    rng = np.random.default_rng(97)
+    sizes = [40_000, 13_001, 3]
+    f = g.DeviceFit(4, options(), device=DEVICE, min_samples=100_000)  # no fit: only the pivots
+    seen = [[] for _ in sizes]
+    for _ in range(2):
+        regions = np.repeat(np.arange(len(sizes)), sizes)
+        n = len(regions)
+        x = rng.random((n, 3)) + regions[:, None] * 10.0
+        d, w, p = random_set(rng, n)
+        order = rng.permutation(n)
+        f.fit(records(d[order], w[order], p[order], positions=x[order], regions=regions[order]))
+        for r in range(len(sizes)):
+            seen[r].append(x[regions == r])
+    for r in range(len(sizes)):
+        st = f.state(r)
+        assert st["fits"] == 0 and st["samples"] == 2 * sizes[r]
+        np.testing.assert_allclose(st["pivot"], np.concatenate(seen[r]).mean(0), rtol=2e-6, atol=1e-5)
+    assert f.state(3)["samples"] == 0
 
 
 def test_one_em_step_matches_the_host_fit_in_several_regions():

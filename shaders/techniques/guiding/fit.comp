@@ -1,11 +1,13 @@
 #version 460
 // Guiding mixtures trained on the device (issue 13; the thesis' future work): the frame's
-// training samples are binned by region with a stable counting sort (COUNT, SCAN, SCATTER),
-// then one workgroup per region runs the host fit's algorithm (em.cpp, parallax.cpp;
-// Ruppert, Herholz & Lensch 2020) on that batch: weighted stepwise EM with the previous
-// statistics decayed, MAP priors on the weights and the mean cosine, split (chi^2 divergence
-// and PCA) and merge (closed-form chi^2 of two lobes against one), parallax distances, and
-// writes the GuidingRegion/GuidingLobe records the sampler reads. REFINE applies the host's
+// training samples are binned by region, lit before unlit, with a stable counting sort (COUNT,
+// SCAN, SCATTER), POSITIONS sums their positions in parts, then one workgroup per region runs
+// the host fit's algorithm (em.cpp, parallax.cpp; Ruppert, Herholz & Lensch 2020) on that
+// batch's lit samples (an unlit sample adds nothing to the EM's sums, only to the counts):
+// weighted stepwise EM with the previous statistics decayed, MAP priors on the weights and the
+// mean cosine, split (chi^2 divergence and PCA) and merge (closed-form chi^2 of two lobes
+// against one), parallax distances, and writes the GuidingRegion/GuidingLobe records the
+// sampler reads. REFINE applies the host's
 // adaptive refinement (device_fit.h) to the fit state. Every reduction has a fixed
 // order (fixed per-thread sample ranges, then a fixed tree): no float atomics, so a fixed
 // input gives the same mixtures from run to run. In float, where the host is double. Loops are
@@ -33,19 +35,22 @@ layout(set = 0, binding = GUIDING_FIT_BINDING_PENDING, scalar) buffer Pending { 
 layout(set = 0, binding = GUIDING_FIT_BINDING_TALLY, scalar) buffer Tally { GuidingFitTally tally[]; };
 layout(set = 0, binding = GUIDING_FIT_BINDING_SPLITS, scalar) readonly buffer Splits { GuidingFitSplit splits[]; };
 layout(set = 0, binding = GUIDING_FIT_BINDING_SCAN_PARTIALS, scalar) buffer ScanPartials { uint scan_partials[]; };
+layout(set = 0, binding = GUIDING_FIT_BINDING_POSITION_PARTS, scalar) buffer PositionParts { vec4 position_parts[]; };
 
 const float PI = 3.14159265358979;
 const float KAPPA_MIN = 1e-3;  // GUIDING_KAPPA_MIN, kKappaMin
 
 // ---- counting sort -------------------------------------------------------------------------
-// A sample's bin: its region, or region_count when it is no sample (an empty slot, pdf 0) or
-// is rejected as the host's add_samples rejects it. The host also looks up samples without a
-// region from their position; the trace loop always sets one inside the scene's box.
+// A sample's bin: 2 r for region r's lit samples (weight > 0: all the EM reads), 2 r + 1 for
+// its unlit ones (only counted, and their positions averaged), 2 region_count when it is no
+// sample (an empty slot, pdf 0) or is rejected as the host's add_samples rejects it. The host
+// also looks up samples without a region from their position; the trace loop always sets one
+// inside the scene's box.
 uint bin_of(uint i) {
     GuidingSample s = samples[i];
     bool ok = s.pdf > 0.0 && !isinf(s.pdf) && !isnan(s.pdf) && s.weight >= 0.0 && !isinf(s.weight) &&
               !isnan(s.distance) && !any(isnan(s.position)) && !any(isinf(s.position));
-    return ok && s.region < pc.region_count ? s.region : pc.region_count;
+    return ok && s.region < pc.region_count ? 2u * s.region + (s.weight > 0.0 ? 0u : 1u) : 2u * pc.region_count;
 }
 
 // COUNT: a thread per block counts its samples per bin (counts[] was zeroed by the host).
@@ -60,7 +65,7 @@ void pass_count() {
 // of GUIDING_FIT_SCAN_TILE counts, a workgroup each (the classic reduce-then-scan, as surveyed
 // by Merrill & Garland 2016): REDUCE, PARTIALS, APPLY. Integer sums are exact, so the order of
 // the additions does not matter: the result is the serial scan's.
-uint scan_total() { return (pc.region_count + 1u) * pc.block_count; }
+uint scan_total() { return (2u * pc.region_count + 1u) * pc.block_count; }
 
 // SCAN_REDUCE: partials[tile] = the sum of the tile's counts (coalesced strided reads).
 shared uint scan_part[G];
@@ -97,7 +102,7 @@ uint scan_group() {
 }
 
 // SCAN_PARTIALS (one workgroup): partials[] becomes each tile's exclusive prefix; thread t
-// owns a contiguous run of the tiles. starts[regions + 1] = the total.
+// owns a contiguous run of the tiles. starts[2 regions + 1] = the total.
 void pass_scan_partials() {
     uint t = gl_LocalInvocationID.x;
     uint tiles = (scan_total() + GUIDING_FIT_SCAN_TILE - 1u) / GUIDING_FIT_SCAN_TILE;
@@ -113,7 +118,7 @@ void pass_scan_partials() {
         scan_partials[j] = run;
         run += c;
     }
-    if (t == 0u) starts[pc.region_count + 1u] = total;
+    if (t == 0u) starts[2u * pc.region_count + 1u] = total;
 }
 
 // SCAN_APPLY: each tile, staged in shared memory (coalesced), is scanned locally (thread t a
@@ -214,7 +219,7 @@ vec3 unpack_direction(uint packed) {  // GuidingSample.direction (octahedral sno
 shared uint s_count;
 shared vec3 s_pivot;
 // The batch: s_pend samples kept from earlier frames (pending_samples[s_pend_base ..]), then
-// this frame's (samples[sorted_index[s_lo ..]]); batch index j covers both.
+// this frame's lit ones (samples[sorted_index[s_lo ..]]); batch index j covers both.
 shared uint s_pend, s_pend_base, s_lo;
 shared float s_weight[K_MAX], s_kappa[K_MAX], s_distance[K_MAX];  // distance <= 0: infinite
 shared vec3 s_mu[K_MAX];
@@ -641,51 +646,38 @@ uint merge_lobes() {
     return merges;
 }
 
-// Exclusive prefix sum of `v` over the workgroup (in scan_part; thread 0 adds the G values)
-// and the total.
-const uint RUN = 16u;  // samples per thread and step of the pending compaction
-shared uint s_scan_total;
-uint prefix_sum(uint v, out uint total) {
+// POSITIONS: workgroup (r, part) sums the positions of one of position_parts equal parts of
+// region r's samples, lit and unlit (a region's samples are many: one workgroup alone would
+// walk them serially); EM adds the parts in order for the pivot.
+void pass_positions() {
+    uint r = gl_WorkGroupID.x / pc.position_parts, part = gl_WorkGroupID.x % pc.position_parts;
     uint t = gl_LocalInvocationID.x;
-    barrier();
-    scan_part[t] = v;
-    barrier();
-    if (t == 0u) {
-        uint run = 0u;
-        [[dont_unroll]] for (uint j = 0u; j < G; ++j) {
-            uint c = scan_part[j];
-            scan_part[j] = run;
-            run += c;
-        }
-        s_scan_total = run;
-    }
-    barrier();
-    total = s_scan_total;
-    return scan_part[t];
+    if (r >= pc.region_count) return;
+    uint lo = starts[2u * r], n = starts[2u * r + 2u] - lo, size = (n + pc.position_parts - 1u) / pc.position_parts;
+    uint a = lo + min(n, part * size), b = lo + min(n, part * size + size);
+    vec3 sum = vec3(0.0);
+    [[dont_unroll]] for (uint j = a + t; j < b; j += G) sum += samples[sorted_index[j]].position;
+    red_a[t] = vec4(sum, 0.0);
+    red_b[t] = vec4(0.0);
+    reduce2();
+    if (t == 0u) position_parts[gl_WorkGroupID.x] = red_a[0];
 }
 
 void pass_em() {
     uint r = gl_WorkGroupID.x;
     uint t = gl_LocalInvocationID.x;
     if (r >= pc.region_count) return;
-    uint lo = starts[r], hi = starts[r + 1u];
-    // This batch's positions (all samples) and its samples with a non-zero weight.
-    vec4 a = vec4(0.0);
-    float nonzero = 0.0;
-    [[dont_unroll]] for (uint j = lo + t; j < hi; j += G) {
-        GuidingSample s = samples[sorted_index[j]];
-        a += vec4(s.position, 1.0);
-        nonzero += s.weight > 0.0 ? 1.0 : 0.0;
-    }
-    red_a[t] = a;
-    red_b[t] = vec4(nonzero, 0.0, 0.0, 0.0);
-    reduce2();
+    // This frame's samples of the region: lit ones in [lo, mid), unlit ones in [mid, hi).
+    uint lo = starts[2u * r], mid = starts[2u * r + 1u], hi = starts[2u * r + 2u];
+    vec3 position_sum = vec3(0.0);  // of all of them
+    [[dont_unroll]] for (uint p = 0u; p < pc.position_parts; ++p)
+        position_sum += position_parts[r * pc.position_parts + p].xyz;
     GuidingFitRegion st = states[r];
-    float batch_n = red_a[0].w;
-    nonzero = red_b[0].x;
+    float batch_n = float(hi - lo);
+    float nonzero = float(mid - lo);
     if (batch_n > 0.0) {  // running mean of the positions: the pivot (parallax.h)
         float total = st.position_count + batch_n;
-        st.position_mean += (red_a[0].xyz / batch_n - st.position_mean) * (batch_n / total);
+        st.position_mean += (position_sum / batch_n - st.position_mean) * (batch_n / total);
         st.position_count = total;
         st.samples = uint(min(float(st.samples) + batch_n, 4294967040.0));
         st.received = uint(min(float(st.received) + nonzero, 4294967040.0));  // lit: refinement
@@ -697,32 +689,21 @@ void pass_em() {
     float lit = float(st.pending) + nonzero;
     bool fit = lit >= float(max(pc.min_samples, 2u * k0 + 1u));
     uint pend_base = r * pc.pending_capacity;
-    if (!fit) {
-        // Keep this frame's lit samples, in order, G * RUN at a time: thread t counts the lit
-        // samples of its run of RUN, an exclusive scan of the counts gives each run its first
-        // slot, and each thread copies its run's (the whole workgroup, not one thread).
-        uint p = st.pending;
-        [[dont_unroll]] for (uint j0 = lo; j0 < hi && p < pc.pending_capacity; j0 += G * RUN) {
-            uint a = min(hi, j0 + t * RUN), b = min(hi, a + RUN);
-            uint lit = 0u;
-            [[dont_unroll]] for (uint j = a; j < b; ++j) lit += samples[sorted_index[j]].weight > 0.0 ? 1u : 0u;
-            uint total;
-            uint o = p + prefix_sum(lit, total);
-            [[dont_unroll]] for (uint j = a; j < b && o < pc.pending_capacity && lit != 0u; ++j) {
-                uint i = sorted_index[j];
-                if (!(samples[i].weight > 0.0)) continue;
-                uint d = pend_base + o++;
-                pending_samples[d].position = samples[i].position;
-                pending_samples[d].region = samples[i].region;
-                pending_samples[d].direction = samples[i].direction;
-                pending_samples[d].pdf = samples[i].pdf;
-                pending_samples[d].weight = samples[i].weight;
-                pending_samples[d].distance = samples[i].distance;
-            }
-            p = min(pc.pending_capacity, p + total);
+    if (!fit) {  // keep this frame's lit samples, in order, as many as fit
+        uint p = st.pending, kept = min(mid - lo, pc.pending_capacity - p);
+        [[dont_unroll]] for (uint j = t; j < kept; j += G) {
+            uint i = sorted_index[lo + j];
+            uint d = pend_base + p + j;
+            pending_samples[d].position = samples[i].position;
+            pending_samples[d].region = samples[i].region;
+            pending_samples[d].direction = samples[i].direction;
+            pending_samples[d].pdf = samples[i].pdf;
+            pending_samples[d].weight = samples[i].weight;
+            pending_samples[d].distance = samples[i].distance;
         }
+        barrier();  // every thread has read states[r] before it is written
         if (t == 0u) {
-            st.pending = p;
+            st.pending = p + kept;
             st.pending_zero += batch_n - nonzero;
             states[r] = st;
             regions[r].samples = st.samples;
@@ -781,7 +762,7 @@ void pass_em() {
         s_prev2[t] = s_stat2[t] * pc.decay;
     }
     barrier();
-    uint batch_end = st.pending + (hi - lo);  // batch indices [0, batch_end)
+    uint batch_end = st.pending + (mid - lo);  // batch indices [0, batch_end): the lit samples
     uint iterations = run_em(0u, batch_end);
     st.new_samples += lit;
     st.pending = 0u;
@@ -914,6 +895,7 @@ void main() {
     else if (pc.pass == GUIDING_FIT_PASS_SCAN_PARTIALS) { if (gl_WorkGroupID.x == 0u) pass_scan_partials(); }
     else if (pc.pass == GUIDING_FIT_PASS_SCAN_APPLY) pass_scan_apply();
     else if (pc.pass == GUIDING_FIT_PASS_SCATTER) pass_scatter();
+    else if (pc.pass == GUIDING_FIT_PASS_POSITIONS) pass_positions();
     else if (pc.pass == GUIDING_FIT_PASS_EM) pass_em();
     else pass_refine();
 }

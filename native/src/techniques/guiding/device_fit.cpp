@@ -59,7 +59,7 @@ DeviceFit::DeviceFit(Context& ctx, uint32_t regions, const FitOptions& o, bool p
     lobes_state_ = Buffer(ctx_, size_t(regions) * GUIDING_MAX_COMPONENTS * sizeof(GuidingFitLobe), kStorageUsage);
     states_.fill_zero();
     lobes_state_.fill_zero();
-    starts_ = Buffer(ctx_, (size_t(regions) + 2) * sizeof(uint32_t), kStorageUsage);
+    starts_ = Buffer(ctx_, (2 * size_t(regions) + 2) * sizeof(uint32_t), kStorageUsage);
     starts_.fill_zero();
     pending_ = Buffer(ctx_, size_t(regions) * push_.pending_capacity * sizeof(GuidingSample), kStorageUsage);
     set_->bind_buffer(GUIDING_FIT_BINDING_PENDING, pending_);
@@ -81,7 +81,7 @@ void DeviceFit::ensure_capacity(uint32_t sample_count) {
     // samples serially; a count per (bin, block), at most ~4M of them. Small blocks: more
     // threads, fewer serial steps (128 at 1M samples and 256 regions: 8k threads, 2.1M counts,
     // which the parallel scan and the fill handle at the memory's bandwidth).
-    const uint64_t bins = uint64_t(regions_) + 1;
+    const uint64_t bins = 2 * uint64_t(regions_) + 1;  // lit and unlit per region, dropped
     uint32_t block = 128;
     while (bins * ((uint64_t(sample_count) + block - 1) / block) > (1ull << 22)) block *= 2;
     const uint32_t blocks = (sample_count + block - 1) / block;
@@ -96,6 +96,15 @@ void DeviceFit::ensure_capacity(uint32_t sample_count) {
         scan_partials_ = Buffer(ctx_, size_t(tiles) * sizeof(uint32_t), kStorageUsage);
         set_->bind_buffer(GUIDING_FIT_BINDING_SCAN_PARTIALS, scan_partials_);
     }
+    // POSITIONS' parts per region: about 1024 workgroups in all, each part of at least ~4096
+    // samples on average (a workgroup's fixed cost), at most 64 parts.
+    const uint64_t per_region = sample_count / regions_;
+    const uint32_t parts = uint32_t(std::clamp<uint64_t>(std::min<uint64_t>(1024 / regions_, per_region / 4096), 1, 64));
+    if (!position_parts_.valid() || position_parts_.size() < size_t(regions_) * parts * 4 * sizeof(float)) {
+        position_parts_ = Buffer(ctx_, size_t(regions_) * parts * 4 * sizeof(float), kStorageUsage);
+        set_->bind_buffer(GUIDING_FIT_BINDING_POSITION_PARTS, position_parts_);
+    }
+    position_parts_count_ = parts;
     if (sample_count > sorted_capacity_) {
         sorted_ = Buffer(ctx_, size_t(sample_count) * sizeof(uint32_t), kStorageUsage);
         set_->bind_buffer(GUIDING_FIT_BINDING_SORTED, sorted_);
@@ -128,7 +137,7 @@ void DeviceFit::record(VkCommandBuffer cmd, uint32_t sample_count) {
     const uint32_t block_groups = (block_count_ + GUIDING_FIT_GROUP - 1) / GUIDING_FIT_GROUP;
     barrier(cmd);
     // COUNT adds to zeroed counts (a fill runs at the memory's bandwidth).
-    vkCmdFillBuffer(cmd, counts_.handle(), 0, VkDeviceSize(block_count_) * (regions_ + 1) * sizeof(uint32_t), 0);
+    vkCmdFillBuffer(cmd, counts_.handle(), 0, VkDeviceSize(block_count_) * (2 * regions_ + 1) * sizeof(uint32_t), 0);
     barrier(cmd);
     pc.pass = GUIDING_FIT_PASS_COUNT;
     p.dispatch(cmd, set_->set(), &pc, sizeof(pc), block_groups);
@@ -144,6 +153,10 @@ void DeviceFit::record(VkCommandBuffer cmd, uint32_t sample_count) {
     barrier(cmd);
     pc.pass = GUIDING_FIT_PASS_SCATTER;
     p.dispatch(cmd, set_->set(), &pc, sizeof(pc), block_groups);
+    barrier(cmd);
+    pc.pass = GUIDING_FIT_PASS_POSITIONS;
+    pc.position_parts = position_parts_count_;
+    p.dispatch(cmd, set_->set(), &pc, sizeof(pc), regions_ * position_parts_count_);
     barrier(cmd);
     pc.pass = GUIDING_FIT_PASS_EM;
     p.dispatch(cmd, set_->set(), &pc, sizeof(pc), regions_);
@@ -199,7 +212,7 @@ uint32_t DeviceFit::refine(RegionTree& tree, uint32_t threshold, uint32_t max_re
             grow(states_, size_t(capacity_) * sizeof(GuidingFitRegion));
             grow(lobes_state_, size_t(capacity_) * GUIDING_MAX_COMPONENTS * sizeof(GuidingFitLobe));
             grow(pending_, size_t(capacity_) * push_.pending_capacity * sizeof(GuidingSample));
-            grow(starts_, (size_t(capacity_) + 2) * sizeof(uint32_t));
+            grow(starts_, (2 * size_t(capacity_) + 2) * sizeof(uint32_t));
             grow(tally_, size_t(capacity_) * sizeof(GuidingFitTally), true);
             set_->bind_buffer(GUIDING_FIT_BINDING_STATE, states_);
             set_->bind_buffer(GUIDING_FIT_BINDING_STATE_LOBES, lobes_state_);
@@ -241,7 +254,7 @@ std::vector<GuidingFitLobe> DeviceFit::read_lobes() const {
 }
 
 std::vector<uint32_t> DeviceFit::read_starts() const {
-    std::vector<uint32_t> out(size_t(regions_) + 2);
+    std::vector<uint32_t> out(2 * size_t(regions_) + 2);
     starts_.download(out.data(), out.size() * sizeof(uint32_t));
     return out;
 }

@@ -1,9 +1,11 @@
 // Guiding mixtures fitted on the device (issue 13; shaders/techniques/guiding/fit.comp): the
 // frame's training samples stay where the trace loop wrote them; compute passes bin them by
-// region (a stable counting sort: count, a three-pass parallel scan, scatter) and run the host
-// fit's algorithm (em.h) per region, one workgroup each, writing the GuidingRegion/GuidingLobe
-// records the sampler reads. The host only records the dispatches: no readback, no upload. The
-// fit state (statistics, mixtures, pivots) lives in device buffers across frames.
+// region, lit before unlit (a stable counting sort: count, a three-pass parallel scan, scatter;
+// the EM reads only the lit samples, which are all that carry its statistics) and run the host
+// fit's algorithm (em.h) per region, one workgroup each (the pivot's position sums in several),
+// writing the GuidingRegion/GuidingLobe records the sampler reads. The host only records the
+// dispatches: no readback, no upload. The fit state (statistics, mixtures, pivots) lives in
+// device buffers across frames.
 // Differences from the host field (field.h), by design: each frame's samples of a region are
 // batch of stepwise EM (the previous statistics decayed) once the region has guiding_min_samples
 // lit samples, those of earlier frames kept on the device until then (as the host field's
@@ -57,8 +59,8 @@ public:
     // Readbacks for tests, stats and benchmarks (never in the frame loop).
     std::vector<GuidingFitRegion> read_states() const;
     std::vector<GuidingFitLobe> read_lobes() const;
-    // The last record()'s bins: first sorted slot per region, the dropped bin, the total
-    // (regions + 2), and the sample index of each slot.
+    // The last record()'s bins: first sorted slot of each region's lit then unlit samples, the
+    // dropped bin's, the total (2 regions + 2), and the sample index of each slot.
     std::vector<uint32_t> read_starts() const;
     std::vector<uint32_t> read_sorted(uint32_t sample_count) const;
     // Region r's mixture as the host's type (distances <= 0 become kInfinity).
@@ -70,10 +72,10 @@ private:
     uint32_t regions_, capacity_;  // regions, and those the buffers hold
     GuidingFitPush push_{};
     std::unique_ptr<DescriptorSet> set_;
-    Buffer states_, lobes_state_, counts_, starts_, sorted_, pending_, scan_partials_;
+    Buffer states_, lobes_state_, counts_, starts_, sorted_, pending_, scan_partials_, position_parts_;
     Buffer tally_, splits_;  // host-visible: read / written by refine()
     uint64_t inherited_samples_ = 0, inherited_fits_ = 0;
-    uint32_t block_size_ = 0, block_count_ = 0, scan_tiles_ = 0, sorted_capacity_ = 0;
+    uint32_t block_size_ = 0, block_count_ = 0, scan_tiles_ = 0, sorted_capacity_ = 0, position_parts_count_ = 1;
     size_t samples_bytes_ = 0;
 };
 
