@@ -11,10 +11,8 @@
 // Entry points that cannot trace rays (intersection, closest-hit) define PX_NO_TRACE and get
 // only the buffers.
 
-// std430, which lays these records out as scalar does (shared/guiding.h): their vec3s are then
-// known 16-byte aligned, and a lobe loads as three 16-byte vectors, not twelve floats.
-layout(set = 0, binding = BINDING_GUIDING_REGIONS, std430) readonly buffer GuidingRegionBuffer { GuidingRegion guiding_regions[]; };
-layout(set = 0, binding = BINDING_GUIDING_LOBES, std430) readonly buffer GuidingLobeBuffer { GuidingLobe guiding_lobes[]; };
+layout(set = 0, binding = BINDING_GUIDING_REGIONS, scalar) readonly buffer GuidingRegionBuffer { GuidingRegion guiding_regions[]; };
+layout(set = 0, binding = BINDING_GUIDING_LOBES, scalar) readonly buffer GuidingLobeBuffer { GuidingLobe guiding_lobes[]; };
 layout(set = 0, binding = BINDING_GUIDING_ORDER, scalar) readonly buffer GuidingOrderBuffer { uint guiding_order[]; };
 layout(set = 0, binding = BINDING_GUIDING_NODES, scalar) readonly buffer GuidingNodeBuffer { GuidingNode guiding_nodes[]; };
 #define GUIDING_FETCH_LOBE(i) guiding_lobes[i]
