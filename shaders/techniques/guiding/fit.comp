@@ -7,11 +7,11 @@
 // weighted stepwise EM with the previous statistics decayed, MAP priors on the weights and the
 // mean cosine, split (chi^2 divergence and PCA) and merge (closed-form chi^2 of two lobes
 // against one), parallax distances, and writes the GuidingRegion/GuidingLobe records the
-// sampler reads. REFINE applies the host's
-// adaptive refinement (device_fit.h) to the fit state. Every reduction has a fixed
-// order (fixed per-thread sample ranges, then a fixed tree): no float atomics, so a fixed
-// input gives the same mixtures from run to run. In float, where the host is double. Loops are
-// [[dont_unroll]]: llvmpipe compiles the unrolled shader 4x slower (lavapipe's first dispatch).
+// sampler reads. REFINE applies the host's adaptive refinement (device_fit.h) to the fit
+// state. Every reduction has a fixed order (fixed per-thread sample ranges, then a fixed tree):
+// no float atomics, so a fixed input gives the same mixtures from run to run. In float, where
+// the host is double. Loops are [[dont_unroll]]: llvmpipe compiles the unrolled shader 4x
+// slower (lavapipe's first dispatch).
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_scalar_block_layout : require
 #extension GL_EXT_control_flow_attributes : require
