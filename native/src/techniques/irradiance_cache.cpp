@@ -84,13 +84,14 @@ void IrradianceCache::configure(const IcParams& params, const SceneInfo& scene, 
 
 void IrradianceCache::allocate() {
     // Release first: at a large capacity old and new buffers need not fit side by side.
-    blas_.reset();
-    tlas_.reset();
+    accel_.reset();
     entries_ = Buffer();
     aabbs_ = Buffer();
     entries_ = Buffer(ctx_, size_t(allocated_) * sizeof(IcEntry), kStorageUsage);
     aabbs_ = Buffer(ctx_, size_t(allocated_) * sizeof(VkAabbPositionsKHR),
                     kStorageUsage | VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR);
+    accel_ = std::make_unique<AabbAccel>(ctx_, HIT_GROUP_IC);
+    built_slots_ = 0;  // nothing built yet
 }
 
 void IrradianceCache::record_frame_start(VkCommandBuffer cmd) const {
@@ -102,7 +103,7 @@ void IrradianceCache::reset() {
     frame_counter_ = 0;
     stats_ = {};
     stats_.capacity = enabled() ? params_.capacity : 0;
-    if (!enabled() && tlas_) return;  // off: the empty placeholder never changes
+    if (!enabled() && built_slots_) return;  // off: the empty placeholder never changes
     entries_.fill_zero();
     queue_.fill_zero();
     rebuild();
@@ -139,16 +140,15 @@ void IrradianceCache::rebuild() {
                     e.position.x + r, e.position.y + r, e.position.z + r};
     }
     aabbs_.upload(boxes.data(), boxes.size() * sizeof(VkAabbPositionsKHR));
-    blas_.reset();
-    blas_ = build_aabb_blas(ctx_, aabbs_, built_slots_);
-    tlas_ = build_tlas_over(ctx_, *blas_, HIT_GROUP_IC);
+    accel_->reserve(built_slots_, allocated_);
+    ctx_.submit_and_wait([&](VkCommandBuffer cmd) { accel_->record_build(cmd, aabbs_, built_slots_); });
     built_count_ = count_;
     frames_since_rebuild_ = 0;
     stats_.build_milliseconds += ms_since(start);
 }
 
 void IrradianceCache::bind(DescriptorSet& set) const {
-    set.bind_tlas(BINDING_IC_TLAS, tlas_->handle());
+    set.bind_tlas(BINDING_IC_TLAS, accel_->tlas());
     set.bind_buffer(BINDING_IC_ENTRIES, entries_);
     set.bind_buffer(BINDING_IC_AABBS, aabbs_);
     set.bind_buffer(BINDING_IC_QUEUE, queue_);
@@ -163,7 +163,7 @@ std::vector<IcEntry> IrradianceCache::download_entries() const {
 }
 
 size_t IrradianceCache::bytes_per_entry() const {
-    return sizeof(IcEntry) + sizeof(VkAabbPositionsKHR) + size_t(blas_->size() / std::max(allocated_, 1u));
+    return sizeof(IcEntry) + sizeof(VkAabbPositionsKHR) + size_t(accel_->blas_bytes() / std::max(allocated_, 1u));
 }
 
 void IrradianceCache::after_frame(const RayTracingPipeline& hemisphere, const ComputePipeline& finish,
@@ -266,13 +266,12 @@ void IrradianceCache::after_frame(const RayTracingPipeline& hemisphere, const Co
         rebuild();  // more new entries than the BLAS has room for
     } else if (created) {
         auto start = std::chrono::steady_clock::now();
-        refit_aabb_blas(ctx_, *blas_, aabbs_, built_slots_);
-        tlas_ = build_tlas_over(ctx_, *blas_, HIT_GROUP_IC);
+        ctx_.submit_and_wait([&](VkCommandBuffer cmd) { accel_->record_build(cmd, aabbs_, built_slots_, true); });
         stats_.build_milliseconds += ms_since(start);
     } else {
         return;
     }
-    set.bind_tlas(BINDING_IC_TLAS, tlas_->handle());
+    set.bind_tlas(BINDING_IC_TLAS, accel_->tlas());
 }
 
 }  // namespace px

@@ -62,7 +62,7 @@ private:
     IcParams params_{};
     SceneInfo scene_{};
     Buffer entries_, aabbs_, queue_, jobs_, samples_;
-    std::unique_ptr<AccelerationStructure> blas_, tlas_;
+    std::unique_ptr<AabbAccel> accel_;  // over the built slots' boxes
     uint32_t count_ = 0;           // used slots
     uint32_t allocated_ = 0;       // capacity the buffers were made for
     uint32_t update_cursor_ = 0;   // round-robin refresh position

@@ -1,6 +1,8 @@
 #include "vk/accel.h"
 
+#include <algorithm>
 #include <cstring>
+#include <stdexcept>
 
 namespace px {
 
@@ -91,111 +93,136 @@ std::vector<std::unique_ptr<AccelerationStructure>> build_triangle_blases(
 }
 
 namespace {
-struct AabbBuild {
+// The build description of a BLAS over `count` boxes at `aabbs` (sizes for `count`).
+struct AabbGeometry {
     VkAccelerationStructureGeometryKHR geometry{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_KHR};
     VkAccelerationStructureBuildGeometryInfoKHR info{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_GEOMETRY_INFO_KHR};
     VkAccelerationStructureBuildSizesInfoKHR sizes{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_SIZES_INFO_KHR};
-    AabbBuild(Context& ctx, const Buffer& aabbs, uint32_t count, VkBuildAccelerationStructureModeKHR mode) {
+    AabbGeometry(Context& ctx, VkDeviceAddress aabbs, uint32_t count, bool refit) {
         geometry.geometryType = VK_GEOMETRY_TYPE_AABBS_KHR;
         geometry.flags = 0;  // not opaque: the any-hit shader sees every entry
         geometry.geometry.aabbs = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_AABBS_DATA_KHR};
-        geometry.geometry.aabbs.data.deviceAddress = aabbs.address();
+        geometry.geometry.aabbs.data.deviceAddress = aabbs;
         geometry.geometry.aabbs.stride = sizeof(VkAabbPositionsKHR);
         info.type = VK_ACCELERATION_STRUCTURE_TYPE_BOTTOM_LEVEL_KHR;
         info.flags = VK_BUILD_ACCELERATION_STRUCTURE_PREFER_FAST_TRACE_BIT_KHR |
                      VK_BUILD_ACCELERATION_STRUCTURE_ALLOW_UPDATE_BIT_KHR;
-        info.mode = mode;
+        info.mode = refit ? VK_BUILD_ACCELERATION_STRUCTURE_MODE_UPDATE_KHR : VK_BUILD_ACCELERATION_STRUCTURE_MODE_BUILD_KHR;
         info.geometryCount = 1;
         info.pGeometries = &geometry;
         ctx.rt().get_build_sizes(ctx.device(), VK_ACCELERATION_STRUCTURE_BUILD_TYPE_DEVICE_KHR, &info, &count, &sizes);
     }
-    void run(Context& ctx, AccelerationStructure& dst, const AccelerationStructure* src, uint32_t count) {
-        VkDeviceSize scratch_size = info.mode == VK_BUILD_ACCELERATION_STRUCTURE_MODE_UPDATE_KHR
-                                        ? sizes.updateScratchSize : sizes.buildScratchSize;
-        Buffer scratch(ctx, scratch_size + 256, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
-        info.dstAccelerationStructure = dst.handle();
-        info.srcAccelerationStructure = src ? src->handle() : VK_NULL_HANDLE;
-        info.scratchData.deviceAddress = align_up(scratch.address(), 256);
-        VkAccelerationStructureBuildRangeInfoKHR range{count, 0, 0, 0};
-        const VkAccelerationStructureBuildRangeInfoKHR* range_ptr = &range;
-        ctx.submit_and_wait([&](VkCommandBuffer cmd) {
-            // The AABBs were written by shaders (ic_finish.comp) or copied from the host.
-            VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-            b.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT | VK_ACCESS_HOST_WRITE_BIT;
-            b.dstAccessMask = VK_ACCESS_ACCELERATION_STRUCTURE_READ_BIT_KHR | VK_ACCESS_SHADER_READ_BIT;
-            vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
-                                 VK_PIPELINE_STAGE_ACCELERATION_STRUCTURE_BUILD_BIT_KHR, 0, 1, &b, 0, nullptr, 0,
-                                 nullptr);
-            ctx.rt().cmd_build_as(cmd, 1, &info, &range_ptr);
-            barrier_after_build(cmd);
-        });
+};
+
+// The build description of a TLAS over the instances at `instances`.
+struct InstanceGeometry {
+    VkAccelerationStructureGeometryKHR geometry{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_KHR};
+    VkAccelerationStructureBuildGeometryInfoKHR info{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_GEOMETRY_INFO_KHR};
+    VkAccelerationStructureBuildSizesInfoKHR sizes{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_SIZES_INFO_KHR};
+    InstanceGeometry(Context& ctx, VkDeviceAddress instances, uint32_t count) {
+        geometry.geometryType = VK_GEOMETRY_TYPE_INSTANCES_KHR;
+        geometry.geometry.instances = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_INSTANCES_DATA_KHR};
+        geometry.geometry.instances.data.deviceAddress = instances;
+        info.type = VK_ACCELERATION_STRUCTURE_TYPE_TOP_LEVEL_KHR;
+        info.flags = VK_BUILD_ACCELERATION_STRUCTURE_PREFER_FAST_TRACE_BIT_KHR;
+        info.mode = VK_BUILD_ACCELERATION_STRUCTURE_MODE_BUILD_KHR;
+        info.geometryCount = 1;
+        info.pGeometries = &geometry;
+        ctx.rt().get_build_sizes(ctx.device(), VK_ACCELERATION_STRUCTURE_BUILD_TYPE_DEVICE_KHR, &info, &count, &sizes);
     }
 };
+
+VkAccelerationStructureInstanceKHR vk_instance(const TlasInstance& s) {
+    VkAccelerationStructureInstanceKHR d{};
+    std::memcpy(d.transform.matrix, s.transform.data(), sizeof(d.transform.matrix));
+    d.instanceCustomIndex = s.custom_index & 0xffffff;
+    d.mask = s.mask & 0xff;
+    d.instanceShaderBindingTableRecordOffset = s.sbt_offset;
+    d.flags = VK_GEOMETRY_INSTANCE_TRIANGLE_FACING_CULL_DISABLE_BIT_KHR;
+    d.accelerationStructureReference = s.blas;
+    return d;
+}
 }  // namespace
 
-std::unique_ptr<AccelerationStructure> build_aabb_blas(Context& ctx, const Buffer& aabbs, uint32_t count) {
-    AabbBuild build(ctx, aabbs, count, VK_BUILD_ACCELERATION_STRUCTURE_MODE_BUILD_KHR);
-    auto blas = std::make_unique<AccelerationStructure>(ctx, VK_ACCELERATION_STRUCTURE_TYPE_BOTTOM_LEVEL_KHR,
-                                                        build.sizes.accelerationStructureSize);
-    build.run(ctx, *blas, nullptr, count);
-    return blas;
+AabbAccel::AabbAccel(Context& ctx, uint32_t sbt_offset) : ctx_(ctx), sbt_offset_(sbt_offset) {}
+
+bool AabbAccel::reserve(uint32_t count, uint32_t limit) {
+    count = std::max(count, 1u);
+    if (count <= capacity_) return false;
+    capacity_ = std::max(count, std::min(2 * capacity_, limit));
+    // Sizes for capacity_ boxes hold every build of fewer (VkAccelerationStructureBuildSizesInfoKHR).
+    const AabbGeometry blas_sizes(ctx_, 0, capacity_, false);
+    blas_.reset();
+    blas_ = std::make_unique<AccelerationStructure>(ctx_, VK_ACCELERATION_STRUCTURE_TYPE_BOTTOM_LEVEL_KHR,
+                                                    blas_sizes.sizes.accelerationStructureSize);
+    TlasInstance instance{};
+    instance.transform = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+    instance.mask = 0xff;
+    instance.sbt_offset = sbt_offset_;
+    instance.blas = blas_->address();
+    const VkAccelerationStructureInstanceKHR vk = vk_instance(instance);
+    instance_ = Buffer::with_data(ctx_, &vk, sizeof(vk), VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR);
+    const InstanceGeometry tlas_sizes(ctx_, instance_.address(), 1);
+    if (!tlas_)
+        tlas_ = std::make_unique<AccelerationStructure>(ctx_, VK_ACCELERATION_STRUCTURE_TYPE_TOP_LEVEL_KHR,
+                                                        tlas_sizes.sizes.accelerationStructureSize);
+    const VkDeviceSize scratch = std::max({blas_sizes.sizes.buildScratchSize, blas_sizes.sizes.updateScratchSize,
+                                           tlas_sizes.sizes.buildScratchSize});
+    scratch_ = Buffer();
+    scratch_ = Buffer(ctx_, scratch + 256, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+    built_count_ = 0;  // a new BLAS: the next build cannot be a refit
+    return true;
 }
 
-void refit_aabb_blas(Context& ctx, AccelerationStructure& blas, const Buffer& aabbs, uint32_t count) {
-    AabbBuild build(ctx, aabbs, count, VK_BUILD_ACCELERATION_STRUCTURE_MODE_UPDATE_KHR);
-    build.run(ctx, blas, &blas, count);
+void AabbAccel::record_build(VkCommandBuffer cmd, const Buffer& aabbs, uint32_t count, bool refit) {
+    count = std::max(count, 1u);
+    if (count > capacity_) throw std::logic_error("AabbAccel: record_build past the reserved boxes");
+    if (refit && count != built_count_) throw std::logic_error("AabbAccel: a refit needs the last build's count");
+    // The boxes were written by shaders (ic_finish.comp), copied, or written by the host; so
+    // may be what the shaders read beside the structure (the guiding regions' order and nodes).
+    VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    b.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT | VK_ACCESS_HOST_WRITE_BIT;
+    b.dstAccessMask = VK_ACCESS_ACCELERATION_STRUCTURE_READ_BIT_KHR | VK_ACCESS_SHADER_READ_BIT;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, 0, 1, &b, 0,
+                         nullptr, 0, nullptr);
+    const VkDeviceAddress scratch = align_up(scratch_.address(), 256);
+    AabbGeometry blas(ctx_, aabbs.address(), count, refit);
+    blas.info.srcAccelerationStructure = refit ? blas_->handle() : VK_NULL_HANDLE;
+    blas.info.dstAccelerationStructure = blas_->handle();
+    blas.info.scratchData.deviceAddress = scratch;
+    const VkAccelerationStructureBuildRangeInfoKHR blas_range{count, 0, 0, 0};
+    const VkAccelerationStructureBuildRangeInfoKHR* blas_range_ptr = &blas_range;
+    ctx_.rt().cmd_build_as(cmd, 1, &blas.info, &blas_range_ptr);
+    barrier_after_build(cmd);  // the BLAS, then the TLAS over it, share the scratch
+    InstanceGeometry tlas(ctx_, instance_.address(), 1);
+    tlas.info.dstAccelerationStructure = tlas_->handle();
+    tlas.info.scratchData.deviceAddress = scratch;
+    const VkAccelerationStructureBuildRangeInfoKHR tlas_range{1, 0, 0, 0};
+    const VkAccelerationStructureBuildRangeInfoKHR* tlas_range_ptr = &tlas_range;
+    ctx_.rt().cmd_build_as(cmd, 1, &tlas.info, &tlas_range_ptr);
+    barrier_after_build(cmd);
+    built_count_ = count;
 }
 
 std::unique_ptr<AccelerationStructure> build_tlas(Context& ctx, const std::vector<TlasInstance>& instances) {
     std::vector<VkAccelerationStructureInstanceKHR> vk_instances(instances.size());
-    for (size_t i = 0; i < instances.size(); ++i) {
-        auto& d = vk_instances[i];
-        const auto& s = instances[i];
-        std::memcpy(d.transform.matrix, s.transform.data(), sizeof(d.transform.matrix));
-        d.instanceCustomIndex = s.custom_index & 0xffffff;
-        d.mask = s.mask & 0xff;
-        d.instanceShaderBindingTableRecordOffset = s.sbt_offset;
-        d.flags = VK_GEOMETRY_INSTANCE_TRIANGLE_FACING_CULL_DISABLE_BIT_KHR;
-        d.accelerationStructureReference = s.blas;
-    }
+    for (size_t i = 0; i < instances.size(); ++i) vk_instances[i] = vk_instance(instances[i]);
     Buffer instance_buffer = Buffer::with_vector(
         ctx, vk_instances, VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR);
-
-    VkAccelerationStructureGeometryKHR g{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_KHR};
-    g.geometryType = VK_GEOMETRY_TYPE_INSTANCES_KHR;
-    g.geometry.instances = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_INSTANCES_DATA_KHR};
-    g.geometry.instances.data.deviceAddress = instance_buffer.address();
-    VkAccelerationStructureBuildGeometryInfoKHR b{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_GEOMETRY_INFO_KHR};
-    b.type = VK_ACCELERATION_STRUCTURE_TYPE_TOP_LEVEL_KHR;
-    b.flags = VK_BUILD_ACCELERATION_STRUCTURE_PREFER_FAST_TRACE_BIT_KHR;
-    b.mode = VK_BUILD_ACCELERATION_STRUCTURE_MODE_BUILD_KHR;
-    b.geometryCount = 1;
-    b.pGeometries = &g;
-    uint32_t count = uint32_t(instances.size());
-    VkAccelerationStructureBuildSizesInfoKHR sizes{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_SIZES_INFO_KHR};
-    ctx.rt().get_build_sizes(ctx.device(), VK_ACCELERATION_STRUCTURE_BUILD_TYPE_DEVICE_KHR, &b, &count, &sizes);
+    const uint32_t count = uint32_t(instances.size());
+    InstanceGeometry build(ctx, instance_buffer.address(), count);
     auto tlas = std::make_unique<AccelerationStructure>(ctx, VK_ACCELERATION_STRUCTURE_TYPE_TOP_LEVEL_KHR,
-                                                        sizes.accelerationStructureSize);
-    Buffer scratch(ctx, sizes.buildScratchSize + 256, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
-    b.dstAccelerationStructure = tlas->handle();
-    b.scratchData.deviceAddress = align_up(scratch.address(), 256);
+                                                        build.sizes.accelerationStructureSize);
+    Buffer scratch(ctx, build.sizes.buildScratchSize + 256, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+    build.info.dstAccelerationStructure = tlas->handle();
+    build.info.scratchData.deviceAddress = align_up(scratch.address(), 256);
     VkAccelerationStructureBuildRangeInfoKHR range{count, 0, 0, 0};
     const VkAccelerationStructureBuildRangeInfoKHR* range_ptr = &range;
     ctx.submit_and_wait([&](VkCommandBuffer cmd) {
-        ctx.rt().cmd_build_as(cmd, 1, &b, &range_ptr);
+        ctx.rt().cmd_build_as(cmd, 1, &build.info, &range_ptr);
         barrier_after_build(cmd);
     });
     return tlas;
-}
-
-std::unique_ptr<AccelerationStructure> build_tlas_over(Context& ctx, const AccelerationStructure& blas,
-                                                       uint32_t sbt_offset) {
-    TlasInstance instance{};
-    instance.transform = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
-    instance.mask = 0xff;
-    instance.sbt_offset = sbt_offset;
-    instance.blas = blas.address();
-    return build_tlas(ctx, {instance});
 }
 
 }  // namespace px

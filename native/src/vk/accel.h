@@ -42,17 +42,33 @@ struct TlasInstance {
     VkDeviceAddress blas;
 };
 
-// A BLAS over `count` AABBs (VkAabbPositionsKHR: 6 floats each) at the start of `aabbs`:
-// procedural, not opaque (any-hit shaders run), built to allow in-place refits.
-std::unique_ptr<AccelerationStructure> build_aabb_blas(Context& ctx, const Buffer& aabbs, uint32_t count);
-// Refits `blas` (built by build_aabb_blas with the same count) to the AABBs' new bounds.
-void refit_aabb_blas(Context& ctx, AccelerationStructure& blas, const Buffer& aabbs, uint32_t count);
+// The irradiance cache's and the guiding regions' structures: a TLAS of one untransformed
+// instance (hit group `sbt_offset`) of a BLAS over boxes (VkAabbPositionsKHR), procedural and
+// not opaque (any-hit shaders run). Storage, scratch and the instance are kept across builds
+// and grow (doubling) only when more boxes come; builds and refits are recorded into the
+// caller's command buffer. A rebuild then costs no allocation and no submit of its own (each
+// was ~1 ms on the H200, and the guiding regions' refinement rebuilt every few frames).
+class AabbAccel {
+public:
+    AabbAccel(Context& ctx, uint32_t sbt_offset);
+    // Room for `count` boxes (at most `limit` when growing by doubling); true where the
+    // structures were replaced (the TLAS descriptor must be bound again).
+    bool reserve(uint32_t count, uint32_t limit = ~0u);
+    // Builds the BLAS over the first `count` boxes of `aabbs` (or refits it: the same count as
+    // its last build, the boxes moved or grown), then the TLAS over it. Needs reserve(count).
+    void record_build(VkCommandBuffer cmd, const Buffer& aabbs, uint32_t count, bool refit = false);
+    VkAccelerationStructureKHR tlas() const { return tlas_->handle(); }
+    VkDeviceSize blas_bytes() const { return blas_ ? blas_->size() : 0; }
+
+private:
+    Context& ctx_;
+    uint32_t sbt_offset_;
+    uint32_t capacity_ = 0, built_count_ = 0;
+    std::unique_ptr<AccelerationStructure> blas_, tlas_;
+    Buffer instance_, scratch_;
+};
 
 // A TLAS over `instances` (in the given order: order them spatially first on lavapipe).
 std::unique_ptr<AccelerationStructure> build_tlas(Context& ctx, const std::vector<TlasInstance>& instances);
-// A TLAS of one untransformed instance of `blas` with hit group `sbt_offset` (the irradiance
-// cache's and the guiding regions' own structures).
-std::unique_ptr<AccelerationStructure> build_tlas_over(Context& ctx, const AccelerationStructure& blas,
-                                                       uint32_t sbt_offset);
 
 }  // namespace px

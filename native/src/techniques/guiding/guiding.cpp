@@ -59,7 +59,7 @@ GuidingParams field_key(GuidingParams p) {
 
 }  // namespace
 
-Guiding::Guiding(Context& ctx) : ctx_(ctx) {
+Guiding::Guiding(Context& ctx) : ctx_(ctx), accel_(ctx, HIT_GROUP_GUIDING) {
     samples_ = Buffer(ctx_, sizeof(GuidingSample), kStorageUsage);
     build_placeholder();
 }
@@ -75,16 +75,7 @@ void Guiding::build_placeholder() {
     regions_ = Buffer::with_data(ctx_, &region, sizeof(region), kStorageUsage);
     const GuidingLobe lobe{};
     lobes_ = Buffer::with_data(ctx_, &lobe, sizeof(lobe), kStorageUsage);
-    const uint32_t order = 0;
-    order_ = Buffer::with_data(ctx_, &order, sizeof(order), kStorageUsage);
-    const GuidingNode root{0.0f, GUIDING_NODE_LEAF};  // region 0
-    nodes_ = Buffer::with_data(ctx_, &root, sizeof(root), kStorageUsage);
-    const VkAabbPositionsKHR box{0, 0, 0, 1e-3f, 1e-3f, 1e-3f};
-    aabbs_ = Buffer::with_data(ctx_, &box, sizeof(box),
-                               kStorageUsage | VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR);
-    tlas_.reset();
-    blas_ = build_aabb_blas(ctx_, aabbs_, 1);
-    tlas_ = build_tlas_over(ctx_, *blas_, HIT_GROUP_GUIDING);
+    upload_layout(guiding::RegionTree());
 }
 
 void Guiding::configure(const GuidingParams& params, const SceneHost& scene, uint64_t scene_version, uint32_t seed,
@@ -135,7 +126,7 @@ void Guiding::configure(const GuidingParams& params, const SceneHost& scene, uin
 }
 
 void Guiding::bind(DescriptorSet& set) const {
-    set.bind_tlas(BINDING_GUIDING_TLAS, tlas_->handle());
+    set.bind_tlas(BINDING_GUIDING_TLAS, accel_.tlas());
     set.bind_buffer(BINDING_GUIDING_REGIONS, regions_);
     set.bind_buffer(BINDING_GUIDING_LOBES, lobes_);
     set.bind_buffer(BINDING_GUIDING_ORDER, order_);
@@ -162,23 +153,49 @@ void Guiding::upload(DescriptorSet* set) {
     if (set) bind(*set);
 }
 
+// The regions' boxes in the tree's depth-first order (lavapipe's BVH builder splits in input
+// order; primitive i is region order[i]), the order and the tree's nodes: copied from one
+// staging buffer and built into the kept BLAS/TLAS in one submit. The buffers grow by doubling.
 void Guiding::upload_layout(const guiding::RegionTree& tree) {
-    // The regions' boxes in the tree's depth-first order (lavapipe's BVH builder splits in
-    // input order); primitive i is region order[i].
-    const size_t n = tree.size();
-    std::vector<float> boxes, sorted(n * 6);
-    tree.write_aabbs(boxes);
-    const std::vector<uint32_t> order = tree.spatial_order();
-    for (size_t i = 0; i < n; ++i) std::copy_n(&boxes[size_t(order[i]) * 6], 6, &sorted[i * 6]);
-    order_ = Buffer::with_vector(ctx_, order, kStorageUsage);
+    std::vector<float> boxes;
+    std::vector<uint32_t> order;
     std::vector<GuidingNode> nodes;
-    tree.write_nodes(nodes);
-    nodes_ = Buffer::with_vector(ctx_, nodes, kStorageUsage);
-    aabbs_ = Buffer::with_data(ctx_, sorted.data(), sorted.size() * sizeof(float),
-                               kStorageUsage | VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR);
-    tlas_.reset();
-    blas_ = build_aabb_blas(ctx_, aabbs_, uint32_t(n));
-    tlas_ = build_tlas_over(ctx_, *blas_, HIT_GROUP_GUIDING);
+    if (tree.size() == 0) {  // the placeholder: one region, a tiny box at the origin
+        boxes = {0, 0, 0, 1e-3f, 1e-3f, 1e-3f};
+        order = {0};
+        nodes = {GuidingNode{0.0f, GUIDING_NODE_LEAF}};  // region 0
+    } else {
+        std::vector<float> unsorted;
+        tree.write_aabbs(unsorted);
+        order = tree.spatial_order();
+        boxes.resize(order.size() * 6);
+        for (size_t i = 0; i < order.size(); ++i) std::copy_n(&unsorted[size_t(order[i]) * 6], 6, &boxes[i * 6]);
+        tree.write_nodes(nodes);
+    }
+    const size_t box_bytes = boxes.size() * sizeof(float), order_bytes = order.size() * sizeof(uint32_t),
+                 node_bytes = nodes.size() * sizeof(GuidingNode);
+    const auto grow = [&](Buffer& b, size_t bytes, VkBufferUsageFlags usage, bool host_visible = false) {
+        if (b.valid() && b.size() >= bytes) return;
+        b = Buffer();
+        b = Buffer(ctx_, 2 * bytes, usage, host_visible);
+    };
+    grow(aabbs_, box_bytes, kStorageUsage | VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR);
+    grow(order_, order_bytes, kStorageUsage);
+    grow(nodes_, node_bytes, kStorageUsage);
+    grow(layout_staging_, box_bytes + order_bytes + node_bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true);
+    layout_staging_.upload(boxes.data(), box_bytes);
+    layout_staging_.upload(order.data(), order_bytes, box_bytes);
+    layout_staging_.upload(nodes.data(), node_bytes, box_bytes + order_bytes);
+    const uint32_t count = uint32_t(order.size());
+    accel_.reserve(count);
+    ctx_.submit_and_wait([&](VkCommandBuffer cmd) {
+        const VkBufferCopy copies[3] = {{0, 0, box_bytes}, {box_bytes, 0, order_bytes},
+                                        {box_bytes + order_bytes, 0, node_bytes}};
+        vkCmdCopyBuffer(cmd, layout_staging_.handle(), aabbs_.handle(), 1, &copies[0]);
+        vkCmdCopyBuffer(cmd, layout_staging_.handle(), order_.handle(), 1, &copies[1]);
+        vkCmdCopyBuffer(cmd, layout_staging_.handle(), nodes_.handle(), 1, &copies[2]);
+        accel_.record_build(cmd, aabbs_, count);  // its barrier orders the copies before the build
+    });
 }
 
 void Guiding::record_frame_start(VkCommandBuffer cmd) const {
@@ -280,7 +297,7 @@ GuidingStats Guiding::stats() const {
         }
     }
     s.bytes_per_region = guiding::GuidingField::gpu_bytes_per_region() + sizeof(uint32_t) +
-                         (blas_ ? blas_->size() / std::max<size_t>(1, s.regions) : 0);
+                         accel_.blas_bytes() / std::max<size_t>(1, s.regions);
     s.sample_buffer_bytes = samples_.size();
     return s;
 }

@@ -93,8 +93,9 @@ private:
     std::unique_ptr<guiding::GuidingField> field_;
     std::unique_ptr<guiding::DeviceFit> device_fit_;  // guiding_fit = device
     guiding::RegionTree device_tree_;                 // its regions (refined on the host)
-    Buffer regions_, lobes_, order_, aabbs_, nodes_, samples_;
-    std::unique_ptr<AccelerationStructure> blas_, tlas_;
+    Buffer regions_, lobes_, samples_;
+    Buffer order_, aabbs_, nodes_, layout_staging_;  // the layout, kept and grown (upload_layout)
+    AabbAccel accel_;
     uint64_t built_layout_ = ~0ull;
     uint32_t training_frames_ = 0;
     mutable std::future<void> fit_;      // the fit in flight (worker thread), if any
