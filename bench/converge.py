@@ -325,6 +325,20 @@ def warm_pipelines(scene, methods, device):
         session.render(1)  # with ic: one prepare frame (camera + hemisphere + finish pipelines) and a frame
 
 
+def spin_up(scene, device, seconds=0.5):
+    """Keeps the device busy for `seconds` before a timed run: a GPU left idle (a pipeline
+    compile, writing results) drops its clocks (the H200 to 345-600 MHz within a second), and
+    the run after it sized its frames on the slow clock (23 spp per frame instead of 64)."""
+    import parallax_core as pc
+
+    session = pc.Session(scene.width, scene.height, device)
+    session.set_params(method="pt", samples_per_frame=1, max_depth=MAX_DEPTH, depth_leeway=0)
+    session.update(scene)
+    start = time.perf_counter()
+    while time.perf_counter() - start < seconds:
+        session.render(1)
+
+
 def core_identity():
     """Which parallax_core build is loaded: the native module's file, size, mtime and SHA-1
     prefix (read from disk: call it right after the import)."""
@@ -478,6 +492,8 @@ def run(scenes=SCENES, seconds=120.0, device="auto", methods=("pt", "nee", "mis"
         if warm:
             warm_pipelines(scene, methods, device)
         for method in methods:
+            if warm:
+                spin_up(scene, device)
             image, spp, used, curve, info = render_parallax(scene, method, seconds, device, reference,
                                                             f"{name}: parallax {method}")
             rows.append(dict(renderer=f"Parallax {method}", image=image, spp=spp, seconds=used, curve=curve,
@@ -534,7 +550,8 @@ def main(argv=None):
     p.add_argument("--append", action="store_true", help="keep earlier rows of renderers not run now")
     p.add_argument("--out", help="default: bench/results/<cpu|gpu>[_thesis][_quick]")
     p.add_argument("--warm", action="store_true",
-                   help="compile every method's pipelines before the timed runs (start-up then excludes compiling)")
+                   help="compile every method's pipelines before the timed runs (start-up then excludes compiling), "
+                        "and keep the device busy for 0.5 s before each (a GPU's clocks drop when it idles)")
     a = p.parse_args(argv)
     thesis = a.suite == "thesis"
     if a.quick:
