@@ -193,7 +193,12 @@ void AabbAccel::record_build(VkCommandBuffer cmd, const Buffer& aabbs, uint32_t 
     const VkAccelerationStructureBuildRangeInfoKHR blas_range{count, 0, 0, 0};
     const VkAccelerationStructureBuildRangeInfoKHR* blas_range_ptr = &blas_range;
     ctx_.rt().cmd_build_as(cmd, 1, &blas.info, &blas_range_ptr);
-    barrier_after_build(cmd);  // the BLAS, then the TLAS over it, share the scratch
+    // The TLAS build reads the BLAS and writes the scratch the BLAS build wrote.
+    VkMemoryBarrier between{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    between.srcAccessMask = VK_ACCESS_ACCELERATION_STRUCTURE_WRITE_BIT_KHR;
+    between.dstAccessMask = VK_ACCESS_ACCELERATION_STRUCTURE_READ_BIT_KHR | VK_ACCESS_ACCELERATION_STRUCTURE_WRITE_BIT_KHR;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_ACCELERATION_STRUCTURE_BUILD_BIT_KHR,
+                         VK_PIPELINE_STAGE_ACCELERATION_STRUCTURE_BUILD_BIT_KHR, 0, 1, &between, 0, nullptr, 0, nullptr);
     InstanceGeometry tlas(ctx_, instance_.address(), 1);
     tlas.info.dstAccelerationStructure = tlas_->handle();
     tlas.info.scratchData.deviceAddress = scratch;
