@@ -192,6 +192,31 @@ def test_passes():
         assert not off.read(name).any(), name
 
 
+@pytest.mark.parametrize("fit", ["cpu", "device"])
+def test_refined_regions_reach_the_shaders(fit):
+    """Refinement grows the regions from 16 to over 200: the layout (node buffer, box order)
+    and the lobes pass' BLAS and TLAS are rebuilt in place and grow by doubling (AabbAccel).
+    The Guiding Regions pass then shows the refined tree (over 100 regions in view, 17
+    colours before), and the Guiding Lobes pass draws the new regions' spheres (found through
+    the rebuilt TLAS: a stale one holds the 16 first boxes, the coverage of the unrefined
+    field)."""
+    scene = scenes.cornell_box(SIZE, SIZE)
+
+    def trained(threshold):
+        _, s = render(scene, "mis", spp=4, spp_per_frame=4,
+                      **dict(GUIDING, guiding_region_threshold=threshold, guiding_fit=fit))
+        colours = {tuple(np.round(c, 3)) for c in s.read("guiding_regions").reshape(-1, 3)}
+        spheres = (s.read("guiding_lobes")[: SIZE - SIZE // 6].max(axis=-1) > 0.05).mean()
+        return s.stats()["guiding_regions"], len(colours), spheres
+
+    regions, colours, spheres = trained(0)  # no refinement
+    assert regions == 16 and colours <= 17
+    refined_regions, refined_colours, refined_spheres = trained(200)
+    assert refined_regions > 128, refined_regions  # past several doublings of every buffer
+    assert refined_colours > 100, refined_colours
+    assert refined_spheres > 1.5 * spheres, (refined_spheres, spheres)
+
+
 def test_animated_lobes_move_the_spheres_and_keep_the_field():
     """guiding_lobes_phase (thesis fig. 4.20): the Guiding Lobes pass' spheres move through their
     regions, each coloured by its mixture where it is; the field is only viewed, never retrained,
