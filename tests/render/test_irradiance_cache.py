@@ -198,6 +198,24 @@ def test_passes():
     assert off.read("ic_irradiance").max() == 0.0 and off.stats()["ic_entries"] == 0
 
 
+def test_refits_between_rebuilds_find_new_entries():
+    """With ic_rebuild_interval > 1 the frames between rebuilds refit the kept BLAS (AabbAccel)
+    over the boxes of the slots the last frame filled: the next frame's queries find those
+    entries as after a rebuild (a BLAS left unrefitted found none: IC Irradiance was 0
+    everywhere, and the frame created 1167 entries where 690 were needed)."""
+    found = {}
+    for interval in (1, 8):
+        s = pc.Session(32, 32)
+        s.set_params(method="mis", ic=True, ic_rebuild_interval=interval, ic_prepare_frames=0, ic_create_prob=0.3,
+                     samples_per_frame=1, seed=1)
+        s.update(scenes.cornell_box(32, 32))
+        s.render(2)  # the first frame creates entries, the second queries them
+        found[interval] = (s.stats()["ic_entries"], float((s.read("ic_irradiance").max(axis=-1) > 0).mean()))
+    (entries, covered), (refit_entries, refit_covered) = found[1], found[8]
+    assert covered > 0.5 and refit_covered > 0.9 * covered, found
+    assert refit_entries < 1.1 * entries, found
+
+
 def test_prepare_frames_fill_before_accumulation():
     """render_rows runs one prepare frame per call (nothing accumulates) until the cache covers
     98% of the first diffuse hits or ic_prepare_frames are done; then frames accumulate."""
