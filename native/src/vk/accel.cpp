@@ -93,12 +93,19 @@ std::vector<std::unique_ptr<AccelerationStructure>> build_triangle_blases(
 }
 
 namespace {
-// The build description of a BLAS over `count` boxes at `aabbs` (sizes for `count`).
+// Sizes of a build of `info` over `count` primitives (they hold every build of fewer).
+VkAccelerationStructureBuildSizesInfoKHR build_sizes(Context& ctx, const VkAccelerationStructureBuildGeometryInfoKHR& info,
+                                                     uint32_t count) {
+    VkAccelerationStructureBuildSizesInfoKHR out{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_SIZES_INFO_KHR};
+    ctx.rt().get_build_sizes(ctx.device(), VK_ACCELERATION_STRUCTURE_BUILD_TYPE_DEVICE_KHR, &info, &count, &out);
+    return out;
+}
+
+// The build description of a BLAS over the boxes at `aabbs`; sizes() for a count of them.
 struct AabbGeometry {
     VkAccelerationStructureGeometryKHR geometry{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_KHR};
     VkAccelerationStructureBuildGeometryInfoKHR info{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_GEOMETRY_INFO_KHR};
-    VkAccelerationStructureBuildSizesInfoKHR sizes{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_SIZES_INFO_KHR};
-    AabbGeometry(Context& ctx, VkDeviceAddress aabbs, uint32_t count, bool refit) {
+    AabbGeometry(VkDeviceAddress aabbs, bool refit) {
         geometry.geometryType = VK_GEOMETRY_TYPE_AABBS_KHR;
         geometry.flags = 0;  // not opaque: the any-hit shader sees every entry
         geometry.geometry.aabbs = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_AABBS_DATA_KHR};
@@ -110,7 +117,9 @@ struct AabbGeometry {
         info.mode = refit ? VK_BUILD_ACCELERATION_STRUCTURE_MODE_UPDATE_KHR : VK_BUILD_ACCELERATION_STRUCTURE_MODE_BUILD_KHR;
         info.geometryCount = 1;
         info.pGeometries = &geometry;
-        ctx.rt().get_build_sizes(ctx.device(), VK_ACCELERATION_STRUCTURE_BUILD_TYPE_DEVICE_KHR, &info, &count, &sizes);
+    }
+    VkAccelerationStructureBuildSizesInfoKHR sizes(Context& ctx, uint32_t count) const {
+        return build_sizes(ctx, info, count);
     }
 };
 
@@ -118,8 +127,7 @@ struct AabbGeometry {
 struct InstanceGeometry {
     VkAccelerationStructureGeometryKHR geometry{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_KHR};
     VkAccelerationStructureBuildGeometryInfoKHR info{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_GEOMETRY_INFO_KHR};
-    VkAccelerationStructureBuildSizesInfoKHR sizes{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_SIZES_INFO_KHR};
-    InstanceGeometry(Context& ctx, VkDeviceAddress instances, uint32_t count) {
+    InstanceGeometry(VkDeviceAddress instances) {
         geometry.geometryType = VK_GEOMETRY_TYPE_INSTANCES_KHR;
         geometry.geometry.instances = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_INSTANCES_DATA_KHR};
         geometry.geometry.instances.data.deviceAddress = instances;
@@ -128,7 +136,9 @@ struct InstanceGeometry {
         info.mode = VK_BUILD_ACCELERATION_STRUCTURE_MODE_BUILD_KHR;
         info.geometryCount = 1;
         info.pGeometries = &geometry;
-        ctx.rt().get_build_sizes(ctx.device(), VK_ACCELERATION_STRUCTURE_BUILD_TYPE_DEVICE_KHR, &info, &count, &sizes);
+    }
+    VkAccelerationStructureBuildSizesInfoKHR sizes(Context& ctx, uint32_t count) const {
+        return build_sizes(ctx, info, count);
     }
 };
 
@@ -151,10 +161,10 @@ bool AabbAccel::reserve(uint32_t count, uint32_t limit) {
     if (count <= capacity_) return false;
     capacity_ = std::max(count, std::min(2 * capacity_, limit));
     // Sizes for capacity_ boxes hold every build of fewer (VkAccelerationStructureBuildSizesInfoKHR).
-    const AabbGeometry blas_sizes(ctx_, 0, capacity_, false);
+    const VkAccelerationStructureBuildSizesInfoKHR blas_sizes = AabbGeometry(0, false).sizes(ctx_, capacity_);
     blas_.reset();
     blas_ = std::make_unique<AccelerationStructure>(ctx_, VK_ACCELERATION_STRUCTURE_TYPE_BOTTOM_LEVEL_KHR,
-                                                    blas_sizes.sizes.accelerationStructureSize);
+                                                    blas_sizes.accelerationStructureSize);
     TlasInstance instance{};
     instance.transform = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
     instance.mask = 0xff;
@@ -162,12 +172,12 @@ bool AabbAccel::reserve(uint32_t count, uint32_t limit) {
     instance.blas = blas_->address();
     const VkAccelerationStructureInstanceKHR vk = vk_instance(instance);
     instance_ = Buffer::with_data(ctx_, &vk, sizeof(vk), VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR);
-    const InstanceGeometry tlas_sizes(ctx_, instance_.address(), 1);
+    const VkAccelerationStructureBuildSizesInfoKHR tlas_sizes = InstanceGeometry(instance_.address()).sizes(ctx_, 1);
     if (!tlas_)
         tlas_ = std::make_unique<AccelerationStructure>(ctx_, VK_ACCELERATION_STRUCTURE_TYPE_TOP_LEVEL_KHR,
-                                                        tlas_sizes.sizes.accelerationStructureSize);
-    const VkDeviceSize scratch = std::max({blas_sizes.sizes.buildScratchSize, blas_sizes.sizes.updateScratchSize,
-                                           tlas_sizes.sizes.buildScratchSize});
+                                                        tlas_sizes.accelerationStructureSize);
+    const VkDeviceSize scratch = std::max({blas_sizes.buildScratchSize, blas_sizes.updateScratchSize,
+                                           tlas_sizes.buildScratchSize});
     scratch_ = Buffer();
     scratch_ = Buffer(ctx_, scratch + 256, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
     built_count_ = 0;  // a new BLAS: the next build cannot be a refit
@@ -186,7 +196,7 @@ void AabbAccel::record_build(VkCommandBuffer cmd, const Buffer& aabbs, uint32_t 
     vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, 0, 1, &b, 0,
                          nullptr, 0, nullptr);
     const VkDeviceAddress scratch = align_up(scratch_.address(), 256);
-    AabbGeometry blas(ctx_, aabbs.address(), count, refit);
+    AabbGeometry blas(aabbs.address(), refit);
     blas.info.srcAccelerationStructure = refit ? blas_->handle() : VK_NULL_HANDLE;
     blas.info.dstAccelerationStructure = blas_->handle();
     blas.info.scratchData.deviceAddress = scratch;
@@ -199,7 +209,7 @@ void AabbAccel::record_build(VkCommandBuffer cmd, const Buffer& aabbs, uint32_t 
     between.dstAccessMask = VK_ACCESS_ACCELERATION_STRUCTURE_READ_BIT_KHR | VK_ACCESS_ACCELERATION_STRUCTURE_WRITE_BIT_KHR;
     vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_ACCELERATION_STRUCTURE_BUILD_BIT_KHR,
                          VK_PIPELINE_STAGE_ACCELERATION_STRUCTURE_BUILD_BIT_KHR, 0, 1, &between, 0, nullptr, 0, nullptr);
-    InstanceGeometry tlas(ctx_, instance_.address(), 1);
+    InstanceGeometry tlas(instance_.address());
     tlas.info.dstAccelerationStructure = tlas_->handle();
     tlas.info.scratchData.deviceAddress = scratch;
     const VkAccelerationStructureBuildRangeInfoKHR tlas_range{1, 0, 0, 0};
@@ -215,10 +225,11 @@ std::unique_ptr<AccelerationStructure> build_tlas(Context& ctx, const std::vecto
     Buffer instance_buffer = Buffer::with_vector(
         ctx, vk_instances, VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR);
     const uint32_t count = uint32_t(instances.size());
-    InstanceGeometry build(ctx, instance_buffer.address(), count);
+    InstanceGeometry build(instance_buffer.address());
+    const VkAccelerationStructureBuildSizesInfoKHR sizes = build.sizes(ctx, count);
     auto tlas = std::make_unique<AccelerationStructure>(ctx, VK_ACCELERATION_STRUCTURE_TYPE_TOP_LEVEL_KHR,
-                                                        build.sizes.accelerationStructureSize);
-    Buffer scratch(ctx, build.sizes.buildScratchSize + 256, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+                                                        sizes.accelerationStructureSize);
+    Buffer scratch(ctx, sizes.buildScratchSize + 256, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
     build.info.dstAccelerationStructure = tlas->handle();
     build.info.scratchData.deviceAddress = align_up(scratch.address(), 256);
     VkAccelerationStructureBuildRangeInfoKHR range{count, 0, 0, 0};
