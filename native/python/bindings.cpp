@@ -8,6 +8,8 @@
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
 
+#include <cstring>
+
 namespace nb = nanobind;
 using namespace nb::literals;
 
@@ -94,6 +96,17 @@ NB_MODULE(_native, m) {
           "Scenes with at least this many local lights (emissive triangles, point, spot and area "
           "lights) pick them through the light tree (where the session's light_tree setting is on), "
           "fewer from the power CDF alone.");
+    m.def("primitive_order",
+          [](nb::ndarray<const float, nb::shape<-1, 3>, nb::c_contig, nb::device::cpu> lo,
+             nb::ndarray<const float, nb::shape<-1, 3>, nb::c_contig, nb::device::cpu> hi) {
+              if (lo.shape(0) != hi.shape(0)) throw std::invalid_argument("lo and hi differ in length");
+              std::vector<px::vec3> l(lo.shape(0)), h(hi.shape(0));
+              std::memcpy(l.data(), lo.data(), l.size() * sizeof(px::vec3));
+              std::memcpy(h.data(), hi.data(), h.size() * sizeof(px::vec3));
+              return px::bvh_order(l, h);
+          }, "lo"_a, "hi"_a,
+          "The order in which an upload hands primitives with boxes (lo, hi) (N x 3 float32) to "
+          "the BVH builder (scene.h bvh_order): a permutation of range(N).");
     m.def("set_light_tree_min_lights", &px::set_light_tree_min_lights, "n"_a,
           "Sets light_tree_min_lights for scenes updated from now on (0 or 1: always the tree; "
           "2**32 - 1: never); a benchmark and test knob.");

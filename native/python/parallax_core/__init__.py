@@ -14,7 +14,7 @@ import dataclasses
 import operator
 import os
 
-from ._native import (LIMITS, METHODS, DeviceMemoryError, devices, light_tree_min_lights, memory,
+from ._native import (LIMITS, METHODS, DeviceMemoryError, devices, light_tree_min_lights, memory, primitive_order,
                       set_light_tree_min_lights, set_memory_budget, validation_enabled, validation_messages)
 from ._native import Session as _NativeSession
 from ._native import _RenderParams
@@ -22,7 +22,7 @@ from .scene import PART_KEYS, PARTS, parts_set
 
 __all__ = ["Session", "RenderParams", "devices", "METHODS", "PASSES", "PARTS", "LIMITS", "DeviceMemoryError",
            "memory", "set_memory_budget", "validation_enabled", "validation_messages", "light_tree_min_lights",
-           "set_light_tree_min_lights"]
+           "set_light_tree_min_lights", "primitive_order"]
 
 PASSES = tuple(_NativeSession.pass_names())
 HEURISTICS = ("balance", "power")

@@ -242,7 +242,7 @@ uint scene_features(const SceneHost& s) {
     return f;
 }
 
-// Positions, triangles, per-corner normals/uvs and meshes; triangles Morton-ordered per mesh.
+// Positions, triangles, per-corner normals/uvs and meshes; triangles in bvh_order per mesh.
 std::shared_ptr<const SceneGeometry> prepare_geometry(const SceneArrays& a, bool spatial_order) {
     auto out = std::make_shared<SceneGeometry>();
     SceneGeometry& g = *out;
@@ -305,13 +305,14 @@ std::shared_ptr<const SceneGeometry> prepare_geometry(const SceneArrays& a, bool
         g.meshes[m] = {uint(first), uint(count), mesh_has_n.data[m] && normals.rows ? 1u : 0u,
                        mesh_has_uv.data[m] && uvs.rows ? 1u : 0u};
         if (!spatial_order || count < 2) continue;
-        // Reorder this mesh's triangles along a Morton curve of their centroids.
-        std::vector<vec3> centroids(count);
+        // Reorder this mesh's triangles for lavapipe's BVH builder (bvh_order).
+        std::vector<vec3> tri_lo(count), tri_hi(count);
         for (size_t i = 0; i < count; ++i) {
             uvec3 tri = g.indices[first + i];
-            centroids[i] = (g.positions[tri.x] + g.positions[tri.y] + g.positions[tri.z]) * (1.0f / 3.0f);
+            tri_lo[i] = vmin(g.positions[tri.x], vmin(g.positions[tri.y], g.positions[tri.z]));
+            tri_hi[i] = vmax(g.positions[tri.x], vmax(g.positions[tri.y], g.positions[tri.z]));
         }
-        auto order = morton_order(centroids);
+        auto order = bvh_order(tri_lo, tri_hi);
         auto permute = [&](auto& vec, size_t per) {
             if (vec.empty()) return;
             std::vector<typename std::decay_t<decltype(vec)>::value_type> tmp(count * per);
@@ -474,7 +475,7 @@ std::shared_ptr<const SceneMaterials> prepare_materials(const SceneArrays& a, co
     return out;
 }
 
-// Instances in TLAS order (Morton order of their bounds) and the scene's bounding sphere.
+// Instances in TLAS order (bvh_order of their bounds) and the scene's bounding sphere.
 std::shared_ptr<const ScenePlacement> prepare_instances(const SceneArrays& a, bool spatial_order,
                                                         const SceneGeometry& g) {
     auto out = std::make_shared<ScenePlacement>();
@@ -483,7 +484,7 @@ std::shared_ptr<const ScenePlacement> prepare_instances(const SceneArrays& a, bo
     auto inst_mesh = get<uint32_t>(a, "instance_mesh", 'u', {});
     if (inst_mesh.rows != inst_xf.rows) bad("instance_transform and instance_mesh differ in length");
     std::vector<InstanceInfo> instances;
-    std::vector<vec3> centers;
+    std::vector<vec3> inst_lo, inst_hi;  // world bounds (BVH order)
     vec3 scene_lo{INFINITY, INFINITY, INFINITY}, scene_hi{-INFINITY, -INFINITY, -INFINITY};
     size_t skipped = 0;
     for (size_t i = 0; i < inst_xf.rows; ++i) {
@@ -532,12 +533,12 @@ std::shared_ptr<const ScenePlacement> prepare_instances(const SceneArrays& a, bo
         out->reach = std::max(out->reach, reach);
         vec3 lo{float(dlo[0]), float(dlo[1]), float(dlo[2])}, hi{float(dhi[0]), float(dhi[1]), float(dhi[2])};
         scene_lo = vmin(scene_lo, lo), scene_hi = vmax(scene_hi, hi);
-        centers.push_back((lo + hi) * 0.5f);
+        inst_lo.push_back(lo), inst_hi.push_back(hi);
         instances.push_back(inst);
     }
     if (skipped) out->warnings.push_back(std::to_string(skipped) + " instance(s) of empty meshes or with singular transforms skipped");
     if (spatial_order && instances.size() > 1) {
-        auto order = morton_order(centers);
+        auto order = bvh_order(inst_lo, inst_hi);
         out->instances.reserve(instances.size());
         for (uint32_t i : order) out->instances.push_back(instances[i]);
     } else {
@@ -790,6 +791,71 @@ void prepare_camera(const SceneArrays& a, SceneInfo& info) {
 }
 
 }  // namespace
+
+namespace {
+struct OrderItem {
+    vec3 lo, hi;  // the primitive's box
+    uint32_t index;
+    float centre(int axis) const { return (&lo.x)[axis] + (&hi.x)[axis]; }  // doubled
+};
+
+float half_area(vec3 lo, vec3 hi) {
+    vec3 d{std::max(hi.x - lo.x, 0.0f), std::max(hi.y - lo.y, 0.0f), std::max(hi.z - lo.z, 0.0f)};
+    return d.x * d.y + d.y * d.z + d.z * d.x;
+}
+
+// Orders items[first..last] (inclusive) as lavapipe's builder splits them: at (first + last) / 2,
+// the left half first .. split, the right half after it, one primitive per leaf. The builder
+// fixes the split's position, not its axis: each split partitions at the median along the axis
+// whose median partition has the lowest surface-area cost, area(L) n_L + area(R) n_R
+// (MacDonald & Booth 1990). The medians that judge the axes come from up to 255 of the range's
+// primitives (all of them in smaller ranges), the costs from one pass over the range.
+void median_split_order(std::vector<OrderItem>& items, size_t first, size_t last) {
+    std::vector<float> sample;
+    while (first < last) {
+        size_t n = last - first + 1, split = (first + last) / 2, m = std::min<size_t>(n, 255);
+        float median[3];
+        for (int axis = 0; axis < 3; ++axis) {
+            sample.resize(m);
+            for (size_t j = 0; j < m; ++j) sample[j] = items[first + j * n / m].centre(axis);
+            std::nth_element(sample.begin(), sample.begin() + m / 2, sample.end());
+            median[axis] = sample[m / 2];
+        }
+        vec3 lo[2][3], hi[2][3];
+        size_t count_left[3] = {0, 0, 0};
+        for (int axis = 0; axis < 3; ++axis)
+            for (int side = 0; side < 2; ++side) lo[side][axis] = {INFINITY, INFINITY, INFINITY}, hi[side][axis] = {-INFINITY, -INFINITY, -INFINITY};
+        for (size_t k = first; k <= last; ++k) {
+            const OrderItem& it = items[k];
+            for (int axis = 0; axis < 3; ++axis) {
+                int side = it.centre(axis) < median[axis] ? 0 : 1;
+                count_left[axis] += side == 0;
+                lo[side][axis] = vmin(lo[side][axis], it.lo), hi[side][axis] = vmax(hi[side][axis], it.hi);
+            }
+        }
+        int best = 0;
+        float best_cost = INFINITY;
+        for (int axis = 0; axis < 3; ++axis) {
+            float cost = half_area(lo[0][axis], hi[0][axis]) * float(count_left[axis]) +
+                         half_area(lo[1][axis], hi[1][axis]) * float(n - count_left[axis]);
+            if (cost < best_cost) best_cost = cost, best = axis;
+        }
+        std::nth_element(items.begin() + first, items.begin() + split, items.begin() + last + 1,
+                         [best](const OrderItem& a, const OrderItem& b) { return a.centre(best) < b.centre(best); });
+        median_split_order(items, first, split);
+        first = split + 1;
+    }
+}
+}  // namespace
+
+std::vector<uint32_t> bvh_order(const std::vector<vec3>& lo, const std::vector<vec3>& hi) {
+    std::vector<OrderItem> items(lo.size());
+    for (size_t i = 0; i < lo.size(); ++i) items[i] = {lo[i], hi[i], uint32_t(i)};
+    if (!items.empty()) median_split_order(items, 0, items.size() - 1);
+    std::vector<uint32_t> order(items.size());
+    for (size_t i = 0; i < items.size(); ++i) order[i] = items[i].index;
+    return order;
+}
 
 std::vector<uint32_t> morton_order(const std::vector<vec3>& points) {
     vec3 lo{INFINITY, INFINITY, INFINITY}, hi{-INFINITY, -INFINITY, -INFINITY};
