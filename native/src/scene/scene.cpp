@@ -92,19 +92,6 @@ vec3 transform_point(const vec4* rows, vec3 p) {
             rows[2].x * p.x + rows[2].y * p.y + rows[2].z * p.z + rows[2].w};
 }
 
-// 30-bit Morton code of a point already normalised to [0,1]^3.
-uint32_t morton3(vec3 p) {
-    auto spread = [](uint32_t x) {
-        x = (x | (x << 16)) & 0x030000FF;
-        x = (x | (x << 8)) & 0x0300F00F;
-        x = (x | (x << 4)) & 0x030C30C3;
-        x = (x | (x << 2)) & 0x09249249;
-        return x;
-    };
-    auto q = [](float f) { return uint32_t(std::min(std::max(f, 0.0f), 1.0f) * 1023.0f); };
-    return (spread(q(p.x)) << 2) | (spread(q(p.y)) << 1) | spread(q(p.z));
-}
-
 // Analytic light `i` of the light_* arrays in Cycles' units -> radiance (see DESIGN "Units
 // match Cycles"). Derived values are computed in double, so an overflow is an error naming
 // the light rather than an Inf in the light table. `weight` is its selection weight (emitted
@@ -856,23 +843,6 @@ std::vector<uint32_t> bvh_order(const std::vector<vec3>& lo, const std::vector<v
     for (size_t i = 0; i < items.size(); ++i) order[i] = items[i].index;
     return order;
 }
-
-std::vector<uint32_t> morton_order(const std::vector<vec3>& points) {
-    vec3 lo{INFINITY, INFINITY, INFINITY}, hi{-INFINITY, -INFINITY, -INFINITY};
-    for (auto p : points) lo = vmin(lo, p), hi = vmax(hi, p);
-    vec3 ext = hi - lo;
-    vec3 inv{ext.x > 0 ? 1 / ext.x : 0, ext.y > 0 ? 1 / ext.y : 0, ext.z > 0 ? 1 / ext.z : 0};
-    std::vector<std::pair<uint32_t, uint32_t>> keys(points.size());
-    for (size_t i = 0; i < points.size(); ++i) {
-        vec3 d = points[i] - lo;
-        keys[i] = {morton3({d.x * inv.x, d.y * inv.y, d.z * inv.z}), uint32_t(i)};
-    }
-    std::sort(keys.begin(), keys.end());
-    std::vector<uint32_t> order(points.size());
-    for (size_t i = 0; i < keys.size(); ++i) order[i] = keys[i].second;
-    return order;
-}
-
 
 OwnedArray::OwnedArray(const ArrayView& v) : shape(v.shape), kind(v.kind), itemsize(v.itemsize) {
     const auto* p = static_cast<const uint8_t*>(v.data);

@@ -147,9 +147,6 @@ SceneHost update_scene(const SceneHost& previous, const SceneArrays& arrays, boo
 // another `light_tree` setting; everything else, the environment included, is shared.
 SceneHost relight_scene(const SceneHost& previous, const SceneArrays& arrays, bool light_tree);
 
-// Permutation sorting `points` along a Morton curve within their bounding box.
-std::vector<uint32_t> morton_order(const std::vector<vec3>& points);
-
 // The order to hand primitives with boxes [lo, hi] to a BVH builder that splits its input in
 // halves without sorting (lavapipe's): a median split per node along the axis of lowest
 // surface-area cost. Without it a shuffled mesh traces hundreds of times slower there; against

@@ -118,10 +118,14 @@ void IrradianceCache::rebuild() {
     std::vector<IcEntry> entries(count_);
     if (count_) {
         entries_.download(entries.data(), entries.size() * sizeof(IcEntry));
-        std::vector<vec3> points(count_);
-        for (uint32_t i = 0; i < count_; ++i) points[i] = entries[i].position;
+        std::vector<vec3> lo(count_), hi(count_);
+        for (uint32_t i = 0; i < count_; ++i) {
+            const float r = params_.accuracy * entries[i].radius;
+            const vec3 p = entries[i].position;
+            lo[i] = {p.x - r, p.y - r, p.z - r}, hi[i] = {p.x + r, p.y + r, p.z + r};
+        }
         std::vector<IcEntry> sorted(count_);
-        auto order = morton_order(points);
+        auto order = bvh_order(lo, hi);
         for (uint32_t i = 0; i < count_; ++i) sorted[i] = entries[order[i]];
         entries.swap(sorted);
         entries_.upload(entries.data(), entries.size() * sizeof(IcEntry));

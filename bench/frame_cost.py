@@ -1,0 +1,71 @@
+"""Milliseconds per frame of each method on exported scenes: what NEE, MIS and guiding cost
+per frame against plain path tracing on one device (the ratios, not the rates, carry over).
+
+    python -m bench.frame_cost --npz bench/npz [--scenes clocks,light_behind_glass]
+        [--methods pt,nee,mis,guiding,guiding_pt] [--spp 64] [--device gpu] [--out FILE.json]
+
+Each method gets a fresh session with the frame's samples (`--spp`), two warm-up frames, then
+as many frames as fit in a second. Guiding keeps training with the device fit (the frames of a
+guided render). Scenes come from `bench.converge --export-only --npz DIR --width 320`.
+"""
+import argparse
+import json
+import time
+
+from bench.converge import MAX_DEPTH, load_scene
+
+METHODS = {
+    "pt": dict(method="pt"),
+    "nee": dict(method="nee"),
+    "mis": dict(method="mis"),
+    "nee_no_light_tree": dict(method="nee", light_tree=False),
+    "guiding": dict(method="mis", guiding=True, guiding_training_spp=0, guiding_fit="device"),
+    "guiding_pt": dict(method="pt", guiding=True, guiding_training_spp=0, guiding_fit="device"),
+}
+
+
+def frame_ms(scene, device, spp, params, seconds=1.0):
+    import parallax_core as pc
+
+    session = pc.Session(scene.width, scene.height, device)
+    session.set_params(samples_per_frame=spp, max_depth=MAX_DEPTH, depth_leeway=0, seed=0, **params)
+    session.update(scene)
+    session.render(2)
+    frames, start = 0, time.perf_counter()
+    while time.perf_counter() - start < seconds:
+        session.render(1)
+        frames += 1
+    return 1e3 * (time.perf_counter() - start) / frames, frames
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--npz", required=True, help="folder of exported scenes")
+    ap.add_argument("--scenes", default="clocks,light_behind_glass")
+    ap.add_argument("--methods", default="pt,nee,mis,guiding,guiding_pt")
+    ap.add_argument("--spp", type=int, default=64, help="samples per pixel per frame")
+    ap.add_argument("--device", default="gpu")
+    ap.add_argument("--out", help="write the table as JSON here")
+    args = ap.parse_args(argv)
+    methods = args.methods.split(",")
+    unknown = [m for m in methods if m not in METHODS]
+    if unknown:
+        ap.error(f"unknown methods {unknown} (known: {', '.join(METHODS)})")
+    table = {}
+    print("| scene | method | ms per frame | x PT |\n|---|---|---:|---:|")
+    for name in args.scenes.split(","):
+        scene = load_scene(name, 0, args.npz)
+        pt = None
+        for method in methods:
+            ms, frames = frame_ms(scene, args.device, args.spp, METHODS[method])
+            pt = ms if method == "pt" else pt
+            table[f"{name}/{method}"] = dict(ms=round(ms, 2), frames=frames)
+            ratio = f"{ms / pt:.1f}" if pt else ""
+            print(f"| {name} | {method} | {ms:.1f} | {ratio} |", flush=True)
+    if args.out:
+        with open(args.out, "w") as f:
+            json.dump(table, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()
