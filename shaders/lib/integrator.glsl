@@ -133,14 +133,20 @@ ShadowRay no_shadow_ray(vec3 origin, vec3 dir) {
     return ShadowRay(origin, 0.0, dir, NO_INDEX, vec3(0.0), NO_INDEX, NO_INDEX);
 }
 
+// 1 (GPUs): paths without a pending shadow ray make an empty trace call (cull mask 0, zero
+// length) all the same; calls that only part of a warp made cost NEE frames 10-16% on the
+// H200. 0 (lavapipe): they skip it; the empty calls cost lavapipe 8% in light behind glass.
+layout(constant_id = 4) const uint EMPTY_SHADOW_CALLS = 1u;
+
 // Traces the pending shadow ray and adds its light where nothing is in the way. The guiding
 // record sampled at its vertex (g_base: the radiance when it was sampled) counts that light as
-// already there: a vertex's own NEE is not light arriving along its sampled direction. Paths
-// without a pending ray make an empty call (cull mask 0, zero length) all the same: calls
-// that only part of a GPU's warp made cost NEE frames 10-16% on the H200.
+// already there: a vertex's own NEE is not light arriving along its sampled direction.
 void trace_pending_shadow(inout ShadowRay pending, inout PathResult res, inout vec4 g_base) {
     if (NEE_USED == 0u) return;
     bool pending_ray = max3(pending.contribution) > 0.0;
+    if (!pending_ray) {
+        if (EMPTY_SHADOW_CALLS == 0u) return;
+    }
     if (pending_ray) res.rays++;
     shadow_hit.t = 0.0;
     shadow_hit.instance = pending.self_instance;

@@ -301,8 +301,11 @@ std::unique_ptr<RayTracingPipeline> Session::build_pipeline(uint32_t program, co
             if (g.type == VK_RAY_TRACING_SHADER_GROUP_TYPE_TRIANGLES_HIT_GROUP_KHR) g.any_hit = uint32_t(stages.size());
         stages.push_back({VK_SHADER_STAGE_ANY_HIT_BIT_KHR, &shader_self_skip_any_hit()});
     }
+    // Specialisation: METHOD, MIS_HEURISTIC, SCENE_FEATURES, TECHNIQUES, EMPTY_SHADOW_CALLS.
+    std::vector<uint32_t> constants(key.begin(), key.begin() + 4);
+    constants.push_back(ctx_->is_cpu() ? 0u : 1u);
     return std::make_unique<RayTracingPipeline>(*ctx_, set_->layout(), uint32_t(sizeof(FrameParams)), stages, groups,
-                                                std::vector<uint32_t>(key.begin(), key.begin() + 4));
+                                                constants);
 }
 
 ComputePipeline& Session::ic_finish_pipeline() {
