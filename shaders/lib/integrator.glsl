@@ -117,8 +117,9 @@ const uint NEE_USED = uint(METHOD != METHOD_PT) | (TECHNIQUES & (TECH_IC | TECH_
 // A vertex's NEE shadow ray, traced later: just before the path's next ray, or when the path
 // ends. Its vertex's surface, shading frame and BSDF are then no longer live across the trace
 // call, and the shadow and path rays are traced at the same point of every loop iteration.
-// On the H200 this made guided MIS frames 17% cheaper, NEE and MIS frames 16% in light
-// behind glass (bench/results/gpu_nee/README.md); lavapipe runs as fast as before.
+// With the empty calls below, on the H200 guided MIS frames cost 12-20% less, NEE and MIS
+// frames in light behind glass 11-19% less, NEE on clocks 6% more
+// (bench/results/gpu_nee/README.md); lavapipe runs as fast as before.
 struct ShadowRay {
     vec3 origin;
     float t_max;
@@ -134,8 +135,8 @@ ShadowRay no_shadow_ray(vec3 origin, vec3 dir) {
 }
 
 // 1 (GPUs): paths without a pending shadow ray make an empty trace call (cull mask 0, zero
-// length) all the same; calls that only part of a warp made cost NEE frames 10-16% on the
-// H200. 0 (lavapipe): they skip it; the empty calls cost lavapipe 8% in light behind glass.
+// length) all the same; without them NEE and MIS frames in light behind glass cost 14-16%
+// more on the H200. 0 (lavapipe): they skip it; the empty calls cost lavapipe 8% there.
 layout(constant_id = 4) const uint EMPTY_SHADOW_CALLS = 1u;
 
 // Traces the pending shadow ray and adds its light where nothing is in the way. The guiding
