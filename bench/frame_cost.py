@@ -2,26 +2,18 @@
 per frame against plain path tracing on one device (the ratios, not the rates, carry over).
 
     python -m bench.frame_cost --npz bench/npz [--scenes clocks,light_behind_glass]
-        [--methods pt,nee,mis,guiding,guiding_pt] [--spp 64] [--device gpu] [--out FILE.json]
+        [--methods pt,nee,mis,guiding_device,guiding_pt_device] [--spp 64] [--device gpu] [--out FILE.json]
 
-Each method gets a fresh session with the frame's samples (`--spp`), two warm-up frames, then
-as many frames as fit in a second. Guiding keeps training with the device fit (the frames of a
-guided render). Scenes come from `bench.converge --export-only --npz DIR --width 320`.
+Methods are bench.converge's (its method_params: guiding keeps training, as in a guided
+render). Each gets a fresh session with the frame's samples (`--spp`), two warm-up frames,
+then as many frames as fit in a second. Scenes come from
+`bench.converge --export-only --npz DIR --width 320`.
 """
 import argparse
 import json
 import time
 
-from bench.converge import MAX_DEPTH, load_scene
-
-METHODS = {
-    "pt": dict(method="pt"),
-    "nee": dict(method="nee"),
-    "mis": dict(method="mis"),
-    "nee_no_light_tree": dict(method="nee", light_tree=False),
-    "guiding": dict(method="mis", guiding=True, guiding_training_spp=0, guiding_fit="device"),
-    "guiding_pt": dict(method="pt", guiding=True, guiding_training_spp=0, guiding_fit="device"),
-}
+from bench.converge import MAX_DEPTH, METHODS, load_scene, method_params
 
 
 def frame_ms(scene, device, spp, params, seconds=1.0):
@@ -42,7 +34,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--npz", required=True, help="folder of exported scenes")
     ap.add_argument("--scenes", default="clocks,light_behind_glass")
-    ap.add_argument("--methods", default="pt,nee,mis,guiding,guiding_pt")
+    ap.add_argument("--methods", default="pt,nee,mis,guiding_device,guiding_pt_device")
     ap.add_argument("--spp", type=int, default=64, help="samples per pixel per frame")
     ap.add_argument("--device", default="gpu")
     ap.add_argument("--out", help="write the table as JSON here")
@@ -57,7 +49,7 @@ def main(argv=None):
         scene = load_scene(name, 0, args.npz)
         pt = None
         for method in methods:
-            ms, frames = frame_ms(scene, args.device, args.spp, METHODS[method])
+            ms, frames = frame_ms(scene, args.device, args.spp, method_params(method))
             pt = ms if method == "pt" else pt
             table[f"{name}/{method}"] = dict(ms=round(ms, 2), frames=frames)
             ratio = f"{ms / pt:.1f}" if pt else ""

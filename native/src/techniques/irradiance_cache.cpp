@@ -115,14 +115,19 @@ void IrradianceCache::reset() {
 // the entries, not with the capacity.
 void IrradianceCache::rebuild() {
     auto start = std::chrono::steady_clock::now();
+    // An entry's box: the sphere of its validity radius times ic_accuracy.
+    auto box_of = [&](const IcEntry& e) {
+        const float r = params_.accuracy * e.radius;
+        return VkAabbPositionsKHR{e.position.x - r, e.position.y - r, e.position.z - r,
+                                  e.position.x + r, e.position.y + r, e.position.z + r};
+    };
     std::vector<IcEntry> entries(count_);
     if (count_) {
         entries_.download(entries.data(), entries.size() * sizeof(IcEntry));
         std::vector<vec3> lo(count_), hi(count_);
         for (uint32_t i = 0; i < count_; ++i) {
-            const float r = params_.accuracy * entries[i].radius;
-            const vec3 p = entries[i].position;
-            lo[i] = {p.x - r, p.y - r, p.z - r}, hi[i] = {p.x + r, p.y + r, p.z + r};
+            const VkAabbPositionsKHR b = box_of(entries[i]);
+            lo[i] = {b.minX, b.minY, b.minZ}, hi[i] = {b.maxX, b.maxY, b.maxZ};
         }
         std::vector<IcEntry> sorted(count_);
         auto order = bvh_order(lo, hi);
@@ -137,12 +142,7 @@ void IrradianceCache::rebuild() {
     const uint32_t room = params_.rebuild_interval > 1 ? std::min(params_.queue_capacity, 4096u) : 0;
     built_slots_ = std::max(1u, std::min(allocated_, count_ + room));
     std::vector<VkAabbPositionsKHR> boxes(built_slots_, empty);
-    for (uint32_t i = 0; i < count_; ++i) {
-        const IcEntry& e = entries[i];
-        const float r = params_.accuracy * e.radius;
-        boxes[i] = {e.position.x - r, e.position.y - r, e.position.z - r,
-                    e.position.x + r, e.position.y + r, e.position.z + r};
-    }
+    for (uint32_t i = 0; i < count_; ++i) boxes[i] = box_of(entries[i]);
     aabbs_.upload(boxes.data(), boxes.size() * sizeof(VkAabbPositionsKHR));
     accel_->reserve(built_slots_, allocated_);
     ctx_.submit_and_wait([&](VkCommandBuffer cmd) { accel_->record_build(cmd, aabbs_, built_slots_); });
