@@ -29,6 +29,8 @@ struct LightSample {
 // taken from the nearer of +-axis. The receiver term bounds |cos| at p's surface (normal n,
 // either side: it may transmit; n = 0: none). The importance depends on (p, n) alone, and
 // MIS re-derives it from the previous vertex's position and geometric normal.
+// The angle differences are taken on cosines and sines (cos_minus): no acos/asin/cos per node,
+// which made the tree walk the costliest part of a light sample.
 float light_tree_importance(uint node, vec3 p, vec3 n_p) {
     LightTreeNode n = light_tree[node];
     vec3 h = 0.5 * (n.bounds_max - n.bounds_min);
@@ -36,19 +38,21 @@ float light_tree_importance(uint node, vec3 p, vec3 n_p) {
     vec3 pc = p - 0.5 * (n.bounds_min + n.bounds_max);
     float d2 = dot(pc, pc);
     float cos_factor = 1.0;
-    if (n.theta_o < PI && d2 > r2) {
-        float c = dot(n.axis, pc) * inversesqrt(d2);
-        float theta = acos(clamp(n.two_sided != 0u ? abs(c) : c, -1.0, 1.0));  // two-sided: from +-axis
-        float theta_u = asin(min(sqrt(r2 / d2), 1.0));
-        // 1e-3: lavapipe's acos/asin are approximate; the bound must stay conservative
-        float t = max(0.0, theta - n.theta_o - theta_u - 1e-3);
-        if (t >= n.theta_e) return 0.0;
-        cos_factor = cos(t);
-    }
-    float nn = dot(n_p, n_p);
-    if (nn > 0.0 && d2 > r2) {
-        float theta_r = acos(clamp(abs(dot(n_p, pc)) * inversesqrt(d2 * nn), 0.0, 1.0));
-        cos_factor *= cos(max(0.0, theta_r - asin(min(sqrt(r2 / d2), 1.0)) - 1e-3));
+    if (d2 > r2) {
+        vec2 u = vec2(sqrt(1.0 - r2 / d2), sqrt(r2 / d2));  // theta_u: (cos, sin)
+        if (n.cos_o > -1.0) {
+            float c = dot(n.axis, pc) * inversesqrt(d2);
+            c = clamp((n.flags & LIGHT_NODE_TWO_SIDED) != 0u ? abs(c) : c, -1.0, 1.0);  // two-sided: from +-axis
+            vec2 t = cos_minus(cos_minus(vec2(c, sqrt(1.0 - c * c)), vec2(n.cos_o, n.sin_o)), u);
+            // 1e-3: float rounding in the sines must not cut off a node that reaches p
+            if (t.x < n.cos_e - 1e-3) return 0.0;
+            cos_factor = t.x;
+        }
+        float nn = dot(n_p, n_p);
+        if (nn > 0.0) {
+            float c = clamp(abs(dot(n_p, pc)) * inversesqrt(d2 * nn), 0.0, 1.0);
+            cos_factor *= cos_minus(vec2(c, sqrt(1.0 - c * c)), u).x;
+        }
     }
     return n.power * cos_factor / max(max(d2, 0.25 * r2), 1e-30);
 }
@@ -68,7 +72,7 @@ float light_tree_step(uint parent, uint node, vec3 p, vec3 n) {
 uint light_tree_sample(vec3 p, vec3 n_p, float u, out float prob) {
     uint n = 0u;
     prob = 1.0;
-    while (light_tree[n].leaf == 0u) {
+    while ((light_tree[n].flags & LIGHT_NODE_LEAF) == 0u) {
         uint c = light_tree[n].child;
         float il = light_tree_importance(c, p, n_p), ir = light_tree_importance(c + 1u, p, n_p);
         if (!(il + ir > 0.0)) {

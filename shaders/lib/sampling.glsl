@@ -31,6 +31,13 @@ float one_minus_cos_from_sin2(float sin2) {
     return sin2 < 1e-3 ? 0.5 * sin2 + 0.125 * sin2 * sin2 : 1.0 - sqrt(max(0.0, 1.0 - sin2));
 }
 
+// (cos, sin) of max(0, a - b) for angles a, b in [0, pi] given as (cos, sin):
+// cos(a - b) = cos a cos b + sin a sin b, sin(a - b) = sin a cos b - cos a sin b.
+vec2 cos_minus(vec2 a, vec2 b) {
+    if (a.x >= b.x) return vec2(1.0, 0.0);  // a <= b
+    return vec2(a.x * b.x + a.y * b.y, max(0.0, a.y * b.x - a.x * b.y));
+}
+
 // Uniform direction in the cone around +z with 1 - cos(theta_max) = omc; pdf = 1 / (2 pi omc).
 vec3 uniform_cone(vec2 u, float omc) {
     float one_minus_cos = u.x * omc;

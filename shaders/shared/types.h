@@ -219,19 +219,22 @@ struct Light {
 // A node of the light tree (Conty Estevez & Kulla 2018): a binary BVH over the local lights
 // (emissive triangles, sphere, spot, rect, disk) with, per node, the bounds of its lights'
 // positions, of their emission directions (a cone of normals: axis, theta_o, plus the spread
-// theta_e of emission around a normal) and their summed power. Children are adjacent.
+// theta_e of emission around a normal) and their summed power. Children are adjacent. The
+// angles are kept as cosines and sines: the shader's importance needs no inverse trigonometry.
 struct LightTreeNode {
     vec3 bounds_min;
     uint child;      // interior: the first child (the second is child + 1); leaf: the light index
     vec3 bounds_max;
     uint parent;     // NO_INDEX at the root
     vec3 axis;       // normal cone axis
-    float theta_o;   // normals within theta_o of the axis (pi: any direction)
-    float theta_e;   // emission within theta_e of a normal (pi/2: a diffuse emitter)
+    float cos_o;     // normals within theta_o of the axis (-1: any direction)
+    float sin_o;
+    float cos_e;     // emission within theta_e of a normal (0: a diffuse emitter)
     float power;     // summed selection weight of the lights below
-    uint leaf;       // 1 for a leaf
-    uint two_sided;  // 1: the lights emit on both sides: the cone bounds the normals up to sign
+    uint flags;      // LIGHT_NODE_*
 };
+PX_CONST uint LIGHT_NODE_LEAF = 1u;
+PX_CONST uint LIGHT_NODE_TWO_SIDED = 2u;  // the lights emit on both sides: the cone bounds the normals up to sign
 
 // Point/spot with a radius: Cycles' Soft Falloff (Blender's default). The light is a disk of
 // the sphere's radius and radiance centred on the light and facing the shading point (Cycles'

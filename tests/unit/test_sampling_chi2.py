@@ -712,6 +712,61 @@ def test_light_tree(session, light_tree):
         f"the light next to p: picked for {picked:.4f} of the samples by the tree, {picked_cdf:.5f} by power")
 
 
+def test_light_tree_cuts_only_lights_that_cannot_reach_p(session, light_tree):
+    """The tree's importance is zero for a node none of whose lights can light p (no light
+    sample is wasted on them) and never for one that can: one-sided rectangles facing p,
+    facing away, and nearly edge-on; Soft Falloff spots with p inside their cone, far
+    outside it, and just outside the cone of the disk's centre but inside that of its near
+    edge (lit by part of the disk: the bounding sphere's angle theta_u must be subtracted)."""
+    rng = np.random.default_rng(11)
+    fib = [np.array([math.sqrt(1 - z * z) * math.cos(2.39996 * k), math.sqrt(1 - z * z) * math.sin(2.39996 * k), z])
+           for k, z in ((k, 1.0 - (k + 0.5) / 20.0) for k in range(40))]
+    lights, targets, edge = [], [], []  # targets: (centre, spanning vectors) of each light's emitting area
+    for k, f in enumerate(fib):
+        c = f * rng.uniform(1.5, 2.5)
+        to_p = -f
+        side = frame_around(to_p)[0]
+        if k % 4 < 3:  # rectangles: facing p, facing away (>= 120 deg), nearly edge-on (84-88 deg)
+            angle = math.radians((rng.uniform(0, 50), rng.uniform(120, 180), rng.uniform(84, 88))[k % 4])
+            normal = math.cos(angle) * to_p + math.sin(angle) * side
+            lights.append(Light("area", power=10.0, position=tuple(c), direction=tuple(normal), size=0.3))
+            u, v = frame_around(normal)[:2]
+            targets.append((c, 0.1 * u, 0.1 * v))  # within the square whichever its rotation
+        else:  # spots, cone half-angle 20 deg, radius 0.4 (9-15 deg seen from p)
+            kind = k // 4 % 3  # p inside the cone, far outside, just outside (lit by the disk's near part)
+            off = math.radians((rng.uniform(0, 10), 60.0, 27.0)[kind])
+            axis = math.cos(off) * to_p + math.sin(off) * side
+            lights.append(Light("spot", power=30.0, position=tuple(c), direction=tuple(axis), radius=0.4,
+                                spot_size=math.radians(40), spot_blend=0.0, soft_falloff=True))
+            u, v = frame_around(to_p)[:2]  # the disk faces p
+            targets.append((c, 0.4 * u, 0.4 * v))
+            if kind == 2:
+                edge.append(len(lights) - 1)
+    for normal in (False, True):
+        # Without the edge spots (most of their disk misses p's cone), a sample fails only when the
+        # walk enters a node whose lights all face away, which its merged cone cannot tell: 9.9%
+        # (16% with the cut-off replaced by a floor of 0.05 on the cosine bound).
+        r = sample_lights(session, lights_scene([l for i, l in enumerate(lights) if i not in edge]), P0,
+                          n=100_000, seed=SEED + 60 + normal, normal=normal)
+        failed = 1.0 - (r[:, 1, 2] > 0.5).mean()
+        assert failed < 0.12, f"{failed:.3f} of the light samples went to lights that cannot reach p"
+        # Directions to points on every light: wherever light arrives, NEE can sample it.
+        session.update(lights_scene(lights))
+        dirs = []
+        for c, a, b in targets:
+            s, t = rng.uniform(-1, 1, (2, 200))
+            dirs.append(c + s[:, None] * a + t[:, None] * b)
+        d = np.concatenate(dirs)
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        e = session.test_sampling(TEST_LIGHT + EVAL, [*P0, float(normal), 0.0], len(d), directions=d)
+        lit = (e[:, 1, 0] > 0).reshape(len(lights), 200)
+        unsampled = lit & ~(e[:, 1, 1] > 0).reshape(len(lights), 200)
+        assert all(lit[i].any() for i in edge), "the edge spots do not light p"
+        assert lit.sum() > 2000, lit.sum()
+        assert not unsampled.any(), (f"{unsampled.sum()} directions bring light that the tree never samples "
+                                     f"(lights {np.flatnonzero(unsampled.any(axis=1)).tolist()})")
+
+
 def test_sphere_light(session):
     c, rad, power = np.array([0.4, -0.2, 2.0]), 0.3, 25.0
     scene = lights_scene([Light("point", power=power, position=tuple(c), radius=rad)])

@@ -124,17 +124,18 @@ void build(std::vector<LightTreeNode>& nodes, std::vector<Item>& items, size_t b
     node.bounds_max = {std::nextafter(node.bounds_max.x, INFINITY), std::nextafter(node.bounds_max.y, INFINITY),
                        std::nextafter(node.bounds_max.z, INFINITY)};
     node.axis = f3(cone.axis);
-    node.theta_o = float(cone.theta_o);
-    node.theta_e = float(cone.theta_e);
+    const bool any_direction = cone.theta_o >= kPi;
+    node.cos_o = any_direction ? -1.0f : float(std::cos(cone.theta_o));
+    node.sin_o = any_direction ? 0.0f : float(std::sin(cone.theta_o));
+    node.cos_e = float(std::cos(cone.theta_e));
     node.power = float(power / total);
-    node.two_sided = cone.two_sided && cone.theta_o < kPi ? 1u : 0u;
+    node.flags = cone.two_sided && !any_direction ? LIGHT_NODE_TWO_SIDED : 0u;
     if (e - b == 1) {
-        node.leaf = 1;
+        node.flags |= LIGHT_NODE_LEAF;
         node.child = items[b].light;
         lights[items[b].light].tree_node = n;
         return;
     }
-    node.leaf = 0;
     const D3 ext = chi - clo;
     const int axis = ext.x >= ext.y && ext.x >= ext.z ? 0 : ext.y >= ext.z ? 1 : 2;
     const size_t mid = b + (e - b) / 2;
