@@ -3,6 +3,7 @@ per frame against plain path tracing on one device (the ratios, not the rates, c
 
     python -m bench.frame_cost --npz bench/npz [--scenes clocks,light_behind_glass]
         [--methods pt,nee,mis,guiding_device,guiding_pt_device] [--spp 64] [--device gpu] [--out FILE.json]
+        [--set light_tree=0 ...]
 
 Methods are bench.converge's (its method_params: guiding keeps training, as in a guided
 render). Each gets a fresh session with the frame's samples (`--spp`), two warm-up frames,
@@ -38,7 +39,13 @@ def main(argv=None):
     ap.add_argument("--spp", type=int, default=64, help="samples per pixel per frame")
     ap.add_argument("--device", default="gpu")
     ap.add_argument("--out", help="write the table as JSON here")
+    ap.add_argument("--set", nargs="*", default=[], metavar="NAME=INT",
+                    help="render settings for every method (Session.set_params), e.g. light_tree=0")
     args = ap.parse_args(argv)
+    try:
+        overrides = {k: int(v) for k, v in (item.split("=", 1) for item in args.set)}
+    except ValueError:
+        ap.error(f"--set takes NAME=INTEGER pairs, not {args.set}")
     methods = args.methods.split(",")
     unknown = [m for m in methods if m not in METHODS]
     if unknown:
@@ -49,7 +56,7 @@ def main(argv=None):
         scene = load_scene(name, 0, args.npz)
         pt = None
         for method in methods:
-            ms, frames = frame_ms(scene, args.device, args.spp, method_params(method))
+            ms, frames = frame_ms(scene, args.device, args.spp, {**method_params(method), **overrides})
             pt = ms if method == "pt" else pt
             table[f"{name}/{method}"] = dict(ms=round(ms, 2), frames=frames)
             ratio = f"{ms / pt:.1f}" if pt else ""
