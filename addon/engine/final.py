@@ -17,6 +17,7 @@ from .. import core, passes, sync
 UPDATE_SECONDS = 0.5
 POLL_SECONDS = 0.05
 BAND_SECONDS = 0.1
+JOIN_SECONDS = 10.0  # the longest render() waits for a cancelled worker's band to stop
 
 
 class RenderReport:
@@ -27,6 +28,7 @@ class RenderReport:
         self.errors, self.warnings = [], []
         self.samples, self.cancelled = 0, False
         self.finished_at = None  # time.time() when render() returned to Blender
+        self.worker_running = False  # the worker thread still ran when render() returned
 
 
 last_report = RenderReport()
@@ -219,10 +221,16 @@ def render(engine, depsgraph):
             cancelled = True
             break
         time.sleep(POLL_SECONDS)
+    # Wait for the cancelled worker: its band stops at the next dispatch. Returning while it is
+    # still inside the core let Blender quit under it (Esc then exit: the daemon thread, unwound
+    # at interpreter exit inside a native call, aborted Blender with "terminate called without
+    # an active exception"). Bounded, so a stuck device cannot hang Blender.
+    worker.join(JOIN_SECONDS)
     engine.end_result(result)
     if progress_stream is not None:
         progress_stream.write("\n")
     report.samples, report.cancelled = (shown[0] if shown else 0), cancelled
+    report.worker_running = worker.is_alive()
     if worker.error is not None:
         report.errors.append(str(worker.error))
         engine.report({"ERROR"}, f"Parallax: {worker.error}")

@@ -31,6 +31,7 @@ def test_cancel_returns_within_a_second_with_a_partial_image(bpy, tmp_path, monk
     assert asked and returned - asked[0] < 1.0
     report = final.last_report
     assert report.cancelled and not report.errors
+    assert not report.worker_running  # Blender may quit or free the session right after
     assert 0 < report.samples < 4096
     assert passes["Combined"][..., :3].mean() > 0.01  # the partial image, not black
 
