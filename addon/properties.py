@@ -102,8 +102,9 @@ class ParallaxRenderSettings(bpy.types.PropertyGroup):
         "Max Bounces, so light through glass and mirrors is not cut short (thesis, sec. 3.1)",
         default=4, min=0, max=64)
     use_russian_roulette: BoolProperty(
-        name="Russian Roulette", description="Terminate low-throughput paths at random, "
-        "reweighting the survivors (unbiased)", default=True)
+        name="Russian Roulette", description="Terminate low-throughput paths at random "
+        "(survival probability the square root of the throughput, as Cycles), reweighting the "
+        "survivors (unbiased)", default=True)
     rr_start_depth: IntProperty(
         name="Start Bounce", description="First bounce at which Russian roulette may end a path",
         default=3, min=1, max=1024)
