@@ -272,14 +272,7 @@ def render_cycles(name, width, seconds, guiding, reference, label):
         finally:
             bpy.app.handlers.render_stats.remove(on_stats)
         used = time.perf_counter() - start
-        path = os.path.join(os.environ.get("TMPDIR", "/tmp"), f"parallax_bench_{name}.exr")
-        cli.set_exr_output(scene.render.image_settings)
-        bpy.data.images["Render Result"].save_render(path, scene=scene)
-        import OpenEXR
-
-        with OpenEXR.File(path) as f:
-            image = np.array(f.parts[0].channels["ViewLayer.Combined"].pixels)[..., :3]
-        os.remove(path)
+        image = render_result_rgb(scene, name)
         spp = _last_sample_count(stats)
         if reference is not None:
             curve.append((used, rel_mse(image, reference)))
@@ -287,6 +280,22 @@ def render_cycles(name, width, seconds, guiding, reference, label):
         bar.update(done, f"{spp} spp")
     bar.close(f"{spp} spp")
     return image, spp, used, curve
+
+
+def render_result_rgb(scene, name):
+    """Blender's Render Result (the combined pass, RGB), read back through a temporary EXR."""
+    import bpy
+    import OpenEXR
+
+    from parallax_blender import cli
+
+    path = os.path.join(os.environ.get("TMPDIR", "/tmp"), f"parallax_bench_{name}.exr")
+    cli.set_exr_output(scene.render.image_settings)
+    bpy.data.images["Render Result"].save_render(path, scene=scene)
+    with OpenEXR.File(path) as f:
+        image = np.array(f.parts[0].channels["ViewLayer.Combined"].pixels)[..., :3]
+    os.remove(path)
+    return image
 
 
 def _last_sample_count(stats):

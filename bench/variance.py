@@ -10,16 +10,14 @@ Russian-roulette start bounce, with its rays per path (shadow rays included) as 
         [--runs 6] [--depths 1,8] [--rr 3] [--no-cycles]
 """
 import argparse
-import os
 
 import numpy as np
 
-from bench.converge import blend_path, export_scene
+from bench.converge import blend_path, export_scene, render_result_rgb
 
 
 def cycles_image(name, width, samples, depth, seed):
     import bpy
-    import OpenEXR
 
     from parallax_blender import cli
 
@@ -28,13 +26,7 @@ def cycles_image(name, width, samples, depth, seed):
     c.samples, c.use_adaptive_sampling, c.seed, c.device, c.time_limit = samples, False, seed, "CPU", 0
     c.max_bounces = c.diffuse_bounces = c.glossy_bounces = c.transmission_bounces = depth
     bpy.ops.render.render()
-    path = os.path.join(os.environ.get("TMPDIR", "/tmp"), f"parallax_variance_{name}.exr")
-    cli.set_exr_output(scene.render.image_settings)
-    bpy.data.images["Render Result"].save_render(path, scene=scene)
-    with OpenEXR.File(path) as f:
-        image = np.array(f.parts[0].channels["ViewLayer.Combined"].pixels)[..., :3]
-    os.remove(path)
-    return image
+    return render_result_rgb(scene, name)
 
 
 def parallax_image(scene, samples, depth, seed, rr_start_depth, rays):
