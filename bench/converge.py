@@ -496,6 +496,8 @@ def run(scenes=SCENES, seconds=120.0, device="auto", methods=("pt", "nee", "mis"
     os.makedirs(raw, exist_ok=True)
     for name in scenes:
         scene = load_scene(name, width, npz_dir)
+        if npz_dir:
+            width = scene.width  # exported scenes keep their own size (recorded in results.json)
         reference = reference_image(name, scene, reference_seconds or 10 * seconds, device, reference_dir)
         rows = []
         if warm:
