@@ -713,8 +713,8 @@ def test_light_tree(session, light_tree):
 
 
 def test_light_tree_cuts_only_lights_that_cannot_reach_p(session, light_tree):
-    """The tree's importance is zero for a node none of whose lights can light p (no light
-    sample is wasted on them) and never for one that can: one-sided rectangles facing p,
+    """The tree's importance is zero for a light that cannot light p (so it is never sampled)
+    and never for one that can: one-sided rectangles facing p,
     facing away, and nearly edge-on; Soft Falloff spots with p inside their cone, far
     outside it, and just outside the cone of the disk's centre but inside that of its near
     edge (lit by part of the disk: the bounding sphere's angle theta_u must be subtracted)."""
