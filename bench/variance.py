@@ -29,7 +29,8 @@ def cycles_image(name, width, samples, depth, seed):
     return render_result_rgb(scene, name)
 
 
-def parallax_image(scene, samples, depth, seed, rr_start_depth, rays):
+def parallax_image(scene, samples, depth, seed, rr_start_depth):
+    """(image, rays per path) of one Parallax MIS render."""
     import parallax_core as pc
 
     session = pc.Session(scene.width, scene.height, "auto")
@@ -37,8 +38,8 @@ def parallax_image(scene, samples, depth, seed, rr_start_depth, rays):
                        ic=False, adrrs=False, guiding=False, rr_start_depth=rr_start_depth)
     session.update(scene)
     session.render(1)
-    rays.append(session.stats()["rays"] / (samples * scene.width * scene.height))
-    return session.read("combined")[..., :3]
+    rays = session.stats()["rays"] / (samples * scene.width * scene.height)
+    return session.read("combined")[..., :3], rays
 
 
 def relative_variance(images, samples):
@@ -66,9 +67,8 @@ def main(argv=None):
                                            for k in range(a.runs)], a.samples)
             print(f"| {depth} | Cycles | {mean:.4f} | {rel:.4f} | |", flush=True)
         for rr in (int(r) for r in a.rr.split(",")):
-            rays = []
-            rel, mean = relative_variance([parallax_image(scene, a.samples, depth, 1000 + k, rr, rays)
-                                           for k in range(a.runs)], a.samples)
+            images, rays = zip(*(parallax_image(scene, a.samples, depth, 1000 + k, rr) for k in range(a.runs)))
+            rel, mean = relative_variance(images, a.samples)
             print(f"| {depth} | Parallax MIS, roulette from bounce {rr} | {mean:.4f} | {rel:.4f} | "
                   f"{np.mean(rays):.2f} |", flush=True)
     return 0
