@@ -267,6 +267,7 @@ NB_MODULE(_native, m) {
                  d["frames"] = st.frames;
                  d["blas_builds"] = st.blas_builds;
                  d["light_tree_nodes"] = st.light_tree_nodes;
+                 d["contact_boxes"] = st.contact_boxes;
                  d["ic_entries"] = st.ic.entries;
                  d["ic_capacity"] = st.ic.capacity;
                  d["ic_dropped"] = st.ic.dropped;

@@ -87,25 +87,36 @@ struct PathResult {
     vec2 ic_gradients;  // its entries' mean |g_t|, |g_r|
 };
 
-// Path rays that leave a surface start on it, as Cycles' do: the origin is the hit point moved a
-// few ulps back against the ray's direction (leave_surface, 8 ulps), so a surface touching this one (an
-// object resting on a floor) lies ahead at t > 0, and self_skip.rahit ignores the triangle
-// itself. Both the refracted ray out of a glass cube's bottom face and the glass' internal
-// reflection there then meet the floor, and a floor bounce under the cube enters the glass
-// through its bottom face, so every exit from the glass has its entry. Rays off any surface
-// (self NO_INDEX: camera, cache and reflected shadow rays) stay opaque: no any-hit calls.
-// Scenes without transmission (FEATURE_TRANSMISSION) keep every ray opaque and start it past
-// the surface (offset_ray), a third faster on lavapipe: there no light passes a surface
-// touching another, so nothing is found at the contact but unlit, unseen faces.
+// Path rays that leave a surface where it may touch another through which light passes start
+// on it, as Cycles' do: the origin is the hit point moved a few ulps back against the ray's
+// direction (leave_surface, 8 ulps), so a surface touching this one (a glass cube resting on a
+// floor) lies ahead at t > 0, and self_skip.rahit ignores the triangle itself. Both the
+// refracted ray out of the cube's bottom face and the glass' internal reflection there then
+// meet the floor, and a floor bounce under the cube enters the glass through its bottom face,
+// so every exit from the glass has its entry. Such rays (self_instance set) are not opaque.
+// Everywhere else (may_touch_transmission false) rays start past the surface (offset_ray) and
+// are opaque: no any-hit calls, a third faster on lavapipe; there no light passes a surface
+// touching another, so nothing is found at a contact but unlit, unseen faces. Rays off any
+// surface (camera, cache and reflected shadow rays) are opaque too.
 uint surface_ray_flags(uint self_instance) {
     return (!HAS(FEATURE_TRANSMISSION) || self_instance == NO_INDEX) ? gl_RayFlagsOpaqueEXT : gl_RayFlagsNoneEXT;
+}
+
+// Whether surface point p of `instance` may touch a surface that transmits light: on a
+// transmissive instance, or inside the grown box of one (SceneInfo.contact_lo/hi).
+bool may_touch_transmission(uint instance, vec3 p) {
+    if (!HAS(FEATURE_TRANSMISSION)) return false;
+    if ((instances[instance].flags & INSTANCE_FLAG_TRANSMITS) != 0u) return true;
+    for (uint k = 0u; k < scene.contact_box_count; ++k)
+        if (all(greaterThanEqual(p, scene.contact_lo[k])) && all(lessThanEqual(p, scene.contact_hi[k]))) return true;
+    return false;
 }
 
 // 8 ulps back, not offset_ray's 256: from further behind a tessellated convex surface, rays
 // leaving near an edge at grazing angles hit the neighbouring triangle (a furnace sphere of
 // diffuse + mirror + glass gained 1.4% energy that way).
-vec3 leave_surface(vec3 p, vec3 ng, vec3 dir) {
-    if (!HAS(FEATURE_TRANSMISSION)) return offset_ray(p, dot(dir, ng) > 0.0 ? ng : -ng);
+vec3 leave_surface(vec3 p, vec3 ng, vec3 dir, bool contact) {
+    if (!contact) return offset_ray(p, dot(dir, ng) > 0.0 ? ng : -ng);
     return offset_ray_scaled(p, dot(dir, ng) > 0.0 ? -ng : ng, 1.0 / 32.0);
 }
 
@@ -462,8 +473,9 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
             g_open = g_count++;
             g_travelled = 0.0;
         }
-        origin = leave_surface(sh.p, ng, dir);
-        self_instance = sh.instance;
+        bool contact = may_touch_transmission(sh.instance, sh.p);
+        origin = leave_surface(sh.p, ng, dir, contact);
+        self_instance = contact ? sh.instance : NO_INDEX;
         self_primitive = sh.primitive;
         prev_ng = sh.ng;
         t_min = 0.0;

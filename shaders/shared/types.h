@@ -152,8 +152,11 @@ struct InstanceInfo {
     vec4 normal_to_world[3];  // rows of the inverse transpose (3x3 used)
     uint mesh;
     uint light_offset;  // index of this instance's first triangle light, or NO_INDEX
-    uint pad0, pad1;
+    uint flags;         // INSTANCE_FLAG_*
+    uint pad0;
 };
+// Some material of the instance transmits light (glass, Principled transmission).
+PX_CONST uint INSTANCE_FLAG_TRANSMITS = 1u;
 
 struct Material {
     vec3 base_color;
@@ -241,6 +244,8 @@ PX_CONST uint LIGHT_NODE_TWO_SIDED = 2u;  // the lights emit on both sides: the 
 // is_sphere = false), so irradiance falls off as 1/(d^2 + r^2) near it instead of 1/d^2.
 PX_CONST uint LIGHT_FLAG_SOFT_FALLOFF = 1u;
 
+PX_CONST uint CONTACT_BOX_MAX = 8u;  // SceneInfo.contact_lo/hi
+
 struct SceneInfo {
     vec4 camera_to_world[3];  // rows; camera looks down -Z with +Y up (Blender)
     vec4 camera_window;       // left, right, bottom, top at distance 1 (persp) or world (ortho)
@@ -260,6 +265,11 @@ struct SceneInfo {
     uint light_tree_nodes;    // nodes in BINDING_LIGHT_TREE; 0: lights are picked from light_cdf alone
     float light_tree_prob;    // probability of picking a local light through the tree (the rest
                               // picks a distant light from light_cdf, which then holds them alone)
+    // World boxes round the transmissive instances (a few slightly grown, or unions of nearby
+    // ones): rays leaving a surface point inside one start contact-safe (integrator.glsl).
+    uint contact_box_count;
+    vec3 contact_lo[CONTACT_BOX_MAX];
+    vec3 contact_hi[CONTACT_BOX_MAX];
 };
 
 // Per-frame parameters (push constants).

@@ -574,6 +574,7 @@ SessionStats Session::stats() {
     SessionStats out = stats_;
     out.blas_builds = blas_builds_;
     out.light_tree_nodes = scene_ ? scene_->host().info.light_tree_nodes : 0;
+    out.contact_boxes = scene_ ? scene_->host().info.contact_box_count : 0;
     out.ic = ic_->stats();
     out.adrrs_estimate_frames = adrrs_->estimate_frames();
     out.adrrs_image_refreshes = adrrs_->image_refreshes();

@@ -41,6 +41,7 @@ struct SessionStats {
     uint32_t frames = 0;
     uint64_t blas_builds = 0;  // BLASes built by this session's updates (never reset; debugging)
     uint32_t light_tree_nodes = 0;  // nodes of the scene's light tree (0: lights picked by power)
+    uint32_t contact_boxes = 0;     // boxes round transmissive instances (SceneInfo.contact_lo/hi)
     IcStats ic;
     uint32_t adrrs_estimate_frames = 0;  // estimate frames run (ADRRS_ESTIMATE_IC)
     uint32_t adrrs_image_refreshes = 0;  // image estimates made (ADRRS_ESTIMATE_IMAGE)

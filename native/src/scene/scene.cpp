@@ -182,6 +182,45 @@ Light analytic_light(const LightArrays& a, size_t i, double scene_radius, double
     return l;
 }
 
+bool material_transmits(const Material& m) {
+    return m.type == MATERIAL_DIELECTRIC || (m.type == MATERIAL_PRINCIPLED && m.transmission > 0.0f);
+}
+
+// Where rays leaving a surface must start contact-safe (integrator.glsl, may_touch_transmission):
+// flags the instances with a transmitting material (through mix chains too) and puts their
+// world boxes, grown by more than a ray offset, into info.contact_lo/hi. Beyond
+// CONTACT_BOX_MAX boxes, runs of them in bvh_order are merged into their union.
+void mark_transmission_contacts(const SceneGeometry& g, const std::vector<Material>& materials,
+                                const ScenePlacement& placement, std::vector<InstanceInfo>& instances, SceneInfo& info) {
+    std::vector<bool> mesh_transmits(g.meshes.size(), false);
+    for (size_t m = 0; m < g.meshes.size(); ++m)
+        for (uint t = g.meshes[m].first_triangle; t < g.meshes[m].first_triangle + g.meshes[m].triangle_count; ++t) {
+            for (int k = int(g.triangle_material[t]); k >= 0 && !mesh_transmits[m]; k = materials[size_t(k)].mix_next)
+                mesh_transmits[m] = material_transmits(materials[size_t(k)]);
+            if (mesh_transmits[m]) break;
+        }
+    std::vector<vec3> lo, hi;
+    for (size_t i = 0; i < instances.size(); ++i) {
+        instances[i].flags &= ~INSTANCE_FLAG_TRANSMITS;
+        if (!mesh_transmits[instances[i].mesh]) continue;
+        instances[i].flags |= INSTANCE_FLAG_TRANSMITS;
+        // offset_ray moves a point by at most 256 float32 ulps, about 3e-5 of its largest
+        // coordinate: grow by 1e-3 of it (and 1e-4 m near the origin).
+        vec3 a = placement.world_lo[i], b = placement.world_hi[i];
+        float grow = 1e-3f * std::max({std::fabs(a.x), std::fabs(a.y), std::fabs(a.z), std::fabs(b.x), std::fabs(b.y),
+                                       std::fabs(b.z)}) + 1e-4f;
+        lo.push_back(a - vec3{grow, grow, grow}), hi.push_back(b + vec3{grow, grow, grow});
+    }
+    const size_t n = lo.size(), groups = std::min<size_t>(n, CONTACT_BOX_MAX);
+    std::vector<uint32_t> order = bvh_order(lo, hi);
+    info.contact_box_count = uint(groups);
+    for (size_t k = 0; k < groups; ++k) {
+        info.contact_lo[k] = {INFINITY, INFINITY, INFINITY}, info.contact_hi[k] = {-INFINITY, -INFINITY, -INFINITY};
+        for (size_t j = k * n / groups; j < (k + 1) * n / groups; ++j)
+            info.contact_lo[k] = vmin(info.contact_lo[k], lo[order[j]]), info.contact_hi[k] = vmax(info.contact_hi[k], hi[order[j]]);
+    }
+}
+
 // What the uploaded scene uses, for pipeline specialization.
 uint scene_features(const SceneHost& s) {
     const SceneGeometry& g = *s.geometry;
@@ -211,8 +250,7 @@ uint scene_features(const SceneHost& s) {
         if (m.type == MATERIAL_CONDUCTOR) f |= FEATURE_CONDUCTOR;
         if (m.type == MATERIAL_DIELECTRIC) f |= FEATURE_DIELECTRIC;
         if (m.type == MATERIAL_PRINCIPLED) f |= FEATURE_PRINCIPLED;
-        if (m.type == MATERIAL_DIELECTRIC || (m.type == MATERIAL_PRINCIPLED && m.transmission > 0.0f))
-            f |= FEATURE_TRANSMISSION;
+        if (material_transmits(m)) f |= FEATURE_TRANSMISSION;
         if (m.base_color_texture >= 0) f |= FEATURE_TEXTURES;
     }
     for (const auto& l : s.lights->lights) {
@@ -524,12 +562,13 @@ std::shared_ptr<const ScenePlacement> prepare_instances(const SceneArrays& a, bo
         instances.push_back(inst);
     }
     if (skipped) out->warnings.push_back(std::to_string(skipped) + " instance(s) of empty meshes or with singular transforms skipped");
-    if (spatial_order && instances.size() > 1) {
-        auto order = bvh_order(inst_lo, inst_hi);
-        out->instances.reserve(instances.size());
-        for (uint32_t i : order) out->instances.push_back(instances[i]);
-    } else {
-        out->instances = std::move(instances);
+    std::vector<uint32_t> order(instances.size());
+    std::iota(order.begin(), order.end(), 0u);
+    if (spatial_order && instances.size() > 1) order = bvh_order(inst_lo, inst_hi);
+    out->instances.reserve(instances.size());
+    for (uint32_t i : order) {
+        out->instances.push_back(instances[i]);
+        out->world_lo.push_back(inst_lo[i]), out->world_hi.push_back(inst_hi[i]);
     }
     bool has_geometry = !out->instances.empty();
     out->center = has_geometry ? (scene_lo + scene_hi) * 0.5f : vec3{0, 0, 0};
@@ -736,6 +775,7 @@ void prepare_lights(const SceneArrays& a, bool new_environment, bool light_tree,
         out->light_cdf.back() = 1.0f;
     }
     s.info.light_count = uint(lights.size());
+    mark_transmission_contacts(g, materials, *s.placement, out->instances, s.info);
     s.lights = std::move(out);
 }
 

@@ -96,6 +96,7 @@ struct SceneMaterials {  // "materials"
 };
 struct ScenePlacement {  // "instances": the TLAS contents
     std::vector<InstanceInfo> instances;  // in TLAS order; light_offset = NO_INDEX
+    std::vector<vec3> world_lo, world_hi; // each instance's world bounds (of its mesh's box)
     vec3 center{0, 0, 0};                 // bounding sphere of the placed geometry
     float radius = 1.0f;
     double reach = 0;                     // largest |world coordinate| of the placed geometry
