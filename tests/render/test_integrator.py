@@ -1,11 +1,13 @@
 """Render tests on lavapipe: analytic furnaces, agreement of pt / nee / mis, MIS beating NEE,
-determinism, and the auxiliary passes."""
+determinism, the auxiliary passes, and contact with glass."""
+import math
+
 import numpy as np
 import pytest
 
 import parallax_core as pc
 from parallax_core import scenes
-from parallax_core.scene import Light, Material, SceneData, World
+from parallax_core.scene import Camera, Light, Material, SceneData, World
 
 from helpers import batches, means_agree, rel_mse, render, same_render, z_scores
 
@@ -277,15 +279,10 @@ def test_white_furnace_specular(material, expected, tol):
     assert res["pt"].mean() == pytest.approx(res["mis"].mean(), abs=0.01)
 
 
-
 def _glass_cube_on_floor(glass_cubes=1, size=24, floor_transmits=False):
     """Glass cubes (IOR 1.5) resting on a diffuse floor under a white sky. `floor_transmits`:
     the floor's material heads a mix chain whose second, never chosen, link is the glass, so the
     floor counts as transmissive (INSTANCE_FLAG_TRANSMITS) yet renders as plain diffuse."""
-    import math
-
-    from parallax_core.scene import Camera
-
     materials = [Material("diffuse", (0.5, 0.5, 0.5), name="floor", mix_next=1 if floor_transmits else None, mix_weight=1.0),
                  Material("dielectric", (1.0, 1.0, 1.0), roughness=0.0, ior=1.5, name="glass")]
     meshes = [scenes.quad([(-3, -3, 0), (3, -3, 0), (3, 3, 0), (-3, 3, 0)], 0, "floor")]
