@@ -192,16 +192,17 @@ bool material_transmits(const Material& m) {
 // CONTACT_BOX_MAX boxes, runs of them in bvh_order are merged into their union.
 void mark_transmission_contacts(const SceneGeometry& g, const std::vector<Material>& materials,
                                 const ScenePlacement& placement, std::vector<InstanceInfo>& instances, SceneInfo& info) {
+    auto chain_transmits = [&](int k) {  // a material or any link of its mix chain
+        for (; k >= 0; k = materials[size_t(k)].mix_next)
+            if (material_transmits(materials[size_t(k)])) return true;
+        return false;
+    };
     std::vector<bool> mesh_transmits(g.meshes.size(), false);
     for (size_t m = 0; m < g.meshes.size(); ++m)
-        for (uint t = g.meshes[m].first_triangle; t < g.meshes[m].first_triangle + g.meshes[m].triangle_count; ++t) {
-            for (int k = int(g.triangle_material[t]); k >= 0 && !mesh_transmits[m]; k = materials[size_t(k)].mix_next)
-                mesh_transmits[m] = material_transmits(materials[size_t(k)]);
-            if (mesh_transmits[m]) break;
-        }
-    std::vector<vec3> lo, hi;
+        for (uint t = g.meshes[m].first_triangle; t < g.meshes[m].first_triangle + g.meshes[m].triangle_count && !mesh_transmits[m]; ++t)
+            mesh_transmits[m] = chain_transmits(int(g.triangle_material[t]));
+    std::vector<vec3> lo, hi;  // the placement's instances come with no flags set
     for (size_t i = 0; i < instances.size(); ++i) {
-        instances[i].flags &= ~INSTANCE_FLAG_TRANSMITS;
         if (!mesh_transmits[instances[i].mesh]) continue;
         instances[i].flags |= INSTANCE_FLAG_TRANSMITS;
         // offset_ray moves a point by at most 256 float32 ulps, about 3e-5 of its largest
