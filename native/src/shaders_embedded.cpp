@@ -3,7 +3,6 @@
 #include "closesthit.spv.h"
 #include "self_skip_any_hit.spv.h"
 #include "guiding_fit.spv.h"
-#include "guiding_passes.spv.h"
 #include "guiding_query_closest_hit.spv.h"
 #include "guiding_query_intersection.spv.h"
 #include "guiding_query_miss.spv.h"
@@ -40,5 +39,4 @@ PX_SHADER(guiding_query_miss)
 PX_SHADER(guiding_query_intersection)
 PX_SHADER(guiding_query_closest_hit)
 PX_SHADER(guiding_fit)
-PX_SHADER(guiding_passes)
 }  // namespace px

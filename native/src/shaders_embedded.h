@@ -20,5 +20,4 @@ const std::vector<uint32_t>& shader_guiding_query_miss();
 const std::vector<uint32_t>& shader_guiding_query_intersection();
 const std::vector<uint32_t>& shader_guiding_query_closest_hit();
 const std::vector<uint32_t>& shader_guiding_fit();
-const std::vector<uint32_t>& shader_guiding_passes();
 }  // namespace px

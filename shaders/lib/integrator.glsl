@@ -204,7 +204,7 @@ float emission_weight(bool prev_delta, float prev_pdf, float light_pdf, uint lig
 
 // Where a path starts and how: its first ray, options and random stream. The entry point that
 // includes this file defines where its paths come from (path_next) and where their results go
-// (path_done); `aux` is the entry point's own per-path value (the camera: the cosine to the view axis).
+// (path_done); `index` and `aux` are that entry point's own per-path values.
 struct PathStart {
     vec3 origin;
     float t_min;
@@ -212,6 +212,7 @@ struct PathStart {
     float t_max;
     PathOptions opt;
     Rng rng;
+    uint index;
     float aux;
 };
 

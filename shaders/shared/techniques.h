@@ -19,7 +19,6 @@ PX_CONST uint TECH_GUIDING = 1u << 2;  // path guiding (region tree, VMM samplin
 PX_CONST uint PROGRAM_CAMERA = 0;         // raygen.rgen: camera paths into the film
 PX_CONST uint PROGRAM_IC_HEMISPHERE = 1;  // techniques/ic_hemisphere.rgen: cache entry rays
 PX_CONST uint PROGRAM_PREVIEW = 2;        // preview.rgen: first-hit shading (RenderParams.preview)
-PX_CONST uint PROGRAM_GUIDING_PASSES = 3;  // guiding_passes.rgen: the guiding visualisation passes
 
 // FrameParams.mode
 PX_CONST uint FRAME_RENDER = 0;      // camera paths accumulate into the film

@@ -197,13 +197,11 @@ auto& pipelines = *new std::map<std::pair<Context*, std::array<uint32_t, 5>>, st
 }  // namespace
 
 // Specialisation constants 0-3 (integrator.glsl, mis.glsl, common.glsl, irradiance_cache.glsl)
-// and the program; the preview program uses the scene features only, the guiding passes
-// those and guiding.
+// and the program; the preview program uses the scene features only.
 // Without cache_queries the irradiance cache's shaders (and TECH_IC) stay out even where the
 // cache exists (ADRRS alone renders from its adjoint grid).
 std::array<uint32_t, 5> Session::pipeline_key(uint32_t program, bool cache_queries) const {
     if (program == PROGRAM_PREVIEW) return {0u, 0u, scene_->host().features, 0u, program};
-    if (program == PROGRAM_GUIDING_PASSES) return {0u, 0u, scene_->host().features, TECH_GUIDING, program};
     const uint32_t techniques = (ic_->enabled() && cache_queries ? TECH_IC : 0u) |
                                 (adrrs_->enabled() ? TECH_ADRRS : 0u) | (guiding_->enabled() ? TECH_GUIDING : 0u);
     return {params_.method, params_.mis_heuristic, scene_->host().features, techniques, program};
@@ -218,20 +216,14 @@ bool Session::pipeline_ready() {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!scene_) return false;
     std::lock_guard<std::mutex> plock(pipelines_mutex);
-    auto ready = [&](const std::array<uint32_t, 5>& key) {
-        auto it = pipelines.find({ctx_.get(), key});
-        return it != pipelines.end() && it->second->ready;
-    };
-    const bool passes = guiding_->enabled() && !params_.preview;
-    return ready(pipeline_key(camera_program(), params_.ic.enabled || !params_.adrrs.enabled)) &&
-           (!passes || ready(pipeline_key(PROGRAM_GUIDING_PASSES)));
+    auto it = pipelines.find({ctx_.get(), pipeline_key(camera_program(), params_.ic.enabled || !params_.adrrs.enabled)});
+    return it != pipelines.end() && it->second->ready;
 }
 
 void Session::compile() {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!scene_) throw std::runtime_error("no scene: call update(scene) before compile()");
     render_pipeline();
-    if (guiding_->enabled() && !params_.preview) pipeline(PROGRAM_GUIDING_PASSES);
     if (ic_->enabled()) {
         pipeline(PROGRAM_CAMERA);
         pipeline(PROGRAM_IC_HEMISPHERE);
@@ -261,14 +253,12 @@ std::unique_ptr<RayTracingPipeline> Session::build_pipeline(uint32_t program, co
     // Stages, then groups: raygen | miss: MISS_SCENE, MISS_SHADOW, MISS_IC_QUERY,
     // MISS_GUIDING_QUERY | hit groups: HIT_GROUP_TRIANGLES (closest-hit + self-skip any-hit), HIT_GROUP_IC (procedural:
     // intersection + any-hit), HIT_GROUP_GUIDING (intersection + closest-hit). A technique's
-    // shaders are left out of pipelines that never use it (less to compile): guiding's query
-    // groups are in the guiding passes' pipeline alone, which puts copies of them into the
-    // cache's slots.
+    // shaders are left out of pipelines that never use it (less to compile); guiding without
+    // the cache puts copies of its groups into the cache's slots.
     std::vector<ShaderStage> stages = {
-        {VK_SHADER_STAGE_RAYGEN_BIT_KHR, program == PROGRAM_IC_HEMISPHERE    ? &shader_ic_hemisphere()
-                                         : program == PROGRAM_PREVIEW        ? &shader_preview()
-                                         : program == PROGRAM_GUIDING_PASSES ? &shader_guiding_passes()
-                                                                             : &shader_raygen()},
+        {VK_SHADER_STAGE_RAYGEN_BIT_KHR, program == PROGRAM_IC_HEMISPHERE ? &shader_ic_hemisphere()
+                                         : program == PROGRAM_PREVIEW     ? &shader_preview()
+                                                                          : &shader_raygen()},
         {VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR, &shader_closesthit()},
         {VK_SHADER_STAGE_MISS_BIT_KHR, &shader_miss()},
         {VK_SHADER_STAGE_MISS_BIT_KHR, &shader_shadow_miss()},
@@ -291,7 +281,7 @@ std::unique_ptr<RayTracingPipeline> Session::build_pipeline(uint32_t program, co
         groups.push_back({VK_RAY_TRACING_SHADER_GROUP_TYPE_PROCEDURAL_HIT_GROUP_KHR, VK_SHADER_UNUSED_KHR,
                           VK_SHADER_UNUSED_KHR, 6, 5});
     }
-    if (program == PROGRAM_GUIDING_PASSES) {
+    if (techniques & TECH_GUIDING) {
         const uint32_t miss = uint32_t(stages.size());
         stages.push_back({VK_SHADER_STAGE_MISS_BIT_KHR, &shader_guiding_query_miss()});
         stages.push_back({VK_SHADER_STAGE_INTERSECTION_BIT_KHR, &shader_guiding_query_intersection()});
@@ -299,14 +289,14 @@ std::unique_ptr<RayTracingPipeline> Session::build_pipeline(uint32_t program, co
         const ShaderGroup miss_group{VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, miss};
         const ShaderGroup hit_group{VK_RAY_TRACING_SHADER_GROUP_TYPE_PROCEDURAL_HIT_GROUP_KHR, VK_SHADER_UNUSED_KHR,
                                     miss + 2, VK_SHADER_UNUSED_KHR, miss + 1};
-        groups.insert(groups.begin() + 1 + MISS_IC_QUERY, miss_group);  // the cache's slots
-        groups.push_back(hit_group);
+        if (!(techniques & TECH_IC)) {
+            groups.insert(groups.begin() + 1 + MISS_IC_QUERY, miss_group);  // the cache's slots
+            groups.push_back(hit_group);
+        }
         groups.insert(groups.begin() + 1 + MISS_GUIDING_QUERY, miss_group);
         groups.push_back(hit_group);
     }
-    // Rays leaving a surface skip its triangle (self_skip.rahit); the first-hit programs trace
-    // from the camera only.
-    if ((program == PROGRAM_CAMERA || program == PROGRAM_IC_HEMISPHERE) && (key[2] & FEATURE_TRANSMISSION)) {
+    if (program != PROGRAM_PREVIEW && (key[2] & FEATURE_TRANSMISSION)) {  // rays leaving a surface skip its triangle (self_skip.rahit)
         for (auto& g : groups)
             if (g.type == VK_RAY_TRACING_SHADER_GROUP_TYPE_TRIANGLES_HIT_GROUP_KHR) g.any_hit = uint32_t(stages.size());
         stages.push_back({VK_SHADER_STAGE_ANY_HIT_BIT_KHR, &shader_self_skip_any_hit()});
@@ -386,9 +376,6 @@ uint64_t Session::record_dispatch(VkCommandBuffer cmd, RayTracingPipeline& pipe,
     };
     if (adrrs_->enabled()) adrrs_->record_queue_clear(cmd);
     pipe.trace(cmd, set_->set(), &fp, sizeof(fp), w, h);
-    // The guiding passes once per frame and pixel, with the frame's first share of samples.
-    if (guiding_->enabled() && !params_.preview && c.sample == 0)
-        pipeline(PROGRAM_GUIDING_PASSES).trace(cmd, set_->set(), &fp, sizeof(fp), w, h);
     barrier();
     if (adrrs_->enabled()) {  // the copies the camera paths split off, in the same frame
         fp.mode = FRAME_ADRRS_SPLITS;
