@@ -202,49 +202,30 @@ float emission_weight(bool prev_delta, float prev_pdf, float light_pdf, uint lig
     return mis_weight(prev_pdf, float(light_samples) * light_pdf);
 }
 
-// Where a path starts and how: its first ray, options and random stream. The entry point that
-// includes this file defines where its paths come from (path_next) and where their results go
-// (path_done); `index` and `aux` are that entry point's own per-path values.
-struct PathStart {
-    vec3 origin;
-    float t_min;
-    vec3 dir;
-    float t_max;
-    PathOptions opt;
-    Rng rng;
-    uint index;
-    float aux;
-};
-
-bool path_next(inout PathStart start);  // the next path to trace; false: none left
-void path_done(PathStart start, PathResult res);
-
-// Traces the paths path_next hands out, one after the other, and gives each result to
-// path_done. One loop iteration is one path segment, and a path that ends is followed by the
-// next in the same iteration (path regeneration, Novak et al. 2010): the invocations that run
-// in one SIMD group (lavapipe) or warp (GPU) keep tracing instead of waiting at each path's end
-// for the group's longest path, which with short and long paths mixed (open scenes, roulette)
-// idles most lanes. The results are those of tracing each path alone.
-void trace_paths() {
-    PathStart start;
-    PathOptions opt;
-    Rng rng;
-    vec3 origin, dir;
-    float t_min, t_max;
+PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptions opt, inout Rng rng) {
     PathResult res;
-    bool ic_recorded;
+    res.radiance = vec3(0.0);
+    res.first_t = INFINITY_F;
+    res.first_normal = vec3(0.0);
+    res.albedo = vec3(0.0);
+    res.segments = 0u;
+    res.rays = 0u;
+    res.ic_irradiance = vec3(0.0);
+    res.ic_gradients = vec2(0.0);
+    bool ic_recorded = false;
+    vec3 throughput = opt.throughput;
     // Russian roulette's view of the throughput: as if the BSDF had sampled every direction.
     // A guided direction's weight carries 1/p of the mixture, small where the mixture aims at
     // the light; roulette on it would end the very paths guiding sends towards the light (the
     // lamp behind glass is reached only after the roulette depth). Any survival probability
     // keeps the estimate unbiased: the path's weight is divided by it.
-    vec3 throughput, roulette_throughput;
-    vec3 albedo_throughput;
-    bool albedo_done;
-    bool prev_delta;  // the camera ray counts as delta: nothing to weigh it against
-    float prev_pdf;
-    vec3 prev_ng;     // geometric normal at the segment's origin (the light tree's receiver)
-    uint bounces, discrete;
+    vec3 roulette_throughput = opt.throughput;
+    vec3 albedo_throughput = vec3(1.0);
+    bool albedo_done = false;
+    bool prev_delta = true;  // the camera ray counts as delta: nothing to weigh it against
+    float prev_pdf = 0.0;
+    vec3 prev_ng = vec3(0.0);  // geometric normal at the segment's origin (the light tree's receiver)
+    uint bounces = opt.bounces, discrete = opt.discrete;
     // Guiding training records (thesis 4.6.2) of this path's first guided vertices: the
     // direction sampled there, its pdf, and what the rest of the path brings in along it,
     // luminance(radiance at the end - radiance when it was sampled) / luminance(throughput
@@ -256,304 +237,265 @@ void trace_paths() {
     // floats per record stay in registers (whole records kept across the trace calls made a
     // GPU's ray-tracing stack, and every path, much larger).
     vec4 g_base = vec4(0.0);  // luminance of the radiance when each record was sampled
-    vec4 g_norm;              // luminance of the throughput after its sampling weight * pdf
-    uint g_count;
-    uint g_open;              // the record whose next non-specular vertex is not reached yet
-    float g_travelled;        // path length from that record's vertex to this segment's origin
-    uint g_slot;
-    uint self_instance, self_primitive;
-    ShadowRay pending = no_shadow_ray(vec3(0.0), vec3(0.0, 0.0, 1.0));
-    bool ended = true, first = true;  // the previous iteration ended a path (or there was none)
+    vec4 g_norm = vec4(0.0);  // luminance of the throughput after its sampling weight * pdf
+    uint g_count = 0u;
+    uint g_open = NO_INDEX;  // the record whose next non-specular vertex is not reached yet
+    float g_travelled = 0.0; // path length from that record's vertex to this segment's origin
+    uint g_slot = opt.guiding_slot * GUIDING_PATH_VERTICES;
+    uint self_instance = opt.self_instance, self_primitive = opt.self_primitive;
+    ShadowRay pending = no_shadow_ray(origin, dir);
 
     for (;;) {
         trace_pending_shadow(pending, res, g_base);
-        if (ended) {
-            if (!first) {
-                if (USES(TECH_GUIDING)) {
-                    float end = luminance(res.radiance);
-                    for (uint k = 0u; k < g_count; ++k)  // non-finite: the host drops it
-                        guiding_samples[g_slot + k].weight = g_norm[k] > 0.0 ? max(end - g_base[k], 0.0) / g_norm[k] : 0.0;
-                }
-                path_done(start, res);
-            }
-            first = false;
-            if (!path_next(start)) break;
-            opt = start.opt;
-            rng = start.rng;
-            origin = start.origin;
-            dir = start.dir;
-            t_min = start.t_min;
-            t_max = start.t_max;
-            res = PathResult(vec3(0.0), INFINITY_F, vec3(0.0), vec3(0.0), 0u, 0u, vec3(0.0), vec2(0.0));
-            ic_recorded = false;
-            throughput = opt.throughput;
-            roulette_throughput = opt.throughput;
-            albedo_throughput = vec3(1.0);
-            albedo_done = false;
-            prev_delta = true;
-            prev_pdf = 0.0;
-            prev_ng = vec3(0.0);
-            bounces = opt.bounces;
-            discrete = opt.discrete;
-            g_base = vec4(0.0);
-            g_norm = vec4(0.0);
-            g_count = 0u;
-            g_open = NO_INDEX;
-            g_travelled = 0.0;
-            g_slot = opt.guiding_slot * GUIDING_PATH_VERTICES;
-            self_instance = opt.self_instance;
-            self_primitive = opt.self_primitive;
-            pending = no_shadow_ray(origin, dir);
+        hit.instance = self_instance;
+        hit.primitive = self_primitive;
+        traceRayEXT(tlas, surface_ray_flags(self_instance), 0xff, 0, 0, MISS_SCENE, origin, t_min, dir, t_max, 0);
+        res.rays++;
+        res.segments++;
+        float t_surface = hit.t < 0.0 ? t_max : hit.t;
+        bool camera_ray = opt.from_camera && res.segments == 1u;
+        // A split copy re-traces the ray to its vertex, whose emission and NEE are counted.
+        bool resumed = opt.resume && res.segments == 1u;
+        float emission_scale = ((opt.skip_first_emission || opt.resume) && res.segments == 1u) ? 0.0 : 1.0;
+
+        // Analytic lights are not in the TLAS: test them against this segment. As in Cycles they
+        // do not occlude (shadow rays ignore them too): every one along the segment adds its
+        // emission and the ray goes on to what lies behind.
+        for (uint i = scene.analytic_first; HAS(FEATURE_SPHERE_LIGHTS | FEATURE_AREA_LIGHTS) && i < analytic_end(camera_ray); ++i) {
+            float t_light, light_pdf;
+            vec3 light_radiance;
+            if (!analytic_light_hit(i, origin, prev_ng, dir, t_surface, t_light, light_radiance, light_pdf)) continue;
+            res.radiance += throughput * light_radiance * (emission_scale * emission_weight(prev_delta, prev_pdf, light_pdf, opt.light_samples));
+            if (res.segments == 1u) res.first_t = min(res.first_t, t_light);
         }
-        // One segment of the path. Every `break` in it ends the path (the do-while is left with
-        // `ended` still true); the next iteration then traces its last shadow ray and starts
-        // the next path.
-        ended = true;
-        do {
-            hit.instance = self_instance;
-            hit.primitive = self_primitive;
-            traceRayEXT(tlas, surface_ray_flags(self_instance), 0xff, 0, 0, MISS_SCENE, origin, t_min, dir, t_max, 0);
-            res.rays++;
-            res.segments++;
-            float t_surface = hit.t < 0.0 ? t_max : hit.t;
-            bool camera_ray = opt.from_camera && res.segments == 1u;
-            // A split copy re-traces the ray to its vertex, whose emission and NEE are counted.
-            bool resumed = opt.resume && res.segments == 1u;
-            float emission_scale = ((opt.skip_first_emission || opt.resume) && res.segments == 1u) ? 0.0 : 1.0;
+        if (hit.t < 0.0) {  // escaped: its record keeps the infinite distance
+            if (USES(TECH_GUIDING) && g_open != NO_INDEX) guiding_samples[g_slot + g_open].distance = GUIDING_DISTANCE_INFINITE;
+            float light_pdf;
+            vec3 le = distant_radiance(dir, camera_ray, light_pdf);
+            res.radiance += throughput * le * (emission_scale * emission_weight(prev_delta, prev_pdf, light_pdf, opt.light_samples));
+            break;
+        }
 
-            // Analytic lights are not in the TLAS: test them against this segment. As in Cycles they
-            // do not occlude (shadow rays ignore them too): every one along the segment adds its
-            // emission and the ray goes on to what lies behind.
-            for (uint i = scene.analytic_first; HAS(FEATURE_SPHERE_LIGHTS | FEATURE_AREA_LIGHTS) && i < analytic_end(camera_ray); ++i) {
-                float t_light, light_pdf;
-                vec3 light_radiance;
-                if (!analytic_light_hit(i, origin, prev_ng, dir, t_surface, t_light, light_radiance, light_pdf)) continue;
-                res.radiance += throughput * light_radiance * (emission_scale * emission_weight(prev_delta, prev_pdf, light_pdf, opt.light_samples));
-                if (res.segments == 1u) res.first_t = min(res.first_t, t_light);
+        SurfaceHit sh = fetch_surface(hit.instance, hit.primitive, hit.barycentrics);
+        Material mat = materials[sh.material];
+        vec3 wo = -dir;
+        // The open record's distance, final unless this vertex turns out delta (below).
+        if (USES(TECH_GUIDING) && g_open != NO_INDEX) guiding_samples[g_slot + g_open].distance = g_travelled + hit.t;
+        if (res.segments == 1u) {
+            res.first_t = min(res.first_t, hit.t);  // a light in front keeps its distance
+            res.first_normal = dot(sh.ns, wo) >= 0.0 ? sh.ns : -sh.ns;
+        }
+        if (max3(mat.emission) > 0.0 && emission_scale > 0.0) {
+            float lp = 0.0;
+            if (METHOD == METHOD_MIS && !prev_delta) {
+                uint light = instances[sh.instance].light_offset + sh.primitive;
+                lp = triangle_light_pdf(light, origin, prev_ng, hit.t, dot(sh.ng, dir));
             }
-            if (hit.t < 0.0) {  // escaped: its record keeps the infinite distance
-                if (USES(TECH_GUIDING) && g_open != NO_INDEX) guiding_samples[g_slot + g_open].distance = GUIDING_DISTANCE_INFINITE;
-                float light_pdf;
-                vec3 le = distant_radiance(dir, camera_ray, light_pdf);
-                res.radiance += throughput * le * (emission_scale * emission_weight(prev_delta, prev_pdf, light_pdf, opt.light_samples));
+            res.radiance += throughput * mat.emission * emission_weight(prev_delta, prev_pdf, lp, opt.light_samples);
+        }
+        if (bounces > opt.max_depth) break;
+        // Emission above is the head material's; the BSDF may come from its mix chain.
+        mat = select_mix_material(mat, rng);
+        if (mat.type == MATERIAL_EMISSION) break;
+
+        // Shading frame. Reflective materials are two-sided: face the normals towards wo.
+        // Glass keeps the geometric side to know whether the ray enters or leaves.
+        bool front = dot(sh.ng, wo) > 0.0;
+        vec3 ng = front ? sh.ng : -sh.ng;
+        vec3 ns = front ? sh.ns : -sh.ns;
+        if (dot(ns, wo) <= 1e-6) ns = ng;  // shading normal facing away from the viewer
+        Surface surf;
+        surf.type = mat.type;
+        surf.albedo = material_albedo(mat, sh.uv);
+        surf.alpha = mat.roughness * mat.roughness;
+        surf.eta = front ? mat.ior : 1.0 / mat.ior;
+        vec3 tangent, bitangent;
+        make_basis(ns, tangent, bitangent);
+        vec3 wo_local = vec3(dot(wo, tangent), dot(wo, bitangent), dot(wo, ns));
+        surf.ms = vec3(1.0);
+        if ((mat.flags & MATERIAL_FLAG_MULTISCATTER) != 0u) surface_multiscatter(surf, wo_local.z);
+        if (HAS(FEATURE_PRINCIPLED) && mat.type == MATERIAL_PRINCIPLED)
+            surf.pr = principled_setup(mat, surf.albedo, surf.eta, wo_local.z, (mat.flags & MATERIAL_FLAG_MULTISCATTER) != 0u);
+        bool delta = surface_is_delta(surf);
+        if (USES(TECH_GUIDING) && g_open != NO_INDEX) {
+            if (delta) g_travelled += hit.t;  // through specular chains to the next real vertex
+            else g_open = NO_INDEX;
+        }
+        // The guiding region's mixture at this vertex (none: BSDF sampling alone).
+        bool g_vertex = USES(TECH_GUIDING) && opt.guiding && !delta && guiding_surface(surf, mat.roughness);
+        uint g_region = NO_INDEX, g_lobes = 0u;
+        if (g_vertex) {
+            g_region = guiding_region_at(sh.p);
+            if (g_region != NO_INDEX) g_lobes = guiding_regions[g_region].lobe_count;
+        }
+        float g_prob = g_lobes > 0u ? tech.guiding.prob : 0.0;
+        uint g_first = g_region * GUIDING_MAX_COMPONENTS;
+        if (!albedo_done && !delta) {
+            res.albedo = albedo_throughput * surf.albedo;
+            albedo_done = true;
+        }
+
+        // Irradiance cache at diffuse vertices (thesis 4.4): where entries cover this point the
+        // path ends here with NEE + albedo/pi * E; elsewhere it may queue a new entry and goes on.
+        // With ADRRS the cache's adjoint grid is read at every non-delta vertex (adrrs.glsl).
+        bool ic_vertex = false, ic_found = false;
+        vec3 irradiance = vec3(0.0);
+        bool ic_surface = surf.type == MATERIAL_DIFFUSE || ((USES(TECH_ADRRS) || opt.ic_glossy) && !delta);
+        if (USES(TECH_IC) && ic_surface && !resumed && (opt.ic_use || opt.ic_prepare)) {
+            vec2 gradients;
+            ic_found = ic_lookup(sh.p, ns, irradiance, gradients);
+            if (!ic_recorded) {
+                res.ic_irradiance = irradiance;
+                res.ic_gradients = gradients;
+                ic_recorded = true;
+            }
+            if (ic_found && opt.ic_use && (surf.type == MATERIAL_DIFFUSE || opt.ic_glossy)) {
+                res.radiance += throughput * surf.albedo * INV_PI * irradiance;
+                ic_vertex = true;
+            } else if (!ic_found && opt.ic_create && rnd(rng) < tech.ic.create_prob) {
+                ic_request(sh.p, ns, opt.pixel, res.segments);
+            }
+            if (opt.ic_prepare) {
+                if (!ic_found) atomicAdd(ic_queue_uncovered, 1u);
                 break;
             }
+        } else if (USES(TECH_ADRRS) && ic_surface && !resumed && opt.adrrs) {
+            ic_found = adrrs_adjoint_irradiance(sh.p, ns, irradiance);  // the adjoint alone
+        }
 
-            SurfaceHit sh = fetch_surface(hit.instance, hit.primitive, hit.barycentrics);
-            Material mat = materials[sh.material];
-            vec3 wo = -dir;
-            // The open record's distance, final unless this vertex turns out delta (below).
-            if (USES(TECH_GUIDING) && g_open != NO_INDEX) guiding_samples[g_slot + g_open].distance = g_travelled + hit.t;
-            if (res.segments == 1u) {
-                res.first_t = min(res.first_t, hit.t);  // a light in front keeps its distance
-                res.first_normal = dot(sh.ns, wo) >= 0.0 ? sh.ns : -sh.ns;
-            }
-            if (max3(mat.emission) > 0.0 && emission_scale > 0.0) {
-                float lp = 0.0;
-                if (METHOD == METHOD_MIS && !prev_delta) {
-                    uint light = instances[sh.instance].light_offset + sh.primitive;
-                    lp = triangle_light_pdf(light, origin, prev_ng, hit.t, dot(sh.ng, dir));
+        // Next event estimation (Veach 1997 eq. 9.8 / 9.13 weights for MIS). A vertex where the
+        // path ends takes its direct light from NEE alone (no BSDF sample follows to share it).
+        // The vertex's last light sample's shadow ray waits for the next path ray (see
+        // ShadowRay); the others are traced here.
+        bool last_vertex = ic_vertex || (opt.first_vertex_only && !delta);
+        if ((METHOD != METHOD_PT || last_vertex) && !delta && !resumed) {
+            for (uint k = 0u; k < opt.light_samples; ++k) {
+                if (k > 0u) trace_pending_shadow(pending, res, g_base);  // the previous sample's
+                LightSample ls;
+                vec3 u = rnd3(rng);
+                if (!sample_light(sh.p, sh.ng, u, ls)) continue;
+                vec3 wi_local = vec3(dot(ls.wi, tangent), dot(ls.wi, bitangent), dot(ls.wi, ns));
+                float bsdf_pdf;
+                vec3 f = bsdf_eval(surf, wo_local, wi_local, bsdf_pdf);
+                if (max3(f) <= 0.0 || max3(ls.radiance) <= 0.0) continue;
+                // Guided vertex: the continuation's density is the one-sample MIS mixture.
+                if (USES(TECH_GUIDING) && g_prob > 0.0)
+                    bsdf_pdf = mix(bsdf_pdf, guiding_vmm_pdf(g_first, g_lobes, sh.p, ls.wi), g_prob);
+                float w = (METHOD == METHOD_MIS && !ls.delta && !last_vertex) ? mis_weight(float(opt.light_samples) * ls.pdf, bsdf_pdf) : 1.0;
+                pending.contribution = throughput * f * ls.radiance * (w / (ls.pdf * float(opt.light_samples)));
+                // Aim the shadow ray from its origin at the sampled point itself (a direction
+                // kept from the unmoved point misses grazing lights), stopping short of it.
+                // A shadow ray through the surface (transmission) leaves on it; one on the side the
+                // path came from leaves from the usual offset: a surface touching this one there
+                // belongs to an object the ray then starts inside (the glass cube over the floor),
+                // which blocks it all the same, and opaque rays need no any-hit calls.
+                pending.origin = offset_ray(sh.p, ng);
+                pending.dir = ls.wi;
+                pending.t_max = INFINITY_F;
+                if (ls.dist < INFINITY_F) {
+                    vec3 to_light = sh.p + ls.wi * ls.dist - pending.origin;
+                    pending.t_max = length(to_light);
+                    pending.dir = to_light / pending.t_max;
+                    pending.t_max *= 1.0 - 1e-4;
                 }
-                res.radiance += throughput * mat.emission * emission_weight(prev_delta, prev_pdf, lp, opt.light_samples);
+                pending.self_instance = dot(ls.wi, ng) < 0.0 ? sh.instance : NO_INDEX;
+                pending.self_primitive = sh.primitive;
+                pending.record = NO_INDEX;
             }
-            if (bounces > opt.max_depth) break;
-            // Emission above is the head material's; the BSDF may come from its mix chain.
-            mat = select_mix_material(mat, rng);
-            if (mat.type == MATERIAL_EMISSION) break;
+        }
+        if (last_vertex) break;
 
-            // Shading frame. Reflective materials are two-sided: face the normals towards wo.
-            // Glass keeps the geometric side to know whether the ray enters or leaves.
-            bool front = dot(sh.ng, wo) > 0.0;
-            vec3 ng = front ? sh.ng : -sh.ng;
-            vec3 ns = front ? sh.ns : -sh.ns;
-            if (dot(ns, wo) <= 1e-6) ns = ng;  // shading normal facing away from the viewer
-            Surface surf;
-            surf.type = mat.type;
-            surf.albedo = material_albedo(mat, sh.uv);
-            surf.alpha = mat.roughness * mat.roughness;
-            surf.eta = front ? mat.ior : 1.0 / mat.ior;
-            vec3 tangent, bitangent;
-            make_basis(ns, tangent, bitangent);
-            vec3 wo_local = vec3(dot(wo, tangent), dot(wo, bitangent), dot(wo, ns));
-            surf.ms = vec3(1.0);
-            if ((mat.flags & MATERIAL_FLAG_MULTISCATTER) != 0u) surface_multiscatter(surf, wo_local.z);
-            if (HAS(FEATURE_PRINCIPLED) && mat.type == MATERIAL_PRINCIPLED)
-                surf.pr = principled_setup(mat, surf.albedo, surf.eta, wo_local.z, (mat.flags & MATERIAL_FLAG_MULTISCATTER) != 0u);
-            bool delta = surface_is_delta(surf);
-            if (USES(TECH_GUIDING) && g_open != NO_INDEX) {
-                if (delta) g_travelled += hit.t;  // through specular chains to the next real vertex
-                else g_open = NO_INDEX;
-            }
-            // The guiding region's mixture at this vertex (none: BSDF sampling alone).
-            bool g_vertex = USES(TECH_GUIDING) && opt.guiding && !delta && guiding_surface(surf, mat.roughness);
-            uint g_region = NO_INDEX, g_lobes = 0u;
-            if (g_vertex) {
-                g_region = guiding_region_at(sh.p);
-                if (g_region != NO_INDEX) g_lobes = guiding_regions[g_region].lobe_count;
-            }
-            float g_prob = g_lobes > 0u ? tech.guiding.prob : 0.0;
-            uint g_first = g_region * GUIDING_MAX_COMPONENTS;
-            if (!albedo_done && !delta) {
-                res.albedo = albedo_throughput * surf.albedo;
-                albedo_done = true;
-            }
-
-            // Irradiance cache at diffuse vertices (thesis 4.4): where entries cover this point the
-            // path ends here with NEE + albedo/pi * E; elsewhere it may queue a new entry and goes on.
-            // With ADRRS the cache's adjoint grid is read at every non-delta vertex (adrrs.glsl).
-            bool ic_vertex = false, ic_found = false;
-            vec3 irradiance = vec3(0.0);
-            bool ic_surface = surf.type == MATERIAL_DIFFUSE || ((USES(TECH_ADRRS) || opt.ic_glossy) && !delta);
-            if (USES(TECH_IC) && ic_surface && !resumed && (opt.ic_use || opt.ic_prepare)) {
-                vec2 gradients;
-                ic_found = ic_lookup(sh.p, ns, irradiance, gradients);
-                if (!ic_recorded) {
-                    res.ic_irradiance = irradiance;
-                    res.ic_gradients = gradients;
-                    ic_recorded = true;
-                }
-                if (ic_found && opt.ic_use && (surf.type == MATERIAL_DIFFUSE || opt.ic_glossy)) {
-                    res.radiance += throughput * surf.albedo * INV_PI * irradiance;
-                    ic_vertex = true;
-                } else if (!ic_found && opt.ic_create && rnd(rng) < tech.ic.create_prob) {
-                    ic_request(sh.p, ns, opt.pixel, res.segments);
-                }
-                if (opt.ic_prepare) {
-                    if (!ic_found) atomicAdd(ic_queue_uncovered, 1u);
-                    break;
-                }
-            } else if (USES(TECH_ADRRS) && ic_surface && !resumed && opt.adrrs) {
-                ic_found = adrrs_adjoint_irradiance(sh.p, ns, irradiance);  // the adjoint alone
-            }
-
-            // Next event estimation (Veach 1997 eq. 9.8 / 9.13 weights for MIS). A vertex where the
-            // path ends takes its direct light from NEE alone (no BSDF sample follows to share it).
-            // The vertex's last light sample's shadow ray waits for the next path ray (see
-            // ShadowRay); the others are traced here.
-            bool last_vertex = ic_vertex || (opt.first_vertex_only && !delta);
-            if ((METHOD != METHOD_PT || last_vertex) && !delta && !resumed) {
-                for (uint k = 0u; k < opt.light_samples; ++k) {
-                    if (k > 0u) trace_pending_shadow(pending, res, g_base);  // the previous sample's
-                    LightSample ls;
-                    vec3 u = rnd3(rng);
-                    if (!sample_light(sh.p, sh.ng, u, ls)) continue;
-                    vec3 wi_local = vec3(dot(ls.wi, tangent), dot(ls.wi, bitangent), dot(ls.wi, ns));
-                    float bsdf_pdf;
-                    vec3 f = bsdf_eval(surf, wo_local, wi_local, bsdf_pdf);
-                    if (max3(f) <= 0.0 || max3(ls.radiance) <= 0.0) continue;
-                    // Guided vertex: the continuation's density is the one-sample MIS mixture.
-                    if (USES(TECH_GUIDING) && g_prob > 0.0)
-                        bsdf_pdf = mix(bsdf_pdf, guiding_vmm_pdf(g_first, g_lobes, sh.p, ls.wi), g_prob);
-                    float w = (METHOD == METHOD_MIS && !ls.delta && !last_vertex) ? mis_weight(float(opt.light_samples) * ls.pdf, bsdf_pdf) : 1.0;
-                    pending.contribution = throughput * f * ls.radiance * (w / (ls.pdf * float(opt.light_samples)));
-                    // Aim the shadow ray from its origin at the sampled point itself (a direction
-                    // kept from the unmoved point misses grazing lights), stopping short of it.
-                    // A shadow ray through the surface (transmission) leaves on it; one on the side the
-                    // path came from leaves from the usual offset: a surface touching this one there
-                    // belongs to an object the ray then starts inside (the glass cube over the floor),
-                    // which blocks it all the same, and opaque rays need no any-hit calls.
-                    pending.origin = offset_ray(sh.p, ng);
-                    pending.dir = ls.wi;
-                    pending.t_max = INFINITY_F;
-                    if (ls.dist < INFINITY_F) {
-                        vec3 to_light = sh.p + ls.wi * ls.dist - pending.origin;
-                        pending.t_max = length(to_light);
-                        pending.dir = to_light / pending.t_max;
-                        pending.t_max *= 1.0 - 1e-4;
-                    }
-                    pending.self_instance = dot(ls.wi, ng) < 0.0 ? sh.instance : NO_INDEX;
-                    pending.self_primitive = sh.primitive;
-                    pending.record = NO_INDEX;
+        // ADRRS (techniques/adrrs.glsl) on the continuation: roulette or split by the adjoint.
+        bool adrrs_decided = false;
+        if (USES(TECH_ADRRS) && opt.adrrs && ic_found && !delta) {
+            float q = adrrs_factor(throughput, surf.albedo, irradiance, opt.adrrs_estimate);
+            if (q < 1.0) {
+                if (rnd(rng) >= q) break;
+                throughput /= q;
+                roulette_throughput /= q;
+            } else if (q > 1.0) {
+                // Within the pixel's split budget: q is capped before the expected-value
+                // split, so every copy's weight 1/q stays exact.
+                q = min(q, 1.0 + float(adrrs_copies_left(opt.adrrs_local, opt.adrrs_samples)));
+                uint copies = adrrs_split_copies(q, rnd(rng));
+                throughput /= q;
+                roulette_throughput /= q;
+                if (copies > 1u) {
+                    uint flags = (opt.from_camera && res.segments == 1u) ? ADRRS_SPLIT_CAMERA_RAY : 0u;
+                    uint seed = uint(rnd(rng) * 4294967040.0) ^ (res.segments << 24);
+                    adrrs_queue(opt.adrrs_local, opt.adrrs_pixels,
+                                AdrrsSplit(origin, t_min, dir, t_max, throughput, seed,
+                                           bounces | (discrete << 16), copies - 1u, flags, res.segments,
+                                           self_instance, self_primitive));
                 }
             }
-            if (last_vertex) break;
+            adrrs_decided = true;
+        }
 
-            // ADRRS (techniques/adrrs.glsl) on the continuation: roulette or split by the adjoint.
-            bool adrrs_decided = false;
-            if (USES(TECH_ADRRS) && opt.adrrs && ic_found && !delta) {
-                float q = adrrs_factor(throughput, surf.albedo, irradiance, opt.adrrs_estimate);
-                if (q < 1.0) {
-                    if (rnd(rng) >= q) break;
-                    throughput /= q;
-                    roulette_throughput /= q;
-                } else if (q > 1.0) {
-                    // Within the pixel's split budget: q is capped before the expected-value
-                    // split, so every copy's weight 1/q stays exact.
-                    q = min(q, 1.0 + float(adrrs_copies_left(opt.adrrs_local, opt.adrrs_samples)));
-                    uint copies = adrrs_split_copies(q, rnd(rng));
-                    throughput /= q;
-                    roulette_throughput /= q;
-                    if (copies > 1u) {
-                        uint flags = (opt.from_camera && res.segments == 1u) ? ADRRS_SPLIT_CAMERA_RAY : 0u;
-                        uint seed = uint(rnd(rng) * 4294967040.0) ^ (res.segments << 24);
-                        adrrs_queue(opt.adrrs_local, opt.adrrs_pixels,
-                                    AdrrsSplit(origin, t_min, dir, t_max, throughput, seed,
-                                               bounces | (discrete << 16), copies - 1u, flags, res.segments,
-                                               self_instance, self_primitive));
-                    }
-                }
-                adrrs_decided = true;
-            }
-
-            // Continue the path by sampling the BSDF, or at a guided vertex the region's VMM with
-            // probability guiding_prob (one-sample MIS, Veach 1997 sec. 9.2.4: the direction's
-            // weight is f cos / (p p_vmm + (1 - p) p_bsdf) whichever technique drew it).
-            BsdfSample bs;
-            if (USES(TECH_GUIDING) && g_prob > 0.0 && rnd(rng) < g_prob) {
-                vec3 wi = guiding_vmm_sample(g_first, g_lobes, sh.p, rnd3(rng).zxy);
-                bs.wi = vec3(dot(wi, tangent), dot(wi, bitangent), dot(wi, ns));
-                vec3 f = bsdf_eval(surf, wo_local, bs.wi, bs.pdf);
-                if (max3(f) <= 0.0 || !(bs.pdf > 0.0)) break;
-                bs.weight = f / bs.pdf;  // as if the BSDF had sampled it; the mixture pdf follows
-                bs.delta = false;
-            } else if (!bsdf_sample(surf, wo_local, rnd3(rng), bs)) {
-                break;
-            }
-            roulette_throughput *= bs.weight;
-            if (USES(TECH_GUIDING) && g_prob > 0.0 && !bs.delta) {
-                vec3 wi = normalize(bs.wi.x * tangent + bs.wi.y * bitangent + bs.wi.z * ns);
-                float p = mix(bs.pdf, guiding_vmm_pdf(g_first, g_lobes, sh.p, wi), g_prob);
-                bs.weight *= bs.pdf / p;
-                bs.pdf = p;
-            }
-            throughput *= bs.weight;
-            if (bs.delta) {
-                discrete++;
-                if (discrete > opt.depth_leeway) bounces++;
-                if (!albedo_done) albedo_throughput *= bs.weight;
-            } else {
-                bounces++;
-            }
-            prev_delta = bs.delta;
-            prev_pdf = bs.pdf;
-            dir = normalize(bs.wi.x * tangent + bs.wi.y * bitangent + bs.wi.z * ns);
-            if (USES(TECH_GUIDING) && opt.guiding_record && g_vertex && g_count < GUIDING_PATH_VERTICES) {
-                guiding_samples[g_slot + g_count] = GuidingSample(sh.p, g_region, guiding_pack_direction(dir), bs.pdf, 0.0,
-                                                                  GUIDING_DISTANCE_INFINITE);
-                g_base[g_count] = luminance(res.radiance);
-                g_norm[g_count] = luminance(throughput) * bs.pdf;
-                pending.record = g_count;
-                g_open = g_count++;
-                g_travelled = 0.0;
-            }
-            bool contact = may_touch_transmission(sh.instance, sh.p);
-            origin = leave_surface(sh.p, ng, dir, contact);
-            self_instance = contact ? sh.instance : NO_INDEX;
-            self_primitive = sh.primitive;
-            prev_ng = sh.ng;
-            t_min = 0.0;
-            t_max = INFINITY_F;
-            if (max3(throughput) <= 0.0) break;
-            // Russian roulette on the throughput: survival probability sqrt(max(throughput)), at most
-            // 1, as Cycles (path_state_continuation_probability). Against max(throughput) it lowers
-            // variance x rays per path by 10-13% on the Cornell box and the atrium (bench.variance).
-            if (opt.rr_start_depth > 0u && bounces >= opt.rr_start_depth && !adrrs_decided) {
-                float survive = min(1.0, sqrt(max3(USES(TECH_GUIDING) ? roulette_throughput : throughput)));
-                if (rnd(rng) >= survive) break;
-                throughput /= survive;
-                roulette_throughput /= survive;
-            }
-            ended = false;
-        } while (false);
+        // Continue the path by sampling the BSDF, or at a guided vertex the region's VMM with
+        // probability guiding_prob (one-sample MIS, Veach 1997 sec. 9.2.4: the direction's
+        // weight is f cos / (p p_vmm + (1 - p) p_bsdf) whichever technique drew it).
+        BsdfSample bs;
+        if (USES(TECH_GUIDING) && g_prob > 0.0 && rnd(rng) < g_prob) {
+            vec3 wi = guiding_vmm_sample(g_first, g_lobes, sh.p, rnd3(rng).zxy);
+            bs.wi = vec3(dot(wi, tangent), dot(wi, bitangent), dot(wi, ns));
+            vec3 f = bsdf_eval(surf, wo_local, bs.wi, bs.pdf);
+            if (max3(f) <= 0.0 || !(bs.pdf > 0.0)) break;
+            bs.weight = f / bs.pdf;  // as if the BSDF had sampled it; the mixture pdf follows
+            bs.delta = false;
+        } else if (!bsdf_sample(surf, wo_local, rnd3(rng), bs)) {
+            break;
+        }
+        roulette_throughput *= bs.weight;
+        if (USES(TECH_GUIDING) && g_prob > 0.0 && !bs.delta) {
+            vec3 wi = normalize(bs.wi.x * tangent + bs.wi.y * bitangent + bs.wi.z * ns);
+            float p = mix(bs.pdf, guiding_vmm_pdf(g_first, g_lobes, sh.p, wi), g_prob);
+            bs.weight *= bs.pdf / p;
+            bs.pdf = p;
+        }
+        throughput *= bs.weight;
+        if (bs.delta) {
+            discrete++;
+            if (discrete > opt.depth_leeway) bounces++;
+            if (!albedo_done) albedo_throughput *= bs.weight;
+        } else {
+            bounces++;
+        }
+        prev_delta = bs.delta;
+        prev_pdf = bs.pdf;
+        dir = normalize(bs.wi.x * tangent + bs.wi.y * bitangent + bs.wi.z * ns);
+        if (USES(TECH_GUIDING) && opt.guiding_record && g_vertex && g_count < GUIDING_PATH_VERTICES) {
+            guiding_samples[g_slot + g_count] = GuidingSample(sh.p, g_region, guiding_pack_direction(dir), bs.pdf, 0.0,
+                                                              GUIDING_DISTANCE_INFINITE);
+            g_base[g_count] = luminance(res.radiance);
+            g_norm[g_count] = luminance(throughput) * bs.pdf;
+            pending.record = g_count;
+            g_open = g_count++;
+            g_travelled = 0.0;
+        }
+        bool contact = may_touch_transmission(sh.instance, sh.p);
+        origin = leave_surface(sh.p, ng, dir, contact);
+        self_instance = contact ? sh.instance : NO_INDEX;
+        self_primitive = sh.primitive;
+        prev_ng = sh.ng;
+        t_min = 0.0;
+        t_max = INFINITY_F;
+        if (max3(throughput) <= 0.0) break;
+        // Russian roulette on the throughput: survival probability sqrt(max(throughput)), at most
+        // 1, as Cycles (path_state_continuation_probability). Against max(throughput) it lowers
+        // variance x rays per path by 10-13% on the Cornell box and the atrium (bench.variance).
+        if (opt.rr_start_depth > 0u && bounces >= opt.rr_start_depth && !adrrs_decided) {
+            float survive = min(1.0, sqrt(max3(USES(TECH_GUIDING) ? roulette_throughput : throughput)));
+            if (rnd(rng) >= survive) break;
+            throughput /= survive;
+            roulette_throughput /= survive;
+        }
     }
+    trace_pending_shadow(pending, res, g_base);
+    if (USES(TECH_GUIDING)) {
+        float end = luminance(res.radiance);
+        for (uint k = 0u; k < g_count; ++k)  // non-finite: the host drops it
+            guiding_samples[g_slot + k].weight = g_norm[k] > 0.0 ? max(end - g_base[k], 0.0) / g_norm[k] : 0.0;
+    }
+    return res;
 }
