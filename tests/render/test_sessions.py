@@ -1,5 +1,8 @@
 """Several sessions at once (Blender has a viewport and an F12 render): they share the
 device, may run on different threads, and give the same images as one at a time."""
+import os
+import subprocess
+import sys
 import threading
 
 import numpy as np
@@ -70,3 +73,33 @@ def test_frames_in_row_bands_equal_whole_frames():
     whole.reset()
     whole.render(2)
     np.testing.assert_array_equal(banded.read("combined"), whole.read("combined"))
+
+
+HUNG_DEVICE = """
+import os, parallax_core as pc
+from parallax_core import scenes
+s = pc.Session(48, 48)
+s.set_params(method="mis", samples_per_frame=64)
+s.update(scenes.cornell_box(48, 48))
+os.environ["PARALLAX_DEVICE_TIMEOUT_S"] = "1e-6"  # read at every submission
+errors = []
+for frame in range(5):
+    try:
+        s.render(1)
+    except RuntimeError as e:
+        errors.append(str(e))
+print(len(errors), errors[0] if errors else "", errors[-1] == errors[0] if errors else "", flush=True)
+os._exit(0)  # the device may still run the abandoned submission
+"""
+
+
+def test_a_device_past_its_timeout_raises_instead_of_hanging():
+    # A hung device (the NVIDIA driver once hung in a frame: bench/results/path_regeneration)
+    # must end in an error, not a wait for ever. A timeout of a microsecond, far below any
+    # frame, stands in for the hang; a child process, since the device stays marked hung.
+    run = subprocess.run([sys.executable, "-c", HUNG_DEVICE], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    count, message = run.stdout.split(" ", 1)
+    # The first submission past the limit raises, and so does every later one, with the same reason.
+    assert int(count) == 5 and "taken for hung" in message and "PARALLAX_DEVICE_TIMEOUT_S" in message
+    assert message.strip().endswith("True")

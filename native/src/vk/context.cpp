@@ -349,7 +349,7 @@ Context::Context(const DeviceReport& report) : report_(report) {
 
 Context::~Context() {
     if (device_) {
-        vkDeviceWaitIdle(device_);
+        if (hung_.empty()) vkDeviceWaitIdle(device_);
         vkDestroyFence(device_, fence_, nullptr);
         vkDestroyCommandPool(device_, pool_, nullptr);
         vkDestroyDevice(device_, nullptr);
@@ -362,8 +362,15 @@ uint32_t Context::memory_type(uint32_t type_bits, VkMemoryPropertyFlags flags) c
     throw VulkanError("no suitable memory type");
 }
 
+uint64_t Context::submit_timeout_ns() const {
+    const char* text = std::getenv("PARALLAX_DEVICE_TIMEOUT_S");
+    const double seconds = text && *text ? std::strtod(text, nullptr) : is_cpu() ? 0.0 : 120.0;
+    return seconds > 0 ? uint64_t(seconds * 1e9) : UINT64_MAX;
+}
+
 void Context::submit_and_wait(const std::function<void(VkCommandBuffer)>& record) {
     std::lock_guard<std::mutex> lock(submit_mutex_);
+    if (!hung_.empty()) throw VulkanError(hung_);
     VkCommandBufferAllocateInfo ainfo{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
     ainfo.commandPool = pool_;
     ainfo.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
@@ -384,7 +391,17 @@ void Context::submit_and_wait(const std::function<void(VkCommandBuffer)>& record
     sinfo.pCommandBuffers = &cmd;
     VK_CHECK(vkResetFences(device_, 1, &fence_));
     VK_CHECK(vkQueueSubmit(queue_, 1, &sinfo, fence_));
-    VK_CHECK(vkWaitForFences(device_, 1, &fence_, VK_TRUE, UINT64_MAX));
+    const uint64_t timeout = submit_timeout_ns();
+    const VkResult r = vkWaitForFences(device_, 1, &fence_, VK_TRUE, timeout);
+    if (r == VK_TIMEOUT) {
+        free_on_exit.c = VK_NULL_HANDLE;  // the device may still run it: never freed
+        char seconds[32];
+        std::snprintf(seconds, sizeof(seconds), "%g", timeout / 1e9);
+        hung_ = report_.name + " did not finish a submission within " + seconds +
+                " s (PARALLAX_DEVICE_TIMEOUT_S) and is taken for hung: restart the application to render on it again";
+        throw VulkanError(hung_);
+    }
+    vk_check(r, "vkWaitForFences");
 }
 
 // ---- Device memory budget (issue 9) -----------------------------------------------------

@@ -98,7 +98,13 @@ public:
     void set_memory_budget(VkDeviceSize bytes);  // 0: the default
     // Records with `record`, submits, and waits (device loss becomes an exception).
     // Thread-safe: submissions of all sessions on this device are serialised.
+    // A submission that has not finished within submit_timeout() is taken for a hung device
+    // (a driver or shader fault): it throws, and so does every later submission on this
+    // device, instead of waiting for ever (Blender must not hang).
     void submit_and_wait(const std::function<void(VkCommandBuffer)>& record);
+    // PARALLAX_DEVICE_TIMEOUT_S (seconds) where set, else 120 s on a GPU (one submission holds
+    // about 2^30 rays) and none on the CPU (lavapipe runs on the host's threads).
+    uint64_t submit_timeout_ns() const;
 
 private:
     VkInstance instance_ = VK_NULL_HANDLE;  // the process-wide instance, not owned
@@ -108,7 +114,8 @@ private:
     uint32_t queue_family_ = 0;
     VkCommandPool pool_ = VK_NULL_HANDLE;
     VkFence fence_ = VK_NULL_HANDLE;
-    std::mutex submit_mutex_;  // guards pool_, fence_ and queue_
+    std::mutex submit_mutex_;  // guards pool_, fence_, queue_ and hung_
+    std::string hung_;         // why the device is taken for hung ("": it is not)
     RayTracingFunctions rt_{};
     VkPhysicalDeviceRayTracingPipelinePropertiesKHR rt_props_{};
     VkPhysicalDeviceMemoryProperties memory_props_{};
