@@ -98,7 +98,7 @@ public:
     void set_memory_budget(VkDeviceSize bytes);  // 0: the default
     // Records with `record`, submits, and waits (device loss becomes an exception).
     // Thread-safe: submissions of all sessions on this device are serialised.
-    // A submission that has not finished within submit_timeout() is taken for a hung device
+    // A submission that has not finished within submit_timeout_ns() is taken for a hung device
     // (a driver or shader fault): it throws, and so does every later submission on this
     // device, instead of waiting for ever (Blender must not hang).
     void submit_and_wait(const std::function<void(VkCommandBuffer)>& record);
