@@ -124,7 +124,9 @@ def test_lavapipe_runs_four_lanes_with_the_same_images(tmp_path):
     # renders) unless the user chose a width; the images are bit for bit those of 256 bits.
     def child(width, cache):
         env = {k: v for k, v in os.environ.items() if k != "LP_NATIVE_VECTOR_WIDTH"}
-        env.update({"MESA_SHADER_CACHE_DIR": str(tmp_path / cache)}, **({"LP_NATIVE_VECTOR_WIDTH": width} if width else {}))
+        env["MESA_SHADER_CACHE_DIR"] = str(tmp_path / cache)
+        if width:
+            env["LP_NATIVE_VECTOR_WIDTH"] = width
         run = subprocess.run([sys.executable, "-c", VECTOR_WIDTH], capture_output=True, text=True, timeout=600, env=env)
         assert run.returncode == 0, run.stderr
         return run.stdout.split()
