@@ -77,7 +77,7 @@ def test_frames_in_row_bands_equal_whole_frames():
 
 
 HUNG_DEVICE = """
-import os, parallax_core as pc
+import gc, os, parallax_core as pc
 from parallax_core import scenes
 s = pc.Session(48, 48)
 s.set_params(method="mis", samples_per_frame=64)
@@ -89,20 +89,27 @@ for frame in range(5):
         s.render(1)
     except RuntimeError as e:
         errors.append(str(e))
-print(len(errors), errors[0] if errors else "", errors[-1] == errors[0] if errors else "", flush=True)
+# The session's objects may still be in use by the abandoned submission: deleting the session
+# must leave them alone (destroying them is what the validation layer would report here).
+pc.validation_messages(clear=True)
+del s
+gc.collect()
+in_use = [m for m in pc.validation_messages(clear=True) if "in use" in m]
+print(len(in_use), len(errors), errors[0] if errors else "", errors[-1] == errors[0] if errors else "", flush=True)
 os._exit(0)  # the device may still run the abandoned submission
 """
 
 
 def test_a_device_past_its_timeout_raises_instead_of_hanging():
     # A hung device (the NVIDIA driver once hung in a frame: bench/results/path_regeneration)
-    # must end in an error, not a wait for ever. A timeout of a microsecond, far below any
-    # frame, stands in for the hang; a child process, since the device stays marked hung.
+    # must end in an error, not a wait for ever, and the session can still be deleted. A timeout
+    # of a microsecond, far below any frame, stands in for the hang; a child process, since the
+    # device stays marked hung.
     run = subprocess.run([sys.executable, "-c", HUNG_DEVICE], capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr
-    count, message = run.stdout.split(" ", 1)
+    in_use, count, message = run.stdout.split(" ", 2)
     # The first submission past the limit raises, and so does every later one, with the same reason.
-    assert int(count) == 5 and "taken for hung" in message and "PARALLAX_DEVICE_TIMEOUT_S" in message
+    assert int(in_use) == 0 and int(count) == 5 and "taken for hung" in message and "PARALLAX_DEVICE_TIMEOUT_S" in message
     assert message.strip().endswith("True")
 
 

@@ -19,7 +19,7 @@ AccelerationStructure::AccelerationStructure(Context& ctx, VkAccelerationStructu
 }
 
 AccelerationStructure::~AccelerationStructure() {
-    if (as_) ctx_.rt().destroy_as(ctx_.device(), as_, nullptr);
+    if (as_ && !ctx_.hung()) ctx_.rt().destroy_as(ctx_.device(), as_, nullptr);
 }
 
 static VkDeviceSize align_up(VkDeviceSize v, VkDeviceSize a) { return (v + a - 1) / a * a; }

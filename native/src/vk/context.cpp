@@ -403,6 +403,7 @@ void Context::submit_and_wait(const std::function<void(VkCommandBuffer)>& record
         std::snprintf(seconds, sizeof(seconds), "%g", timeout / 1e9);
         hung_ = report_.name + " did not finish a submission within " + seconds +
                 " s (PARALLAX_DEVICE_TIMEOUT_S) and is taken for hung: restart the application to render on it again";
+        hung_flag_ = true;
         throw VulkanError(hung_);
     }
     vk_check(r, "vkWaitForFences");

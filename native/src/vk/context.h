@@ -105,6 +105,11 @@ public:
     // PARALLAX_DEVICE_TIMEOUT_S (seconds) where set, else 120 s on a GPU (one submission holds
     // about 2^30 rays) and none on the CPU (lavapipe runs on the host's threads).
     uint64_t submit_timeout_ns() const;
+    // Whether a submission timed out. The objects it uses may still be in use then: Buffer,
+    // AccelerationStructure, DescriptorSet and pipeline destructors leave them to the process's
+    // end instead of destroying them (invalid while in use; on the H200 a process that
+    // destroyed them after a hang never exited).
+    bool hung() const { return hung_flag_; }
 
 private:
     VkInstance instance_ = VK_NULL_HANDLE;  // the process-wide instance, not owned
@@ -116,6 +121,7 @@ private:
     VkFence fence_ = VK_NULL_HANDLE;
     std::mutex submit_mutex_;  // guards pool_, fence_, queue_ and hung_
     std::string hung_;         // why the device is taken for hung ("": it is not)
+    std::atomic<bool> hung_flag_{false};  // !hung_.empty(), for destructors on any thread
     RayTracingFunctions rt_{};
     VkPhysicalDeviceRayTracingPipelinePropertiesKHR rt_props_{};
     VkPhysicalDeviceMemoryProperties memory_props_{};

@@ -55,7 +55,7 @@ DescriptorSet::DescriptorSet(Context& ctx, uint32_t binding_count, const std::ve
 }
 
 DescriptorSet::~DescriptorSet() {
-    vkDestroyDescriptorPool(ctx_.device(), pool_, nullptr);
+    if (!ctx_.hung()) vkDestroyDescriptorPool(ctx_.device(), pool_, nullptr);
 }
 
 void DescriptorSet::bind_buffer(uint32_t binding, const Buffer& buffer) {
@@ -190,6 +190,7 @@ RayTracingPipeline::RayTracingPipeline(Context& ctx, VkDescriptorSetLayout set_l
 }
 
 RayTracingPipeline::~RayTracingPipeline() {
+    if (ctx_.hung()) return;
     vkDestroyPipeline(ctx_.device(), pipeline_, nullptr);
     vkDestroyPipelineLayout(ctx_.device(), layout_, nullptr);
 }
@@ -219,6 +220,7 @@ ComputePipeline::ComputePipeline(Context& ctx, VkDescriptorSetLayout set_layout,
 }
 
 ComputePipeline::~ComputePipeline() {
+    if (ctx_.hung()) return;
     vkDestroyPipeline(ctx_.device(), pipeline_, nullptr);
     vkDestroyPipelineLayout(ctx_.device(), layout_, nullptr);
 }
