@@ -107,8 +107,7 @@ public:
     uint64_t submit_timeout_ns() const;
     // Whether a submission timed out. The objects it uses may still be in use then: Buffer,
     // AccelerationStructure, DescriptorSet and pipeline destructors leave them to the process's
-    // end instead of destroying them (invalid while in use; on the H200 a process that
-    // destroyed them after a hang never exited).
+    // end instead of destroying them (invalid while in use: lavapipe, still running it, crashed).
     bool hung() const { return hung_flag_; }
 
 private:

@@ -27,6 +27,8 @@ for name, methods in plan:
         except Exception as e:
             log(name, m, "ERROR", e)
             faulthandler.cancel_dump_traceback_later()
+            if __import__("os").environ.get("PX_EXIT_NORMALLY"):
+                del s; __import__("gc").collect(); log(name, m, "session deleted"); sys.exit(3)
             if not __import__("os").environ.get("PX_PRIVATE_CONTEXT"): __import__("os")._exit(3)
             continue
         log(name, m, "ms", round(1e3 * (time.perf_counter() - start) / i, 2))
