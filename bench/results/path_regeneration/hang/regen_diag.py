@@ -13,15 +13,24 @@ def log(*a):
 for name, methods in plan:
     scene = load_scene(name, 0, npz)
     for m in methods:
-        faulthandler.dump_traceback_later(30, exit=True)
+        faulthandler.dump_traceback_later(40, exit=True)
         s = pc.Session(scene.width, scene.height, __import__("os").environ.get("PX_DEVICE", "gpu"))
         s.set_params(samples_per_frame=int(__import__("os").environ.get("PX_SPP", "64")), max_depth=MAX_DEPTH, depth_leeway=0, seed=0, **method_params(m), **extra)
-        log(name, m, "update"); s.update(scene)
-        log(name, m, "compile"); s.compile()
-        s.render(2)
-        i, start = 0, time.perf_counter()
-        while time.perf_counter() - start < 1.0:
-            log(name, m, "frame", i); s.render(1); i += 1
+        try:
+            log(name, m, "update"); s.update(scene)
+            log(name, m, "compile"); s.compile()
+            s.render(2)
+            log(name, m, "rays after 2", s.stats().get("rays"))
+            i, start = 0, time.perf_counter()
+            while time.perf_counter() - start < 1.0:
+                log(name, m, "frame", i); s.render(1); i += 1
+        except Exception as e:
+            log(name, m, "ERROR", e)
+            faulthandler.cancel_dump_traceback_later()
+            if __import__("os").environ.get("PX_EXIT_NORMALLY"):
+                del s; __import__("gc").collect(); log(name, m, "session deleted"); sys.exit(3)
+            if not __import__("os").environ.get("PX_PRIVATE_CONTEXT"): __import__("os")._exit(3)
+            continue
         log(name, m, "ms", round(1e3 * (time.perf_counter() - start) / i, 2))
         st = s.stats()
         log(name, m, "done", {k: st[k] for k in ("rays",) if k in st})
