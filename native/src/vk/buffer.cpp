@@ -78,8 +78,10 @@ Buffer& Buffer::operator=(Buffer&& o) noexcept {
 
 void Buffer::release() {
     if (!ctx_) return;
-    if (buffer_ && !ctx_->hung()) vkDestroyBuffer(ctx_->device(), buffer_, nullptr);
-    if (memory_ && !ctx_->hung()) vkFreeMemory(ctx_->device(), memory_, nullptr);
+    if (!ctx_->hung()) {  // else the abandoned submission may still use it (Context::hung)
+        if (buffer_) vkDestroyBuffer(ctx_->device(), buffer_, nullptr);
+        if (memory_) vkFreeMemory(ctx_->device(), memory_, nullptr);
+    }
     ctx_->release_memory(reserved_);
     reserved_ = 0;
     buffer_ = VK_NULL_HANDLE;

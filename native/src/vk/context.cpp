@@ -353,7 +353,7 @@ Context::Context(const DeviceReport& report) : report_(report) {
 
 Context::~Context() {
     if (device_) {
-        if (hung_.empty()) vkDeviceWaitIdle(device_);
+        if (!hung()) vkDeviceWaitIdle(device_);
         vkDestroyFence(device_, fence_, nullptr);
         vkDestroyCommandPool(device_, pool_, nullptr);
         vkDestroyDevice(device_, nullptr);
