@@ -2,24 +2,38 @@
 per frame against plain path tracing on one device (the ratios, not the rates, carry over).
 
     python -m bench.frame_cost --npz bench/npz [--scenes clocks,light_behind_glass]
-        [--methods pt,nee,mis,guiding_device,guiding_pt_device] [--spp 64] [--device gpu] [--out FILE.json]
-        [--set light_tree=0 ...]
+        [--methods pt,nee,mis,guiding_device,guiding_pt_device] [--spp 64] [--seconds 1] [--device gpu]
+        [--out FILE.json] [--set light_tree=0 ...]
 
 Methods are bench.converge's (its method_params: guiding keeps training, as in a guided
 render). Each gets a fresh session with the frame's samples (`--spp`), two warm-up frames,
-then as many frames as fit in a second. Scenes come from
-`bench.converge --export-only --npz DIR --width 320`.
+then as many frames as fit in `--seconds`. Scenes come from
+`bench.converge --export-only --npz DIR --width 320`. Against an older build (bench/regression.py)
+that lacks some technique's settings, a method that uses none of the techniques runs without them.
 """
 import argparse
+import dataclasses
 import json
 import time
 
 from bench.converge import MAX_DEPTH, METHODS, load_scene, method_params
 
 
+TECHNIQUES = ("ic", "adrrs", "guiding")  # method_params' switches
+
+
+def supported(params, known):
+    """params without the settings this build lacks, where the method switches no technique on."""
+    missing = set(params) - set(known)
+    if missing and any(params.get(t) for t in TECHNIQUES):
+        raise ValueError(f"this build lacks the settings {sorted(missing)}")
+    return {k: v for k, v in params.items() if k in known}
+
+
 def frame_ms(scene, device, spp, params, seconds=1.0):
     import parallax_core as pc
 
+    params = supported(params, {f.name for f in dataclasses.fields(pc.RenderParams)})
     session = pc.Session(scene.width, scene.height, device)
     session.set_params(samples_per_frame=spp, max_depth=MAX_DEPTH, depth_leeway=0, seed=0, **params)
     session.update(scene)
@@ -37,6 +51,7 @@ def main(argv=None):
     ap.add_argument("--scenes", default="clocks,light_behind_glass")
     ap.add_argument("--methods", default="pt,nee,mis,guiding_device,guiding_pt_device")
     ap.add_argument("--spp", type=int, default=64, help="samples per pixel per frame")
+    ap.add_argument("--seconds", type=float, default=1.0, help="time per method after the warm-up (default 1)")
     ap.add_argument("--device", default="gpu")
     ap.add_argument("--out", help="write the table as JSON here")
     ap.add_argument("--set", nargs="*", default=[], metavar="NAME=INT",
@@ -56,7 +71,8 @@ def main(argv=None):
         scene = load_scene(name, 0, args.npz)
         pt = None
         for method in methods:
-            ms, frames = frame_ms(scene, args.device, args.spp, {**method_params(method), **overrides})
+            ms, frames = frame_ms(scene, args.device, args.spp, {**method_params(method), **overrides},
+                                 args.seconds)
             pt = ms if method == "pt" else pt
             table[f"{name}/{method}"] = dict(ms=round(ms, 2), frames=frames)
             ratio = f"{ms / pt:.1f}" if pt else ""

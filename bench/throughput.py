@@ -3,7 +3,7 @@
 
     python bench/throughput.py [--sizes 1k,100k,1M] [--resolution 512] [--method nee]
                                [--max-depth 4] [--seconds 10] [--device auto]
-                               [--no-unordered] [--json OUT.json]
+                               [--no-unordered] [--orders coherent+sort,...] [--json OUT.json]
 
 For every size it measures three primitive orders of the same geometry
 (scenes.triangle_soup_scene, a noise-displaced sphere on a floor under an area light):
@@ -15,7 +15,8 @@ For every size it measures three primitive orders of the same geometry
                   (--unordered-resolution) when a full-resolution frame would take too long
   shuffled+sort   triangles randomly permuted, core ordering on: shows the core repairs it
 
-and reports scene upload time (Session.update: validation, flattening, ordering, BVH build),
+and reports scene upload time (Session.update: validation, flattening, ordering, BVH build;
+the JSON's flatten_s is SceneData.flatten alone, timed apart),
 time to the first frame after the upload, then renders for about --seconds and reports rays/s
 (wall clock, every ray including shadow rays, from Session.stats()), rays per CPU-second
 (time.process_time(): all threads of this process, which is where lavapipe renders) and pixel
@@ -110,6 +111,10 @@ def _warm_up(session, params: dict) -> float:
 
 def _measure(session, scene, spatial_order: bool, seconds: float) -> dict:
     """Upload, first frame, then render for about ``seconds``; raw numbers."""
+    # The Python share of the upload (SceneData.flatten), timed apart; update() flattens again.
+    t0 = time.perf_counter()
+    scene.flatten()
+    flatten_s = time.perf_counter() - t0
     t0 = time.perf_counter()
     warnings = session.update(scene, spatial_order=spatial_order)
     upload_s = time.perf_counter() - t0
@@ -160,6 +165,7 @@ def _measure(session, scene, spatial_order: bool, seconds: float) -> dict:
     pixel_samples = samples * session.width * session.height
     return {
         "upload_s": upload_s,
+        "flatten_s": flatten_s,
         "first_frame_s": latency_s,
         "frame_s": first_s,
         "frames": frames,
@@ -179,13 +185,21 @@ def _measure(session, scene, spatial_order: bool, seconds: float) -> dict:
 
 def run(sizes=(1_000, 100_000, 1_000_000), resolution=None, seconds=10.0, method="nee",
         max_depth=4, device="auto", unordered=True, unordered_resolution=64,
-        samples_per_frame=None, seed=0, progress=_log, info=None) -> list[dict]:
+        samples_per_frame=None, seed=0, progress=_log, info=None, orders=None) -> list[dict]:
     """Measure every (size, order); returns one dict per row (see _measure for the raw
     fields, plus scene/order/resolution/target fields). ``resolution`` None: 512 on CPU
     devices, 1024 on GPUs. ``samples_per_frame`` None: 8 on CPU devices, 16 on GPUs (more
     work per dispatch; the thesis' figure 5.2). ``info``, if a dict, receives device and
-    pipeline details."""
+    pipeline details. ``orders``: the ORDERS labels to measure (default all; ``unordered``
+    False drops "shuffled")."""
+    import parallax_core
     from parallax_core import Session, scenes
+
+    known = [label for label, _, _ in ORDERS]
+    orders = list(known if orders is None else orders)
+    for label in orders:
+        if label not in known:
+            raise ValueError(f"unknown order {label!r} (orders: {', '.join(known)})")
 
     sizes = [parse_size(s) if isinstance(s, str) else int(s) for s in sizes]
     device = _device_arg(device)
@@ -209,14 +223,15 @@ def run(sizes=(1_000, 100_000, 1_000_000), resolution=None, seconds=10.0, method
                     samples_per_frame=samples_per_frame, seconds=seconds,
                     pipeline_compile_s=compile_s, unordered_resolution=small_res,
                     cpu_count=os.cpu_count(), lp_num_threads=os.environ.get("LP_NUM_THREADS"),
-                    platform=platform.platform(), python=platform.python_version())
+                    platform=platform.platform(), python=platform.python_version(),
+                    core=os.path.dirname(parallax_core.__file__))
 
     minimal = MINIMAL_CPU if cpu_device else MINIMAL_GPU
     rows = []
     for n in sizes:
         built = {}
         for label, shuffle, spatial_order in ORDERS:
-            if not spatial_order and not unordered:
+            if (not spatial_order and not unordered) or label not in orders:
                 continue
             if shuffle not in built:
                 t0 = time.perf_counter()
@@ -337,6 +352,8 @@ def main(argv=None) -> int:
     p.add_argument("--device", default="auto", help="auto, cpu, gpu or a device index")
     p.add_argument("--no-unordered", action="store_true",
                    help="skip the shuffled mesh without spatial ordering (slow on lavapipe)")
+    p.add_argument("--orders", default=",".join(label for label, _, _ in ORDERS),
+                   help="triangle orders to measure (default all: coherent+sort,shuffled,shuffled+sort)")
     p.add_argument("--unordered-resolution", type=int, default=64,
                    help="resolution for the unordered case when full resolution is too slow (default 64)")
     p.add_argument("--spp-per-frame", type=int, default=None,
@@ -350,7 +367,7 @@ def main(argv=None) -> int:
         rows = run(sizes=args.sizes.split(","), resolution=args.resolution, seconds=args.seconds,
                    method=args.method, max_depth=args.max_depth, device=args.device,
                    unordered=not args.no_unordered, unordered_resolution=args.unordered_resolution,
-                   samples_per_frame=args.spp_per_frame, info=info)
+                   samples_per_frame=args.spp_per_frame, info=info, orders=args.orders.split(","))
     except (ValueError, RuntimeError) as e:
         print(f"throughput: error: {e}", file=sys.stderr)
         return 2

@@ -1,0 +1,59 @@
+"""bench/regression.py without builds: its arguments, its table (the builds and runs are
+exercised by running it; see bench/README.md)."""
+import os
+import subprocess
+import sys
+
+import pytest
+
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(0, REPO)
+
+from bench import regression  # noqa: E402
+
+
+def test_revs_are_commits_folders_or_named(tmp_path):
+    head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO, capture_output=True, text=True)
+    if head.returncode != 0:
+        pytest.skip("not a git checkout")
+    r = regression.Rev("HEAD", str(tmp_path))
+    assert r.commit == head.stdout.strip() and r.label == r.commit[:7]
+    assert r.src == os.path.join(str(tmp_path), "pxsrc-" + r.label)
+    assert regression.Rev(REPO, str(tmp_path)).label == "worktree"
+    named = regression.Rev(f"new={tmp_path}", "/unused")
+    assert (named.label, named.src, named.commit) == ("new", str(tmp_path), None)
+    with pytest.raises(SystemExit, match="neither a folder nor a commit"):
+        regression.Rev("no-such-commit-or-folder", str(tmp_path))
+    with pytest.raises(SystemExit, match="name"):
+        regression.Rev(f"bad name={tmp_path}", str(tmp_path))
+
+
+def test_table_gives_medians_and_ratios_to_the_first():
+    class R:
+        def __init__(self, label):
+            self.label = label
+
+    revs = [R("old"), R("new")]
+    key = ("throughput", "soup 1k", "nee", "G rays/s")
+    samples = {key: {"old": [1.0, 3.0, 2.0], "new": [3.0, 2.5, 10.0]},
+               ("throughput", "soup 1M", "nee", "G rays/s"): {"new": [1.0]}}
+    md = regression.table(revs, samples).splitlines()
+    assert md[0] == "| bench | scene | method | figure | old | new | ×old |"
+    assert md[2] == "| throughput | soup 1k | nee | G rays/s | 2 | 3 | 1.500 |"
+    assert md[3] == "| throughput | soup 1M | nee | G rays/s | — | 1 | — |"  # sizes in numeric order
+
+
+def test_throughput_figures_by_device_type():
+    row = dict(size="100k", order="coherent+sort", rays_per_s=2e9, rays_per_cpu_s=1e6, upload_s=0.1, flatten_s=0.02)
+    gpu = regression.throughput_figures({"info": {"device_type": "discrete", "method": "nee"}, "rows": [row]})
+    assert gpu == {("throughput", "soup 100k", "nee", "G rays/s"): 2.0,
+                   ("throughput", "soup 100k", "nee", "upload s"): 0.1,
+                   ("throughput", "soup 100k", "nee", "flatten s"): 0.02}
+    cpu = regression.throughput_figures({"info": {"device_type": "cpu", "method": "nee"},
+                                         "rows": [dict(row, order="shuffled+sort")]})
+    assert cpu[("throughput", "soup 100k shuffled+sort", "nee", "M rays/CPU-s")] == 1.0
+
+
+def test_frame_cost_needs_npz():
+    with pytest.raises(SystemExit, match="--npz"):
+        regression.main(["HEAD", "--benches", "frame_cost"])
