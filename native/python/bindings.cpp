@@ -209,12 +209,15 @@ NB_MODULE(_native, m) {
                      keep.push_back(a);
                  }
                  nb::gil_scoped_release release;
-                 return s.update(views, spatial_order, mask);
+                 // The primitive order is for builders that split in input order (lavapipe).
+                 return s.update(views, spatial_order && s.device().builds_in_input_order(), mask);
              },
              "arrays"_a, "spatial_order"_a = true, "parts"_a = std::vector<std::string>(),
              "Replace the scene with SceneData.flatten() arrays; returns warnings. With `parts` (names "
              "from geometry, instances, materials, lights, camera; empty = all), `arrays` holds only "
-             "those parts' arrays and the rest of the last update's scene is kept.")
+             "those parts' arrays and the rest of the last update's scene is kept. `spatial_order` puts "
+             "triangles and instances in bvh_order where the device's BVH builder splits in input order "
+             "(lavapipe); GPU drivers build their own trees, so there it changes nothing.")
         .def("_set_params", &px::Session::set_params, "params"_a, nb::call_guard<nb::gil_scoped_release>())
         .def("render", &px::Session::render, "frames"_a = 1, nb::call_guard<nb::gil_scoped_release>(),
              "Render `frames` frames of samples_per_frame samples each (GIL released); returns the "

@@ -174,6 +174,9 @@ class Session(_NativeSession):
         only "geometry" rebuilds BLASes). The other parts must still fit: indices into
         meshes, materials and textures refer to the kept ones. Needs an earlier whole update.
         Either way accumulation restarts, and the warnings returned are the whole scene's.
+        ``spatial_order`` reorders triangles and instances for devices whose BVH builder splits
+        them in input order (lavapipe); on GPUs, whose drivers build their own trees, the
+        scene's order is kept either way.
         """
         selected = parts_set(parts)
         whole = selected == frozenset(PARTS)

@@ -133,7 +133,8 @@ struct SceneHost {
 // Validates and converts the arrays (see parallax_core.scene.SceneData.flatten for the
 // format). Throws std::invalid_argument naming the offending array and element.
 // `spatial_order` puts triangles and instances in bvh_order (lavapipe's BVH builder splits
-// in input order, so this decides its trace speed).
+// in input order, so this decides its trace speed; the Python binding asks for it only where
+// DeviceReport::builds_in_input_order).
 // `light_tree`: pick local lights through a light tree (else by power; light_tree.h).
 SceneHost prepare_scene(const SceneArrays& arrays, bool spatial_order, bool light_tree = true);
 

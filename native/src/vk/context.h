@@ -42,6 +42,11 @@ struct DeviceReport {
     uint32_t index = 0;
     bool ray_tracing = false;
     std::vector<std::string> missing;  // required extensions/features this device lacks
+    // Whether the device's acceleration-structure builder splits primitives in their input
+    // order (lavapipe halves the list at its middle), so that the core's primitive order
+    // (bvh_order) shapes its trees. GPU drivers build their own trees from any order: ordering
+    // for them only costs upload time (1M triangles: 0.4 s -> 1.2-1.6 s on the H200).
+    bool builds_in_input_order() const { return type == "cpu"; }
 };
 
 // Extension functions that the loader does not export directly.
