@@ -279,7 +279,7 @@ def main(argv=None) -> int:
             r.error = f"checkout failed: {e.stderr.strip()[-500:]}"
             log(f"{r.label}: {r.error}")
             continue
-        r.build(args.debs, args.jobs)
+        r.build(os.path.abspath(args.debs), args.jobs)
     built = [r for r in revs if r.site]
     if not built:
         log("regression: no build succeeded")
@@ -287,6 +287,14 @@ def main(argv=None) -> int:
 
     samples: dict = {}  # (bench, scene, method, figure) -> {label: [value per round]}
     raw = []
+
+    def dump():  # after every run, so that a run cut short keeps what it measured
+        if args.json:
+            with open(args.json, "w") as f:
+                json.dump(dict(argv=sys.argv, revs=[dict(label=r.label, commit=r.commit, src=r.src, site=r.site,
+                                                         error=r.error) for r in revs],
+                               samples=[dict(key=list(k), values=v) for k, v in samples.items()],
+                               table=table(revs, samples), runs=raw), f, indent=1)
     with tempfile.TemporaryDirectory() as tmp:
         for rnd in range(1, args.rounds + 1):
             for name, argv, parse in jobs:
@@ -305,6 +313,7 @@ def main(argv=None) -> int:
                     main_fig = [f"{k[1]} {v:.3g} {k[3]}" for k, v in figures.items()
                                 if k[3] in ("G rays/s", "M rays/CPU-s", "ms per frame")]
                     log(f"round {rnd} {name} {r.label} ({time.perf_counter() - t0:.0f} s): " + ", ".join(main_fig))
+                    dump()
 
     md = table(revs, samples)
     header = [f"rounds: {args.rounds}, interleaved ({' '.join(r.label for r in built)} per round); "
@@ -314,11 +323,7 @@ def main(argv=None) -> int:
     print("\n".join(header) + "\n\n" + md)
     log(f"total {time.perf_counter() - t_start:.0f} s")
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump(dict(argv=sys.argv, revs=[dict(label=r.label, commit=r.commit, src=r.src, site=r.site,
-                                                     error=r.error) for r in revs],
-                           samples=[dict(key=list(k), values=v) for k, v in samples.items()],
-                           table=md, runs=raw), f, indent=1)
+        dump()
         log(f"wrote {args.json}")
     return 0
 
