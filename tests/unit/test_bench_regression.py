@@ -57,3 +57,13 @@ def test_throughput_figures_by_device_type():
 def test_frame_cost_needs_npz():
     with pytest.raises(SystemExit, match="--npz"):
         regression.main(["HEAD", "--benches", "frame_cost"])
+
+
+def test_frame_cost_leaves_out_settings_an_old_build_lacks():
+    from bench import frame_cost
+
+    off = dict(method="nee", ic=False, adrrs=False, guiding=False, guiding_parallax=True)
+    assert frame_cost.supported(off, {"method", "ic"}) == {"method": "nee", "ic": False}
+    with pytest.raises(ValueError, match="lacks the settings"):
+        frame_cost.supported(dict(off, guiding=True), {"method", "ic"})
+    assert frame_cost.supported(dict(off, guiding=True), set(off)) == dict(off, guiding=True)
