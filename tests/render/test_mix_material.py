@@ -158,8 +158,10 @@ def test_mix_is_linear_in_the_lobes_for_direct_light(session16):
     combo = w * res["diffuse"][3] + (1 - w) * res["conductor"][3]
     ok, ma, mb, se_mean = means_agree(res["mix"][3], combo)
     assert ok, f"mix {ma:.4f} vs linear combination {mb:.4f} (standard error {se_mean:.4f})"
-    # The lobes' images differ by far more than the noise, so a wrong weighting would show.
-    assert np.abs(z_scores(res["diffuse"].images, res["conductor"].images, k=4)).max() > 20.0
+    # The lobes' images differ by far more than the noise, so a wrong weighting would show: most
+    # blocks beyond the threshold. (With 6 batches a side the scores grow only slowly past 10, as
+    # the normal deviate of a t's tail with about 10 degrees of freedom. Measured: 77% beyond 5.)
+    assert (np.abs(z_scores(res["diffuse"].images, res["conductor"].images, k=4)) > 5.0).mean() > 0.5
 
 
 def test_three_link_chain_renders_finite(session16):
