@@ -3,12 +3,31 @@
 # included) into build-asan/, and runs the unit and render tiers against it. Python, numpy and
 # Mesa are not instrumented: libasan is preloaded, and scripts/asan_check.py reads the
 # sanitizers' logs, failing on any error and on any leak with a frame in the core.
-# Usage: scripts/asan.sh [PYTHON] [pytest args...]   (default: .venv/bin/python tests/unit tests/render)
+# Usage: scripts/asan.sh [PYTHON] [--ci] [pytest args...]
+#   default: .venv/bin/python, the unit and render tiers (`make asan`);
+#   --ci: the unit tier and CI_RENDER below, a render subset that runs every technique (.ci/run).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${1:-.venv/bin/python}
 shift || true
+# The render tests of --ci: each method (pt, nee, mis), the irradiance cache, ADRRS (which
+# needs the cache), guiding with the CPU and the device fit, partial updates and concurrent
+# sessions (the host code the sanitizers watch). Small images, seconds each without ASan.
+CI_RENDER=(
+  tests/render/test_integrator.py::test_white_furnace_specular
+  tests/render/test_irradiance_cache.py::test_same_seed_same_cache_and_image
+  tests/render/test_irradiance_cache.py::test_scene_edit_drops_stale_irradiance
+  tests/render/test_adrrs.py::test_same_seed_same_image
+  tests/render/test_adrrs.py::test_toggle_resets_and_scene_edit_remakes_the_estimate
+  tests/render/test_guiding.py::test_same_seed_same_image_fit_included
+  tests/render/test_guiding.py::test_refined_regions_reach_the_shaders
+  tests/render/test_partial_update.py::test_partial_update_matches_a_full_one
+  tests/render/test_sessions.py::test_concurrent_sessions_match_sequential
+)
 TESTS=("$@")
+if [ "${1:-}" = --ci ]; then
+  TESTS=(tests/unit "${CI_RENDER[@]}" "${@:2}")
+fi
 [ ${#TESTS[@]} -gt 0 ] || TESTS=(tests/unit tests/render)
 BUILD=build-asan
 start=$(date +%s)
@@ -29,8 +48,11 @@ built=$(date +%s)
 # objects behind (tests that run subprocesses check their exit status): the logs decide.
 # Validation is off here (the normal suite runs under the layer).
 status=0
-# libstdc++ preloaded too: ASan's __cxa_throw interceptor needs it at start-up (python3 does
-# not link it), or the core's first C++ exception stops the process.
+# The preload: Python is not instrumented, so the ASan runtime must come first in the process
+# (LD_PRELOAD of gcc's libasan.so, the one the module was linked against; ASan refuses to start
+# otherwise: "ASan runtime does not come first in initial library list"). libstdc++ preloaded
+# too: ASan's __cxa_throw interceptor needs it at start-up (python3 does not link it), or the
+# core's first C++ exception stops the process. Subprocesses (the CLI tests) inherit both.
 LD_PRELOAD="$(gcc -print-file-name=libasan.so) $(gcc -print-file-name=libstdc++.so.6)" \
 ASAN_OPTIONS="detect_leaks=1:exitcode=0:log_path=$PWD/$LOGS/asan:strict_string_checks=1:check_initialization_order=1" \
 UBSAN_OPTIONS="print_stacktrace=1:log_path=$PWD/$LOGS/ubsan" \

@@ -101,8 +101,10 @@ NB_MODULE(_native, m) {
              nb::ndarray<const float, nb::shape<-1, 3>, nb::c_contig, nb::device::cpu> hi) {
               if (lo.shape(0) != hi.shape(0)) throw std::invalid_argument("lo and hi differ in length");
               std::vector<px::vec3> l(lo.shape(0)), h(hi.shape(0));
-              std::memcpy(l.data(), lo.data(), l.size() * sizeof(px::vec3));
-              std::memcpy(h.data(), hi.data(), h.size() * sizeof(px::vec3));
+              if (!l.empty()) {  // an empty array's (and vector's) data may be null: memcpy's is UB
+                  std::memcpy(l.data(), lo.data(), l.size() * sizeof(px::vec3));
+                  std::memcpy(h.data(), hi.data(), h.size() * sizeof(px::vec3));
+              }
               return px::bvh_order(l, h);
           }, "lo"_a, "hi"_a,
           "The order in which an upload hands primitives with boxes (lo, hi) (N x 3 float32) to "

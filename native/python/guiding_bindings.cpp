@@ -26,6 +26,12 @@ namespace {
 
 using Doubles = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
 
+// memcpy for vectors that may be empty: an empty vector's data() may be null, and memcpy with a
+// null pointer is undefined even for 0 bytes (UBSan stops there).
+void copy_bytes(void* dst, const void* src, size_t bytes) {
+    if (bytes) std::memcpy(dst, src, bytes);
+}
+
 template <class T>
 nb::ndarray<nb::numpy, T> owned(std::vector<T>&& data, std::vector<size_t> shape) {
     auto* v = new std::vector<T>(std::move(data));
@@ -149,7 +155,7 @@ std::vector<TrainingSample> training_samples(const Doubles& dirs, const Doubles&
 nb::ndarray<nb::numpy, float> lobe_array(const std::vector<GuidingLobe>& lobes) {
     static_assert(sizeof(GuidingLobe) == 12 * sizeof(float), "GuidingLobe is 12 floats");
     std::vector<float> f(lobes.size() * 12);
-    std::memcpy(f.data(), lobes.data(), f.size() * sizeof(float));
+    copy_bytes(f.data(), lobes.data(), f.size() * sizeof(float));
     return owned(std::move(f), {lobes.size(), 12});
 }
 
@@ -323,7 +329,7 @@ void bind_guiding(nb::module_& parent) {
             s[i].distance = float(std::min(distances.data()[i], 1e30));
         }
         std::vector<uint32_t> words(n * 8);
-        std::memcpy(words.data(), s.data(), n * sizeof(px::GuidingSample));
+        copy_bytes(words.data(), s.data(), n * sizeof(px::GuidingSample));
         return owned(std::move(words), {n, 8});
     }, "positions"_a, "dirs"_a, "pdfs"_a, "weights"_a, "distances"_a, "regions"_a = nb::none(),
        "GuidingSample records (N, 8) uint32 as the trace loop writes them (direction packed).");
@@ -472,7 +478,7 @@ void bind_guiding(nb::module_& parent) {
             std::vector<px::GuidingRegion> r;
             f.write_regions(r);
             std::vector<float> words(r.size() * 12);
-            std::memcpy(words.data(), r.data(), words.size() * sizeof(float));
+            copy_bytes(words.data(), r.data(), words.size() * sizeof(float));
             return owned(std::move(words), {r.size(), 12});
         }, "GuidingRegion records (R, 12) float32 (lobe_count, fits and samples are uint32 bits).")
         .def("lobes", [](const GuidingField& f) {
@@ -485,7 +491,7 @@ void bind_guiding(nb::module_& parent) {
             std::vector<px::GuidingNode> n;
             f.write_nodes(n);
             std::vector<uint32_t> words(n.size() * 2);
-            std::memcpy(words.data(), n.data(), words.size() * sizeof(uint32_t));
+            copy_bytes(words.data(), n.data(), words.size() * sizeof(uint32_t));
             return owned(std::move(words), {n.size(), 2});
         }, "GuidingNode records (N, 2) uint32: the split's float32 bits, the link (the shaders' region tree).")
         .def("aabbs", [](const GuidingField& f) {
@@ -519,7 +525,7 @@ void bind_guiding(nb::module_& parent) {
             std::vector<px::GuidingNode> n;
             f.tree.write_nodes(n);
             std::vector<uint32_t> words(n.size() * 2);
-            std::memcpy(words.data(), n.data(), words.size() * sizeof(uint32_t));
+            copy_bytes(words.data(), n.data(), words.size() * sizeof(uint32_t));
             return owned(std::move(words), {n.size(), 2});
         }, "The region tree's GuidingNode records (N, 2) uint32, as GuidingField.nodes().")
         .def_prop_ro("inherited", [](const DeviceFitter& f) {

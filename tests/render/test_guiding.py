@@ -30,13 +30,12 @@ def glass_room(size=SIZE):
                                 albedo=0.3)
 
 
-def assert_unbiased(test, reference):
-    mean, se, means = test
-    ref_mean, ref_se, ref_means = reference
-    assert np.isfinite(mean).all()
-    z = z_scores(mean, se, ref_mean, ref_se, k=2)
+def assert_unbiased(tested, reference):
+    """tested and reference: batches() results."""
+    assert np.isfinite(tested.mean).all()
+    z = z_scores(tested.images, reference.images, k=2)
     assert (np.abs(z) > 4).mean() < 0.01, f"{(np.abs(z) > 4).mean():.3f} of blocks beyond |z| > 4"
-    ok, a, b, err = means_agree(means, ref_means)
+    ok, a, b, err = means_agree(tested.means, reference.means)
     assert ok, f"image means {a:.5f} vs {b:.5f} (se {err:.5f})"
 
 
@@ -67,35 +66,35 @@ def test_unbiased_on_the_cornell_box():
     the BSDF side of both MIS weights, at emitter hits and in the NEE loop."""
     scene = big_light_box()
     spp, per_frame = 128, 16
-    ref_mean, ref_se, session, ref_means = batches(scene, "mis", BATCHES, spp, spp_per_frame=per_frame)
-    mean, se, session, means = batches(scene, "mis", BATCHES, spp, session=session, spp_per_frame=per_frame,
-                                       **dict(GUIDING, guiding_prob=0.9))
-    st = session.stats()
+    reference = batches(scene, "mis", BATCHES, spp, spp_per_frame=per_frame)
+    tested = batches(scene, "mis", BATCHES, spp, session=reference.session, spp_per_frame=per_frame,
+                     **dict(GUIDING, guiding_prob=0.9))
+    st = tested.session.stats()
     assert st["guiding_training_frames"] == GUIDING["guiding_training_spp"]
     assert st["guiding_trained_regions"] > 0 and st["guiding_lobes"] > 0, st
     assert st["samples"] == spp  # training frames do not reach the film
-    assert_unbiased((mean, se, means), (ref_mean, ref_se, ref_means))
+    assert_unbiased(tested, reference)
 
 
 @pytest.fixture(scope="module")
 def glass_reference():
     scene = glass_room()
-    mean, se, session, means = batches(scene, "mis", BATCHES, SPP, spp_per_frame=SPP_PER_FRAME)
-    return scene, session, (mean, se, means)
+    reference = batches(scene, "mis", BATCHES, SPP, spp_per_frame=SPP_PER_FRAME)
+    return scene, reference.session, reference
 
 
 @pytest.mark.parametrize("parallax", [True, False], ids=["parallax", "no-parallax"])
 def test_unbiased_through_glass(glass_reference, parallax):
     """Every wall is lit through the glass shell only (NEE's shadow rays cannot pass it)."""
     scene, session, reference = glass_reference
-    mean, se, session, means = batches(scene, "mis", BATCHES, SPP, session=session, spp_per_frame=SPP_PER_FRAME,
-                                       guiding_parallax=parallax, **GUIDING)
+    tested = batches(scene, "mis", BATCHES, SPP, session=session, spp_per_frame=SPP_PER_FRAME,
+                     guiding_parallax=parallax, **GUIDING)
     assert session.stats()["guiding_trained_regions"] > 0
-    assert_unbiased((mean, se, means), reference)
+    assert_unbiased(tested, reference)
     if parallax:
         # At equal samples, guiding finds the lamp behind the glass far more often: 2.5x less
         # variance here (measured; asserted with margin).
-        ratio = rel_variance(mean, se) / rel_variance(*reference[:2])
+        ratio = rel_variance(tested.mean, tested.se) / rel_variance(reference.mean, reference.se)
         assert ratio < 0.6, ratio
 
 
@@ -283,12 +282,12 @@ def test_device_fit_agrees_with_the_cpu_fit():
     _, auto = render(scene, "mis", spp=1, spp_per_frame=1, **GUIDING)
     assert auto.params.guiding_fit == "auto"
     assert auto.stats()["guiding_fit_on"] == ("cpu" if auto.device_type == "cpu" else "device")
-    cpu_mean, cpu_se, session, cpu_means = batches(scene, "mis", BATCHES, SPP, spp_per_frame=SPP_PER_FRAME,
-                                                   guiding_fit="cpu", **GUIDING)
+    cpu = batches(scene, "mis", BATCHES, SPP, spp_per_frame=SPP_PER_FRAME, guiding_fit="cpu", **GUIDING)
+    session = cpu.session
     assert session.stats()["guiding_fit_on"] == "cpu"
     stats = []
-    mean, se, session, means = batches(scene, "mis", BATCHES, SPP, session=session, spp_per_frame=SPP_PER_FRAME,
-                                       guiding_fit="device", guiding_region_threshold=32, stats=stats, **GUIDING)
+    device = batches(scene, "mis", BATCHES, SPP, session=session, spp_per_frame=SPP_PER_FRAME,
+                     guiding_fit="device", guiding_region_threshold=32, stats=stats, **GUIDING)
     assert session.params.guiding_fit == "device"
     for st in stats:
         assert st["guiding_fit_on"] == "device" and st["samples"] == SPP
@@ -300,4 +299,4 @@ def test_device_fit_agrees_with_the_cpu_fit():
         if st["guiding_trained_regions"] > 0:
             assert st["guiding_refinements"] > 0 and st["guiding_lobes"] > 0 and st["guiding_region_fits"] > 0, st
     assert sum(st["guiding_trained_regions"] > 0 for st in stats) >= BATCHES // 4, stats
-    assert_unbiased((mean, se, means), (cpu_mean, cpu_se, cpu_means))
+    assert_unbiased(device, cpu)

@@ -45,11 +45,11 @@ def test_furnace_sphere(method):
 def test_constant_env_map_equals_constant_world():
     # The importance-sampled environment map path must give what a constant world gives.
     sc = scenes.furnace_sphere(albedo=0.8, width=16, height=16)
-    ref, _, s, _ = batches(sc, "mis", n_batches=4, spp=64)
+    ref = batches(sc, "mis", n_batches=4, spp=64)
     sc.world = World((1.0, 1.0, 1.0), 1.0, np.ones((8, 16, 3), np.float32))
-    s.update(sc)
-    img = batches(sc, "mis", n_batches=4, spp=64, session=s)[0]
-    assert abs(img.mean() - ref.mean()) < 0.01
+    ref.session.update(sc)
+    img = batches(sc, "mis", n_batches=4, spp=64, session=ref.session)
+    assert abs(img.mean.mean() - ref.mean.mean()) < 0.01
 
 
 @pytest.fixture(scope="module")
@@ -65,11 +65,11 @@ def test_pt_nee_mis_agree_on_cornell_box(cornell):
     for method, spp in (("pt", 512), ("nee", 128), ("mis", 128)):
         results[method] = batches(sc, method, n_batches=8, spp=spp, session=s, max_depth=6)
     for a, b in (("pt", "mis"), ("nee", "mis"), ("pt", "nee")):
-        z = z_scores(*results[a][:2], *results[b][:2], k=4)
+        z = z_scores(results[a].images, results[b].images, k=4)
         assert np.abs(z).max() < 5.0, f"{a} vs {b}: max |z| = {np.abs(z).max():.2f}"
         # Whole-image means within 5 standard errors (from the batch spread): NEE is heavy-tailed
         # here, the light hangs 2 cm below the ceiling and 1/d^2 is large next to it.
-        ok, ma, mb, se = means_agree(results[a][3], results[b][3])
+        ok, ma, mb, se = means_agree(results[a].means, results[b].means)
         assert ok, f"{a} vs {b}: image means {ma:.4f} vs {mb:.4f} (standard error {se:.4f})"
 
 
@@ -89,9 +89,9 @@ def test_mis_beats_nee_and_pt_on_veach_scene():
 def test_balance_and_power_heuristics_agree(cornell):
     sc, s = cornell
     s.update(sc)
-    a = batches(sc, "mis", n_batches=6, spp=64, session=s, mis_heuristic="balance")[:2]
-    b = batches(sc, "mis", n_batches=6, spp=64, session=s, mis_heuristic="power")[:2]
-    assert np.abs(z_scores(*a, *b)).max() < 5.0
+    a = batches(sc, "mis", n_batches=6, spp=64, session=s, mis_heuristic="balance")
+    b = batches(sc, "mis", n_batches=6, spp=64, session=s, mis_heuristic="power")
+    assert np.abs(z_scores(a.images, b.images)).max() < 5.0
 
 
 def test_more_light_samples_same_mean_less_noise(cornell):
@@ -99,8 +99,8 @@ def test_more_light_samples_same_mean_less_noise(cornell):
     s.update(sc)
     one = batches(sc, "nee", n_batches=6, spp=32, session=s, light_samples=1)
     four = batches(sc, "nee", n_batches=6, spp=32, session=s, light_samples=4)
-    assert np.abs(z_scores(*one[:2], *four[:2])).max() < 5.0
-    assert four[1].mean() < one[1].mean()
+    assert np.abs(z_scores(one.images, four.images)).max() < 5.0
+    assert four.se.mean() < one.se.mean()
 
 
 def test_fixed_seed_is_deterministic(cornell):
@@ -235,9 +235,9 @@ def test_area_lights_pt_nee_mis_agree(light):
     res = {m: batches(sc, m, n_batches=6, spp=spp, session=s, max_depth=1)
            for m, spp in (("pt", 1024), ("nee", 64), ("mis", 64))}
     for a, b in (("pt", "mis"), ("nee", "mis")):
-        z = z_scores(*res[a][:2], *res[b][:2], k=4)
+        z = z_scores(res[a].images, res[b].images, k=4)
         assert np.abs(z).max() < 5.0, f"{a} vs {b}: max |z| {np.abs(z).max():.2f}"
-        ok, ma, mb, se = means_agree(res[a][3], res[b][3])
+        ok, ma, mb, se = means_agree(res[a].means, res[b].means)
         assert ok, f"{a} vs {b}: image means {ma:.4f} vs {mb:.4f} (standard error {se:.4f})"
 
 
@@ -247,9 +247,9 @@ def test_env_map_scene_methods_agree():
     s.update(sc)
     res = {m: batches(sc, m, n_batches=6, spp=spp, session=s, max_depth=3)
            for m, spp in (("pt", 1024), ("mis", 128))}
-    z = z_scores(*res["pt"][:2], *res["mis"][:2], k=4)
+    z = z_scores(res["pt"].images, res["mis"].images, k=4)
     assert np.abs(z).max() < 5.0
-    assert means_agree(res["pt"][3], res["mis"][3])[0]
+    assert means_agree(res["pt"].means, res["mis"].means)[0]
 
 
 @pytest.mark.parametrize(
@@ -269,8 +269,8 @@ def test_white_furnace_specular(material, expected, tol):
     sc.materials = [material]
     res = {}
     for method in METHODS:
-        mean, _, _, batch_means = batches(sc, method, n_batches=4, spp=64, max_depth=64, depth_leeway=64,
-                                          rr_start_depth=0)
+        mean, _, _, batch_means, _ = batches(sc, method, n_batches=4, spp=64, max_depth=64, depth_leeway=64,
+                                             rr_start_depth=0)
         res[method] = mean
         # NEE alone samples the sky uniformly and discards BSDF-sampled sky hits: behind narrow
         # GGX lobes it is heavy-tailed, so it gets 5 standard errors (from the batches) on top.
@@ -300,8 +300,8 @@ def test_surfaces_touching_glass_leave_it_contact_safe():
     brighter (max |z| 34 with the boxes left out)."""
     plain = batches(_glass_cube_on_floor(), "mis", n_batches=6, spp=64, max_depth=8)
     everywhere = batches(_glass_cube_on_floor(floor_transmits=True), "mis", n_batches=6, spp=64, max_depth=8)
-    assert plain[2].stats()["contact_boxes"] == 1
-    z = z_scores(plain[0], plain[1], everywhere[0], everywhere[1], k=4)
+    assert plain.session.stats()["contact_boxes"] == 1
+    z = z_scores(plain.images, everywhere.images, k=4)
     assert np.abs(z).max() < 5.0, f"max |z| = {np.abs(z).max():.2f}"
 
 

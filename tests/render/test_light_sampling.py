@@ -29,7 +29,7 @@ def test_close_emissive_triangle_pt_nee_mis_agree():
     res = {m: batches(sc, m, n_batches=6, spp=spp, session=s, max_depth=1)
            for m, spp in (("pt", 1024), ("nee", 64), ("mis", 64))}
     for a, b in (("pt", "mis"), ("nee", "mis"), ("pt", "nee")):
-        z = z_scores(*res[a][:2], *res[b][:2], k=4)
+        z = z_scores(res[a].images, res[b].images, k=4)
         assert np.abs(z).max() < 5.0, f"{a} vs {b}: max |z| {np.abs(z).max():.2f}"
         ok, ma, mb, se = means_agree(res[a][3], res[b][3])
         assert ok, f"{a} vs {b}: image means {ma:.4f} vs {mb:.4f} (standard error {se:.4f})"
@@ -53,7 +53,7 @@ def test_light_tree_beats_power_on_many_emitters():
         assert (nodes > 0) if on else (nodes == 0), f"{name}: {nodes} light tree nodes"
     s.update(sc)  # an update keeps the setting
     assert s.stats()["light_tree_nodes"] == 0
-    z = z_scores(*res["tree"][:2], *res["power"][:2], k=4)
+    z = z_scores(res["tree"].images, res["power"].images, k=4)
     assert np.abs(z).max() < 5.0, f"tree vs power: max |z| {np.abs(z).max():.2f}"
     ok, ma, mb, se = means_agree(res["tree"][3], res["power"][3])
     assert ok, f"tree vs power: image means {ma:.4f} vs {mb:.4f} (standard error {se:.4f})"

@@ -77,7 +77,7 @@ def test_two_diffuse_mix_equals_blended_diffuse(session16, method, spp):
     for name, sc in (("mix", mixed), ("ref", ref)):
         s.update(sc)
         res[name] = batches(sc, method, n_batches=6, spp=spp, session=s, max_depth=6)
-    z = z_scores(*res["mix"][:2], *res["ref"][:2], k=4)
+    z = z_scores(res["mix"].images, res["ref"].images, k=4)
     assert np.abs(z).max() < 5.0, f"max |z| = {np.abs(z).max():.2f}"
     ok, ma, mb, se = means_agree(res["mix"][3], res["ref"][3])
     assert ok, f"mix {ma:.4f} vs blended {mb:.4f} (standard error {se:.4f})"
@@ -129,7 +129,7 @@ def test_diffuse_conductor_mix_pt_nee_mis_agree(session16):
     res = {m: batches(sc, m, n_batches=6, spp=spp, session=s, max_depth=5)
            for m, spp in (("pt", 512), ("nee", 128), ("mis", 128))}
     for a, b in (("pt", "mis"), ("nee", "mis"), ("pt", "nee")):
-        z = z_scores(*res[a][:2], *res[b][:2], k=4)
+        z = z_scores(res[a].images, res[b].images, k=4)
         assert np.abs(z).max() < 5.0, f"{a} vs {b}: max |z| = {np.abs(z).max():.2f}"
         ok, ma, mb, se = means_agree(res[a][3], res[b][3])
         assert ok, f"{a} vs {b}: image means {ma:.4f} vs {mb:.4f} (standard error {se:.4f})"
@@ -151,15 +151,17 @@ def test_mix_is_linear_in_the_lobes_for_direct_light(session16):
             sc.materials[0] = sc.materials[4]
         s.update(sc)
         res[name] = batches(sc, "mis", n_batches=6, spp=128, session=s, max_depth=0)
-    expect = w * res["diffuse"][0] + (1 - w) * res["conductor"][0]
-    se = np.sqrt(w**2 * res["diffuse"][1] ** 2 + (1 - w) ** 2 * res["conductor"][1] ** 2)
-    z = z_scores(res["mix"][0], res["mix"][1], expect, se, k=4)
+    # Batch b of the combination combines batch b of each lobe's (independent) renders.
+    expect = w * res["diffuse"].images + (1 - w) * res["conductor"].images
+    z = z_scores(res["mix"].images, expect, k=4)
     assert np.abs(z).max() < 5.0, f"max |z| = {np.abs(z).max():.2f}"
     combo = w * res["diffuse"][3] + (1 - w) * res["conductor"][3]
     ok, ma, mb, se_mean = means_agree(res["mix"][3], combo)
     assert ok, f"mix {ma:.4f} vs linear combination {mb:.4f} (standard error {se_mean:.4f})"
-    # The lobes' images differ by far more than the noise, so a wrong weighting would show.
-    assert np.abs(z_scores(*res["diffuse"][:2], *res["conductor"][:2], k=4)).max() > 20.0
+    # The lobes' images differ by far more than the noise, so a wrong weighting would show: most
+    # blocks beyond the threshold. (With 6 batches a side the scores grow only slowly past 10, as
+    # the normal deviate of a t's tail with about 10 degrees of freedom. Measured: 77% beyond 5.)
+    assert (np.abs(z_scores(res["diffuse"].images, res["conductor"].images, k=4)) > 5.0).mean() > 0.5
 
 
 def test_three_link_chain_renders_finite(session16):
@@ -200,8 +202,8 @@ def test_white_furnace_lossless_chain(chain):
     s = pc.Session(16, 16)
     s.update(sc)
     for method in METHODS:
-        mean, _, _, batch_means = batches(sc, method, n_batches=4, spp=64, session=s, max_depth=64,
-                                          depth_leeway=64, rr_start_depth=0)
+        mean, _, _, batch_means, _ = batches(sc, method, n_batches=4, spp=64, session=s, max_depth=64,
+                                             depth_leeway=64, rr_start_depth=0)
         inner = _interior(s)
         assert inner.sum() > 20
         se = np.std(batch_means, ddof=1) / np.sqrt(len(batch_means))
