@@ -89,12 +89,18 @@ class _Worker(threading.Thread):
         self._stop_event.set()
         self.session.cancel()  # the band in progress stops at its next dispatch
 
+    def out_of_time(self):
+        """Past the time limit, with at least one band traced (so a limit shorter than the first
+        band still gives an image)."""
+        if not self.time_limit or self.session.samples == 0 and self.session.next_row == 0:
+            return False
+        return time.perf_counter() - self.start_time >= self.time_limit
+
     def run(self):
         try:
             last_snapshot = 0.0
             for frame in range(self.frames):
-                elapsed = time.perf_counter() - self.start_time
-                if self._stop_event.is_set() or (self.time_limit and frame and elapsed >= self.time_limit):
+                if self._stop_event.is_set() or self.out_of_time():
                     break
                 if not self._render_frame():
                     break
@@ -108,7 +114,8 @@ class _Worker(threading.Thread):
             self.error = e
 
     def _render_frame(self):
-        """One frame in row bands of about BAND_SECONDS; False if stopped in between."""
+        """One frame in row bands of about BAND_SECONDS; False if stopped or out of time in
+        between (the partial frame's pixels count their own samples: the image stays exact)."""
         rows = self.rows_per_band
         while True:
             start = time.perf_counter()
@@ -117,7 +124,7 @@ class _Worker(threading.Thread):
             self.rows_per_band = rows
             if done:
                 return True
-            if self._stop_event.is_set():
+            if self._stop_event.is_set() or self.out_of_time():
                 return False
 
     def _take_snapshot(self):
@@ -172,6 +179,7 @@ def render(engine, depsgraph):
             scene_hook(data, warnings)
             return
         session = parallax_core.Session(w, h, settings.device)
+        session.background_compile = True  # a technique compiling: its fallback renders meanwhile
         session.set_params(**settings.render_params())
         warnings += [m for m in session.update(data) if m not in warnings]
     except (ImportError, ValueError, RuntimeError, TypeError, MemoryError) as e:
@@ -202,6 +210,8 @@ def render(engine, depsgraph):
             engine.update_result(result)
             samples, seconds, rate, _, stats = snapshot
             line = f"Sample {samples}/{total} | {rate / 1e6:.1f} M rays/s | {seconds:.1f} s"
+            if stats.get("fallback_samples"):
+                line += f" | {stats['fallback_samples']} without the techniques (compiling)"
             if settings.ic or settings.adrrs:  # ADRRS builds the cache too
                 line += f" | {ic_status(stats)}"
             if settings.guiding:
