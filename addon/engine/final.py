@@ -73,10 +73,10 @@ def band_rows(rows, seconds, height):
 class _Worker(threading.Thread):
     """Renders frames until the sample count, the time limit or ``stop()``; keeps snapshots."""
 
-    def __init__(self, session, frames, time_limit, core_passes):
+    def __init__(self, session, samples, time_limit, core_passes):
         super().__init__(name="parallax-render", daemon=True)
         self.session = session
-        self.frames = frames
+        self.samples = samples  # the target (frames rendered while a technique compiled do not count)
         self.time_limit = time_limit
         self.core_passes = core_passes
         self.rows_per_band = max(1, session.height // 16)  # adapted to the measured band time
@@ -90,22 +90,22 @@ class _Worker(threading.Thread):
         self.session.cancel()  # the band in progress stops at its next dispatch
 
     def out_of_time(self):
-        """Past the time limit, with at least one band traced (so a limit shorter than the first
-        band still gives an image)."""
-        if not self.time_limit or self.session.samples == 0 and self.session.next_row == 0:
+        """Past the time limit, with a whole frame in the film (a limit shorter than the first
+        frame still gives a whole image)."""
+        if not self.time_limit or self.session.samples == 0:
             return False
         return time.perf_counter() - self.start_time >= self.time_limit
 
     def run(self):
         try:
             last_snapshot = 0.0
-            for frame in range(self.frames):
+            while self.session.samples < self.samples:
                 if self._stop_event.is_set() or self.out_of_time():
                     break
                 if not self._render_frame():
                     break
                 now = time.perf_counter()
-                if now - last_snapshot >= UPDATE_SECONDS or frame == self.frames - 1:
+                if now - last_snapshot >= UPDATE_SECONDS or self.session.samples >= self.samples:
                     self._take_snapshot()
                     last_snapshot = now
             if self.snapshot is None or self.snapshot[0] != self.session.samples:
@@ -195,7 +195,7 @@ def render(engine, depsgraph):
     per_frame = settings.samples_per_frame
     frames = -(-settings.samples // per_frame)
     total = frames * per_frame
-    worker = _Worker(session, frames, settings.time_limit, {p.core for p in wanted})
+    worker = _Worker(session, total, settings.time_limit, {p.core for p in wanted})
     # With a border, Blender's result covers just the border: its pixel (0, 0) is (x, y).
     result = engine.begin_result(0, 0, w, h, layer=view_layer.name)
     worker.start()

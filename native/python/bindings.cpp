@@ -246,7 +246,8 @@ NB_MODULE(_native, m) {
         .def_prop_rw("background_compile", &px::Session::background_compile, &px::Session::set_background_compile,
                      "Off (default): a render waits for the pipelines it needs. On: while a technique's "
                      "pipelines compile on a worker thread, frames render with the techniques off; "
-                     "stats()['fallback_samples'] counts them (F12 and the viewport turn it on).")
+                     "stats()['fallback_samples'] counts them, and the film starts over with the "
+                     "techniques' first frame (F12 and the viewport turn it on).")
         .def("warm", &px::Session::warm, nb::call_guard<nb::gil_scoped_release>(),
              "Start compiling the pipelines the current settings need (and their fallback with the "
              "techniques off) on a worker thread; returns at once.")
@@ -275,6 +276,7 @@ NB_MODULE(_native, m) {
                  d["samples"] = st.samples;
                  d["rays"] = st.rays;
                  d["fallback_samples"] = st.fallback_samples;
+                 d["fallback_milliseconds"] = st.fallback_milliseconds;
                  d["milliseconds"] = st.milliseconds;
                  d["frames"] = st.frames;
                  d["blas_builds"] = st.blas_builds;

@@ -71,6 +71,7 @@ void Session::upload_technique_params() {
 void Session::reset_accumulation(bool keep_cache) {
     stats_ = {};
     cursor_ = {};
+    fallback_frame_ = film_after_fallback_ = false;
     film_.fill_zero();
     ray_count_.fill_zero();
     if (!scene_) return;
@@ -569,9 +570,15 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
     const uint64_t paths = uint64_t(width_) * height_ * params_.samples_per_frame;
     // With background compiles, a frame that starts while the techniques' pipelines compile
     // renders with the techniques off (the fallback), and so does the rest of that frame.
+    // Once they are compiled, the film starts over with the techniques' first render frame
+    // (their prepare, estimate or training frames come first, the fallback's image shown
+    // meanwhile): the image holds the techniques' samples alone, and the fallback's stay
+    // counted apart (stats fallback_samples, fallback_milliseconds).
     if (cursor_.at_frame_start()) {
         const std::array<uint32_t, 5> key = pipeline_key(camera_program(), params_.ic.enabled || !params_.adrrs.enabled);
+        const bool was_fallback = fallback_frame_;
         fallback_frame_ = background_compile_ && key[3] != 0 && !technique_pipelines_ready();
+        if (was_fallback && !fallback_frame_) film_after_fallback_ = true;
     }
     const bool fallback = fallback_frame_;
     RayTracingPipeline& pipe = fallback ? pipeline_for(camera_program(), fallback_key()) : render_pipeline();
@@ -594,6 +601,16 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
             training_frame();
             stop = frames == 0 || cancel_.exchange(false);
             continue;
+        }
+        if (film_after_fallback_) {
+            film_after_fallback_ = false;
+            const SessionStats fallback = stats_;
+            stats_ = {};
+            stats_.fallback_samples = fallback.fallback_samples;
+            stats_.fallback_milliseconds = fallback.fallback_milliseconds;
+            film_.fill_zero();
+            ray_count_.fill_zero();
+            start = std::chrono::steady_clock::now();
         }
         // The cache's and guiding's host steps come after each frame: a submission holds at
         // most one frame.
@@ -633,7 +650,10 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
     stats_.milliseconds += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     stats_.frames += completed;
     stats_.samples += uint64_t(completed) * params_.samples_per_frame;
-    if (fallback) stats_.fallback_samples += uint64_t(completed) * params_.samples_per_frame;
+    if (fallback) {
+        stats_.fallback_samples += uint64_t(completed) * params_.samples_per_frame;
+        stats_.fallback_milliseconds = stats_.milliseconds;
+    }
     return completed;
 }
 

@@ -37,7 +37,10 @@ struct RenderParams {
 struct SessionStats {
     uint64_t samples = 0;  // per pixel
     uint64_t rays = 0;     // all rays traced since the last reset
-    uint64_t fallback_samples = 0;  // of `samples`, rendered with the techniques off while their pipelines compiled
+    // Rendered with the techniques off while their pipelines compiled (Session::set_background_compile):
+    // in the film until the techniques' first frame, which starts the film and the figures above over.
+    uint64_t fallback_samples = 0;
+    double fallback_milliseconds = 0;
     double milliseconds = 0;  // GPU-side render time since the last reset (wall clock)
     uint32_t frames = 0;
     uint64_t blas_builds = 0;  // BLASes built by this session's updates (never reset; debugging)
@@ -119,7 +122,8 @@ public:
     void compile();
     // With background compiles on, a frame that needs a technique's pipelines before they are
     // compiled renders with the techniques off while a worker thread compiles them
-    // (stats().fallback_samples counts those samples); off (the default), render() waits.
+    // (stats().fallback_samples counts those samples; the film starts over at the techniques'
+    // first frame); off (the default), render() waits for the compile.
     void set_background_compile(bool on) { background_compile_ = on; }
     bool background_compile() const { return background_compile_; }
     // Starts compiling, on a worker thread, the pipelines the current settings need and their
@@ -192,6 +196,7 @@ private:
     Cursor cursor_;            // progress through the current frame
     std::atomic<bool> background_compile_{false};
     bool fallback_frame_ = false;  // the current frame renders with the techniques off
+    bool film_after_fallback_ = false;  // the film starts over before the next render dispatch
     std::atomic<bool> cancel_{false};
     std::mutex mutex_;         // the scene, film and stats against concurrent render()/read()
     // One update() or set_params() at a time: each builds on the previous one. Taken before
