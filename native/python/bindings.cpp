@@ -277,6 +277,7 @@ NB_MODULE(_native, m) {
                  d["rays"] = st.rays;
                  d["fallback_samples"] = st.fallback_samples;
                  d["fallback_milliseconds"] = st.fallback_milliseconds;
+                 d["fallback_film"] = st.fallback_film;
                  d["milliseconds"] = st.milliseconds;
                  d["frames"] = st.frames;
                  d["blas_builds"] = st.blas_builds;

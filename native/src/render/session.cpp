@@ -708,6 +708,7 @@ SessionStats Session::stats() {
     stats_.rays = total;
     SessionStats out = stats_;
     out.blas_builds = blas_builds_;
+    out.fallback_film = fallback_frame_ || film_after_fallback_;
     out.light_tree_nodes = scene_ ? scene_->host().info.light_tree_nodes : 0;
     out.contact_boxes = scene_ ? scene_->host().info.contact_box_count : 0;
     out.ic = ic_->stats();

@@ -41,6 +41,7 @@ struct SessionStats {
     // in the film until the techniques' first frame, which starts the film and the figures above over.
     uint64_t fallback_samples = 0;
     double fallback_milliseconds = 0;
+    bool fallback_film = false;  // the film still holds the fallback's samples alone
     double milliseconds = 0;  // GPU-side render time since the last reset (wall clock)
     uint32_t frames = 0;
     uint64_t blas_builds = 0;  // BLASes built by this session's updates (never reset; debugging)
