@@ -173,6 +173,10 @@ def render_parallax(scene, method, seconds, device, reference, label, seed=0):
     bar = Progress(label, seconds)
     start = time.perf_counter()
     session = pc.Session(scene.width, scene.height, device)
+    # As F12: while a technique's pipelines compile (a cold start), frames render without it;
+    # the film starts over with its first frame, so `spp` and the image are the technique's
+    # own, and info reports the fallback's samples apart.
+    session.background_compile = True
     params = dict(method_params(method), samples_per_frame=1, max_depth=MAX_DEPTH, depth_leeway=0, seed=seed)
     # Cache prepare, ADRRS estimate and guiding training frames first.
     prepares = params["ic"] or params["adrrs"] or params["guiding"]
@@ -227,7 +231,8 @@ def render_parallax(scene, method, seconds, device, reference, label, seed=0):
         stop = elapsed + (now - frame_start) > seconds
     image = session.read("combined")[..., :3]
     stats = session.stats()
-    spp = stats["samples"]
+    spp = 0 if stats["fallback_film"] else stats["samples"]  # the technique's own samples
+    info.update(fallback_samples=stats["fallback_samples"], fallback_film=stats["fallback_film"])
     used = time.perf_counter() - start
     bar.close(f"{spp} spp")
     if reference is not None and (not curve or curve[-1][0] < used - 1e-3):

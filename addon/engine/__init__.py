@@ -3,7 +3,7 @@ viewport.py."""
 import bpy
 
 from .. import passes
-from . import final, viewport
+from . import final, viewport, warmup
 
 
 class ParallaxRenderEngine(bpy.types.RenderEngine):
@@ -40,8 +40,10 @@ class ParallaxRenderEngine(bpy.types.RenderEngine):
 
 def register():
     bpy.utils.register_class(ParallaxRenderEngine)
+    warmup.register()
 
 
 def unregister():
+    warmup.unregister()
     viewport.stop_all()
     bpy.utils.unregister_class(ParallaxRenderEngine)

@@ -73,10 +73,10 @@ def band_rows(rows, seconds, height):
 class _Worker(threading.Thread):
     """Renders frames until the sample count, the time limit or ``stop()``; keeps snapshots."""
 
-    def __init__(self, session, frames, time_limit, core_passes):
+    def __init__(self, session, samples, time_limit, core_passes):
         super().__init__(name="parallax-render", daemon=True)
         self.session = session
-        self.frames = frames
+        self.samples = samples  # the target (frames rendered while a technique compiled do not count)
         self.time_limit = time_limit
         self.core_passes = core_passes
         self.rows_per_band = max(1, session.height // 16)  # adapted to the measured band time
@@ -89,17 +89,23 @@ class _Worker(threading.Thread):
         self._stop_event.set()
         self.session.cancel()  # the band in progress stops at its next dispatch
 
+    def out_of_time(self):
+        """Past the time limit, with a whole frame in the film (a limit shorter than the first
+        frame still gives a whole image)."""
+        if not self.time_limit or self.session.samples == 0:
+            return False
+        return time.perf_counter() - self.start_time >= self.time_limit
+
     def run(self):
         try:
             last_snapshot = 0.0
-            for frame in range(self.frames):
-                elapsed = time.perf_counter() - self.start_time
-                if self._stop_event.is_set() or (self.time_limit and frame and elapsed >= self.time_limit):
+            while self.session.samples < self.samples:
+                if self._stop_event.is_set() or self.out_of_time():
                     break
                 if not self._render_frame():
                     break
                 now = time.perf_counter()
-                if now - last_snapshot >= UPDATE_SECONDS or frame == self.frames - 1:
+                if now - last_snapshot >= UPDATE_SECONDS or self.session.samples >= self.samples:
                     self._take_snapshot()
                     last_snapshot = now
             if self.snapshot is None or self.snapshot[0] != self.session.samples:
@@ -108,7 +114,8 @@ class _Worker(threading.Thread):
             self.error = e
 
     def _render_frame(self):
-        """One frame in row bands of about BAND_SECONDS; False if stopped in between."""
+        """One frame in row bands of about BAND_SECONDS; False if stopped or out of time in
+        between (the partial frame's pixels count their own samples: the image stays exact)."""
         rows = self.rows_per_band
         while True:
             start = time.perf_counter()
@@ -117,7 +124,7 @@ class _Worker(threading.Thread):
             self.rows_per_band = rows
             if done:
                 return True
-            if self._stop_event.is_set():
+            if self._stop_event.is_set() or self.out_of_time():
                 return False
 
     def _take_snapshot(self):
@@ -172,6 +179,7 @@ def render(engine, depsgraph):
             scene_hook(data, warnings)
             return
         session = parallax_core.Session(w, h, settings.device)
+        session.background_compile = True  # a technique compiling: its fallback renders meanwhile
         session.set_params(**settings.render_params())
         warnings += [m for m in session.update(data) if m not in warnings]
     except (ImportError, ValueError, RuntimeError, TypeError, MemoryError) as e:
@@ -187,7 +195,7 @@ def render(engine, depsgraph):
     per_frame = settings.samples_per_frame
     frames = -(-settings.samples // per_frame)
     total = frames * per_frame
-    worker = _Worker(session, frames, settings.time_limit, {p.core for p in wanted})
+    worker = _Worker(session, total, settings.time_limit, {p.core for p in wanted})
     # With a border, Blender's result covers just the border: its pixel (0, 0) is (x, y).
     result = engine.begin_result(0, 0, w, h, layer=view_layer.name)
     worker.start()
@@ -202,6 +210,8 @@ def render(engine, depsgraph):
             engine.update_result(result)
             samples, seconds, rate, _, stats = snapshot
             line = f"Sample {samples}/{total} | {rate / 1e6:.1f} M rays/s | {seconds:.1f} s"
+            if stats.get("fallback_samples"):
+                line += f" | {stats['fallback_samples']} without the techniques (compiling)"
             if settings.ic or settings.adrrs:  # ADRRS builds the cache too
                 line += f" | {ic_status(stats)}"
             if settings.guiding:

@@ -174,6 +174,8 @@ class _Worker(threading.Thread):
         Session = core.load().Session
         if size is not None:  # a new viewport size: new sessions, which need the whole scene
             self._full, self._preview, self._preview_factor = Session(*size, self.device), None, 1
+            # A technique switched on renders its fallback (techniques off) while it compiles.
+            self._full.background_compile = True
             self._frame_seconds, parts = None, None
         factor = pixel_size or self._auto_pixel_size()
         preview_parts = parts
@@ -219,14 +221,9 @@ class _Worker(threading.Thread):
         return True
 
     def _quick_frame(self, params):
-        """Publishes a frame of the preview program and compiles the path tracer meanwhile."""
-        def compile_pipelines(session):
-            try:
-                session.compile()
-            except Exception:  # noqa: BLE001 - the render that needs the pipeline reports it
-                pass
-
-        threading.Thread(target=compile_pipelines, args=(self._full,), name="parallax-compile", daemon=True).start()
+        """Publishes a frame of the preview program while the path tracer compiles (on the
+        core's worker thread; a failed compile is raised by the render that needs it)."""
+        self._full.warm()
         self._preview.set_params(**{**params, "ic": False, "preview": True})
         self._preview.render(1)
         self._publish(self._preview, self._preview_factor)

@@ -92,6 +92,10 @@ NB_MODULE(_native, m) {
           "PARALLAX_MEMORY_BUDGET or a share of the heap). Past it, allocations raise "
           "DeviceMemoryError and the session keeps its previous scene.");
 
+    m.def("background_compiles", &px::background_compiles,
+          "Pipelines compiling on worker threads now (Session.background_compile, Session.warm).");
+    m.def("wait_for_background_compiles", &px::wait_for_background_compiles, nb::call_guard<nb::gil_scoped_release>(),
+          "Blocks until no pipeline compiles in the background (parallax_core calls it at exit).");
     m.def("light_tree_min_lights", &px::light_tree_min_lights,
           "Scenes with at least this many local lights (emissive triangles, point, spot and area "
           "lights) pick them through the light tree (where the session's light_tree setting is on), "
@@ -244,6 +248,14 @@ NB_MODULE(_native, m) {
         .def_prop_ro("next_row", &px::Session::next_row)
         .def("compile", &px::Session::compile, nb::call_guard<nb::gil_scoped_release>(),
              "Compile the pipelines the next render needs, without rendering (GIL released).")
+        .def_prop_rw("background_compile", &px::Session::background_compile, &px::Session::set_background_compile,
+                     "Off (default): a render waits for the pipelines it needs. On: while a technique's "
+                     "pipelines compile on a worker thread, frames render with the techniques off; "
+                     "stats()['fallback_samples'] counts them, and the film starts over with the "
+                     "techniques' first frame (F12 and the viewport turn it on).")
+        .def("warm", &px::Session::warm, nb::call_guard<nb::gil_scoped_release>(),
+             "Start compiling the pipelines the current settings need (and their fallback with the "
+             "techniques off) on a worker thread; returns at once.")
         .def_prop_ro("pipeline_ready", &px::Session::pipeline_ready,
                      "Whether the pipeline the next render needs is compiled (else that render compiles it "
                      "first: seconds on lavapipe with a cold Mesa shader cache).")
@@ -268,6 +280,9 @@ NB_MODULE(_native, m) {
                  nb::dict d;
                  d["samples"] = st.samples;
                  d["rays"] = st.rays;
+                 d["fallback_samples"] = st.fallback_samples;
+                 d["fallback_milliseconds"] = st.fallback_milliseconds;
+                 d["fallback_film"] = st.fallback_film;
                  d["milliseconds"] = st.milliseconds;
                  d["frames"] = st.frames;
                  d["blas_builds"] = st.blas_builds;

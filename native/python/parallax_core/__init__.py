@@ -10,19 +10,24 @@
 """
 from __future__ import annotations
 
+import atexit
 import dataclasses
 import operator
 import os
 
-from ._native import (LIMITS, METHODS, DeviceMemoryError, devices, light_tree_min_lights, memory, primitive_order,
-                      set_light_tree_min_lights, set_memory_budget, validation_enabled, validation_messages)
+from ._native import (LIMITS, METHODS, DeviceMemoryError, background_compiles, devices, light_tree_min_lights, memory,
+                      primitive_order, set_light_tree_min_lights, set_memory_budget, validation_enabled,
+                      validation_messages, wait_for_background_compiles)
 from ._native import Session as _NativeSession
 from ._native import _RenderParams
 from .scene import PART_KEYS, PARTS, parts_set
 
 __all__ = ["Session", "RenderParams", "devices", "METHODS", "PASSES", "PARTS", "LIMITS", "DeviceMemoryError",
            "memory", "set_memory_budget", "validation_enabled", "validation_messages", "light_tree_min_lights",
-           "set_light_tree_min_lights", "primitive_order"]
+           "set_light_tree_min_lights", "primitive_order", "background_compiles", "wait_for_background_compiles"]
+
+# A pipeline still compiling on a worker thread when the process tears down crashed it: wait.
+atexit.register(wait_for_background_compiles)
 
 PASSES = tuple(_NativeSession.pass_names())
 HEURISTICS = ("balance", "power")

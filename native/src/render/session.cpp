@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <condition_variable>
+#include <thread>
 #include <cstring>
 #include <stdexcept>
 
@@ -69,6 +71,7 @@ void Session::upload_technique_params() {
 void Session::reset_accumulation(bool keep_cache) {
     stats_ = {};
     cursor_ = {};
+    fallback_frame_ = film_after_fallback_ = false;
     film_.fill_zero();
     ray_count_.fill_zero();
     if (!scene_) return;
@@ -191,10 +194,35 @@ struct PipelineSlot {
     std::once_flag once;
     std::unique_ptr<RayTracingPipeline> pipeline;
     std::atomic<bool> ready{false};
+    std::atomic<bool> compiling{false};  // a background compile holds or waits for `once`
+    std::string error;                   // the last background compile's failure (under pipelines_mutex)
 };
-std::mutex pipelines_mutex;  // guards the map, not the compiles
+std::mutex pipelines_mutex;  // guards the map and the slots' errors, not the compiles
 auto& pipelines = *new std::map<std::pair<Context*, std::array<uint32_t, 5>>, std::shared_ptr<PipelineSlot>>();
+
+std::shared_ptr<PipelineSlot> pipeline_slot(Context* ctx, const std::array<uint32_t, 5>& key) {
+    std::lock_guard<std::mutex> lock(pipelines_mutex);
+    auto& s = pipelines[{ctx, key}];
+    if (!s) s = std::make_shared<PipelineSlot>();
+    return s;
+}
+
+// Background compiles in flight (parallax_core waits for them at interpreter exit: a compile
+// still running while the process tears down its statics and the driver crashed it).
+std::mutex compiles_mutex;
+std::condition_variable compiles_done;
+uint32_t compiles_in_flight = 0;
 }  // namespace
+
+uint32_t background_compiles() {
+    std::lock_guard<std::mutex> lock(compiles_mutex);
+    return compiles_in_flight;
+}
+
+void wait_for_background_compiles() {
+    std::unique_lock<std::mutex> lock(compiles_mutex);
+    compiles_done.wait(lock, [] { return compiles_in_flight == 0; });
+}
 
 // Specialisation constants 0-3 (integrator.glsl, mis.glsl, common.glsl, irradiance_cache.glsl)
 // and the program; the preview program uses the scene features only.
@@ -220,35 +248,114 @@ bool Session::pipeline_ready() {
     return it != pipelines.end() && it->second->ready;
 }
 
+// The render pipeline with every technique off: what frames render while the techniques'
+// pipelines compile in the background.
+std::array<uint32_t, 5> Session::fallback_key() const {
+    std::array<uint32_t, 5> key = pipeline_key(camera_program());
+    key[3] = 0;
+    return key;
+}
+
 void Session::compile() {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!scene_) throw std::runtime_error("no scene: call update(scene) before compile()");
-    render_pipeline();
-    if (ic_->enabled()) {
-        pipeline(PROGRAM_CAMERA);
-        pipeline(PROGRAM_IC_HEMISPHERE);
-        ic_finish_pipeline();
-    }
+    for (const auto& [program, key] : needed_pipelines()) pipeline_for(program, key);
+    if (ic_->enabled()) ic_finish_pipeline();
 }
 
 RayTracingPipeline& Session::pipeline(uint32_t program, bool cache_queries) {
-    const std::array<uint32_t, 5> key = pipeline_key(program, cache_queries);
-    std::shared_ptr<PipelineSlot> slot;
-    {
-        std::lock_guard<std::mutex> lock(pipelines_mutex);
-        auto& s = pipelines[{ctx_.get(), key}];
-        if (!s) s = std::make_shared<PipelineSlot>();
-        slot = s;
-    }
+    return pipeline_for(program, pipeline_key(program, cache_queries));
+}
+
+RayTracingPipeline& Session::pipeline_for(uint32_t program, const std::array<uint32_t, 5>& key) {
+    std::shared_ptr<PipelineSlot> slot = pipeline_slot(ctx_.get(), key);
     // A compile that throws leaves the flag unset: the next call tries again.
     std::call_once(slot->once, [&] {
-        slot->pipeline = build_pipeline(program, key);
+        slot->pipeline = build_pipeline(*ctx_, set_->layout(), program, key);
         slot->ready = true;
     });
     return *slot->pipeline;
 }
 
-std::unique_ptr<RayTracingPipeline> Session::build_pipeline(uint32_t program, const std::array<uint32_t, 5>& key) {
+// The pipelines a frame with the current settings needs: the render frames' camera program,
+// and with the irradiance cache (on, or built for ADRRS) the full camera program of its
+// prepare and estimate frames and the hemisphere program (the finish compute pipeline aside).
+std::vector<std::pair<uint32_t, std::array<uint32_t, 5>>> Session::needed_pipelines() const {
+    std::vector<std::pair<uint32_t, std::array<uint32_t, 5>>> out = {
+        {camera_program(), pipeline_key(camera_program(), params_.ic.enabled || !params_.adrrs.enabled)}};
+    if (ic_->enabled()) {
+        out.push_back({PROGRAM_CAMERA, pipeline_key(PROGRAM_CAMERA)});
+        out.push_back({PROGRAM_IC_HEMISPHERE, pipeline_key(PROGRAM_IC_HEMISPHERE)});
+    }
+    return out;
+}
+
+bool Session::technique_pipelines_ready() {
+    if (!compiled_or_started(needed_pipelines())) return false;
+    if (ic_->enabled()) ic_finish_pipeline();  // one compute shader: quick
+    return true;
+}
+
+void Session::warm() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!scene_) throw std::runtime_error("no scene: call update(scene) before warm()");
+    auto wanted = needed_pipelines();
+    wanted.push_back({camera_program(), fallback_key()});
+    compiled_or_started(wanted);
+}
+
+// Whether every pipeline of `wanted` is compiled; otherwise starts the missing ones on a
+// worker thread (once per pipeline, shared by every session) and returns false. A failed
+// background compile is raised here, once; the next call compiles again.
+bool Session::compiled_or_started(const std::vector<std::pair<uint32_t, std::array<uint32_t, 5>>>& wanted) {
+    struct Missing {
+        uint32_t program;
+        std::array<uint32_t, 5> key;
+        std::shared_ptr<PipelineSlot> slot;
+    };
+    bool ready = true;
+    std::vector<Missing> missing;  // not compiled, and no background compile started yet
+    for (const auto& [program, key] : wanted) {
+        std::shared_ptr<PipelineSlot> slot = pipeline_slot(ctx_.get(), key);
+        {
+            std::lock_guard<std::mutex> lock(pipelines_mutex);
+            if (!slot->error.empty()) {
+                std::string error;
+                std::swap(error, slot->error);
+                throw std::runtime_error(error);
+            }
+        }
+        if (slot->ready) continue;
+        ready = false;
+        if (!slot->compiling.exchange(true)) missing.push_back({program, key, slot});
+    }
+    if (missing.empty()) return ready;
+    {
+        std::lock_guard<std::mutex> lock(compiles_mutex);
+        ++compiles_in_flight;
+    }
+    std::thread([ctx = ctx_, layout = set_->layout(), missing] {
+        for (const Missing& m : missing) {
+            try {
+                std::call_once(m.slot->once, [&] {
+                    m.slot->pipeline = build_pipeline(*ctx, layout, m.program, m.key);
+                    m.slot->ready = true;
+                });
+            } catch (const std::exception& e) {
+                std::lock_guard<std::mutex> lock(pipelines_mutex);
+                m.slot->error = std::string("compiling a pipeline in the background failed: ") + e.what();
+            }
+            m.slot->compiling = false;
+        }
+        std::lock_guard<std::mutex> lock(compiles_mutex);
+        --compiles_in_flight;
+        compiles_done.notify_all();
+    }).detach();
+    return false;
+}
+
+std::unique_ptr<RayTracingPipeline> Session::build_pipeline(Context& ctx, VkDescriptorSetLayout layout, uint32_t program,
+                                                            const std::array<uint32_t, 5>& key) {
     const uint32_t techniques = key[3];
     // Stages, then groups: raygen | miss: MISS_SCENE, MISS_SHADOW, MISS_IC_QUERY,
     // MISS_GUIDING_QUERY | hit groups: HIT_GROUP_TRIANGLES (closest-hit + self-skip any-hit), HIT_GROUP_IC (procedural:
@@ -303,8 +410,8 @@ std::unique_ptr<RayTracingPipeline> Session::build_pipeline(uint32_t program, co
     }
     // Specialisation: METHOD, MIS_HEURISTIC, SCENE_FEATURES, TECHNIQUES, EMPTY_SHADOW_CALLS.
     std::vector<uint32_t> constants(key.begin(), key.begin() + 4);
-    constants.push_back(ctx_->is_cpu() ? 0u : 1u);
-    return std::make_unique<RayTracingPipeline>(*ctx_, set_->layout(), uint32_t(sizeof(FrameParams)), stages, groups,
+    constants.push_back(ctx.is_cpu() ? 0u : 1u);
+    return std::make_unique<RayTracingPipeline>(ctx, layout, uint32_t(sizeof(FrameParams)), stages, groups,
                                                 constants);
 }
 
@@ -374,10 +481,11 @@ uint64_t Session::record_dispatch(VkCommandBuffer cmd, RayTracingPipeline& pipe,
                              VK_PIPELINE_STAGE_RAY_TRACING_SHADER_BIT_KHR | VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &b,
                              0, nullptr, 0, nullptr);
     };
-    if (adrrs_->enabled()) adrrs_->record_queue_clear(cmd);
+    const bool splits = adrrs_->enabled() && !fallback_frame_;
+    if (splits) adrrs_->record_queue_clear(cmd);
     pipe.trace(cmd, set_->set(), &fp, sizeof(fp), w, h);
     barrier();
-    if (adrrs_->enabled()) {  // the copies the camera paths split off, in the same frame
+    if (splits) {  // the copies the camera paths split off, in the same frame
         fp.mode = FRAME_ADRRS_SPLITS;
         pipe.trace(cmd, set_->set(), &fp, sizeof(fp), w, h);
         barrier();
@@ -460,36 +568,59 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
     auto start = std::chrono::steady_clock::now();
     const DispatchPlan plan = dispatch_plan();
     const uint64_t paths = uint64_t(width_) * height_ * params_.samples_per_frame;
-    RayTracingPipeline& pipe = render_pipeline();
+    // With background compiles, a frame that starts while the techniques' pipelines compile
+    // renders with the techniques off (the fallback), and so does the rest of that frame.
+    // Once they are compiled, the film starts over with the techniques' first render frame
+    // (their prepare, estimate or training frames come first, the fallback's image shown
+    // meanwhile): the image holds the techniques' samples alone, and the fallback's stay
+    // counted apart (stats fallback_samples, fallback_milliseconds).
+    if (cursor_.at_frame_start()) {
+        const std::array<uint32_t, 5> key = pipeline_key(camera_program(), params_.ic.enabled || !params_.adrrs.enabled);
+        const bool was_fallback = fallback_frame_;
+        fallback_frame_ = background_compile_ && key[3] != 0 && !technique_pipelines_ready();
+        if (was_fallback && !fallback_frame_) film_after_fallback_ = true;
+    }
+    const bool fallback = fallback_frame_;
+    RayTracingPipeline& pipe = fallback ? pipeline_for(camera_program(), fallback_key()) : render_pipeline();
     uint32_t completed = 0;
     uint32_t rows_left = frames ? UINT32_MAX : rows;
     bool stop = false;
     double frame_milliseconds = 0;  // the submissions of the frame in progress (guiding's stats)
     while (!stop && (frames ? completed < frames : rows_left > 0)) {
-        if (ic_->enabled() && cursor_.at_frame_start() && ic_->needs_prepare()) {
+        if (!fallback && ic_->enabled() && cursor_.at_frame_start() && ic_->needs_prepare()) {
             prepare_frame();
             stop = frames == 0 || cancel_.exchange(false);
             continue;
         }
-        if (cursor_.at_frame_start() && adrrs_->needs_estimate_frame()) {
+        if (!fallback && cursor_.at_frame_start() && adrrs_->needs_estimate_frame()) {
             estimate_frame();
             stop = frames == 0 || cancel_.exchange(false);
             continue;
         }
-        if (cursor_.at_frame_start() && guiding_->needs_training_frame()) {
+        if (!fallback && cursor_.at_frame_start() && guiding_->needs_training_frame()) {
             training_frame();
             stop = frames == 0 || cancel_.exchange(false);
             continue;
         }
+        if (film_after_fallback_) {
+            film_after_fallback_ = false;
+            const SessionStats fallback = stats_;
+            stats_ = {};
+            stats_.fallback_samples = fallback.fallback_samples;
+            stats_.fallback_milliseconds = fallback.fallback_milliseconds;
+            film_.fill_zero();
+            ray_count_.fill_zero();
+            start = std::chrono::steady_clock::now();
+        }
         // The cache's and guiding's host steps come after each frame: a submission holds at
         // most one frame.
-        const bool host_step = ic_->enabled() || guiding_->records_render_frames();
+        const bool host_step = !fallback && (ic_->enabled() || guiding_->records_render_frames());
         bool frame_done = false, ic_step = false;
         const auto submit_start = std::chrono::steady_clock::now();
         ctx_->submit_and_wait([&](VkCommandBuffer cmd) {
             // With the cache a submission holds at most one frame: clear its request queue.
-            if (ic_->enabled() && cursor_.at_frame_start()) ic_->record_frame_start(cmd);
-            if (guiding_->records_render_frames() && cursor_.at_frame_start()) guiding_->record_frame_start(cmd);
+            if (host_step && ic_->enabled() && cursor_.at_frame_start()) ic_->record_frame_start(cmd);
+            if (host_step && guiding_->records_render_frames() && cursor_.at_frame_start()) guiding_->record_frame_start(cmd);
             uint64_t work = 0;
             while (work < plan.budget && (frames ? completed < frames : rows_left > 0)) {
                 work += record_dispatch(cmd, pipe, plan, stats_.frames + completed, rows_left, frame_done);
@@ -519,6 +650,10 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
     stats_.milliseconds += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     stats_.frames += completed;
     stats_.samples += uint64_t(completed) * params_.samples_per_frame;
+    if (fallback) {
+        stats_.fallback_samples += uint64_t(completed) * params_.samples_per_frame;
+        stats_.fallback_milliseconds = stats_.milliseconds;
+    }
     return completed;
 }
 
@@ -573,6 +708,7 @@ SessionStats Session::stats() {
     stats_.rays = total;
     SessionStats out = stats_;
     out.blas_builds = blas_builds_;
+    out.fallback_film = fallback_frame_ || film_after_fallback_;
     out.light_tree_nodes = scene_ ? scene_->host().info.light_tree_nodes : 0;
     out.contact_boxes = scene_ ? scene_->host().info.contact_box_count : 0;
     out.ic = ic_->stats();

@@ -37,6 +37,11 @@ struct RenderParams {
 struct SessionStats {
     uint64_t samples = 0;  // per pixel
     uint64_t rays = 0;     // all rays traced since the last reset
+    // Rendered with the techniques off while their pipelines compiled (Session::set_background_compile):
+    // in the film until the techniques' first frame, which starts the film and the figures above over.
+    uint64_t fallback_samples = 0;
+    double fallback_milliseconds = 0;
+    bool fallback_film = false;  // the film still holds the fallback's samples alone
     double milliseconds = 0;  // GPU-side render time since the last reset (wall clock)
     uint32_t frames = 0;
     uint64_t blas_builds = 0;  // BLASes built by this session's updates (never reset; debugging)
@@ -56,6 +61,11 @@ struct PassInfo {
     uint32_t channels;
 };
 const std::vector<PassInfo>& pass_table();
+
+// Pipelines compiling on worker threads (Session::set_background_compile, Session::warm), and a
+// wait for them all: the process must not exit while one is inside the driver.
+uint32_t background_compiles();
+void wait_for_background_compiles();
 
 class Session {
 public:
@@ -111,6 +121,15 @@ public:
     // Compiles the pipelines the next render() needs, without rendering (the viewport runs it
     // on a thread of its own while its preview program renders).
     void compile();
+    // With background compiles on, a frame that needs a technique's pipelines before they are
+    // compiled renders with the techniques off while a worker thread compiles them
+    // (stats().fallback_samples counts those samples; the film starts over at the techniques'
+    // first frame); off (the default), render() waits for the compile.
+    void set_background_compile(bool on) { background_compile_ = on; }
+    bool background_compile() const { return background_compile_; }
+    // Starts compiling, on a worker thread, the pipelines the current settings need and their
+    // fallback; returns at once (the add-on warms them when the engine is picked or a file loads).
+    void warm();
     size_t triangle_count() const { return scene_ ? scene_->triangle_count() : 0; }
 
 private:
@@ -149,7 +168,14 @@ private:
     RayTracingPipeline& pipeline(uint32_t program, bool cache_queries = true);
     RayTracingPipeline& render_pipeline();
     std::array<uint32_t, 5> pipeline_key(uint32_t program, bool cache_queries = true) const;
-    std::unique_ptr<RayTracingPipeline> build_pipeline(uint32_t program, const std::array<uint32_t, 5>& key);
+    RayTracingPipeline& pipeline_for(uint32_t program, const std::array<uint32_t, 5>& key);
+    // Built from the key alone (no session state), so a worker thread can compile it.
+    static std::unique_ptr<RayTracingPipeline> build_pipeline(Context& ctx, VkDescriptorSetLayout layout, uint32_t program,
+                                                              const std::array<uint32_t, 5>& key);
+    std::vector<std::pair<uint32_t, std::array<uint32_t, 5>>> needed_pipelines() const;
+    bool technique_pipelines_ready();
+    bool compiled_or_started(const std::vector<std::pair<uint32_t, std::array<uint32_t, 5>>>& wanted);
+    std::array<uint32_t, 5> fallback_key() const;
     uint32_t camera_program() const { return params_.preview ? PROGRAM_PREVIEW : PROGRAM_CAMERA; }
     ComputePipeline& ic_finish_pipeline();
     std::shared_ptr<Context> ctx_;  // first member: destroyed after everything using it
@@ -169,6 +195,9 @@ private:
     RenderParams params_;
     SessionStats stats_;
     Cursor cursor_;            // progress through the current frame
+    std::atomic<bool> background_compile_{false};
+    bool fallback_frame_ = false;  // the current frame renders with the techniques off
+    bool film_after_fallback_ = false;  // the film starts over before the next render dispatch
     std::atomic<bool> cancel_{false};
     std::mutex mutex_;         // the scene, film and stats against concurrent render()/read()
     // One update() or set_params() at a time: each builds on the previous one. Taken before
