@@ -193,18 +193,24 @@ struct PipelineSlot {
     std::atomic<bool> ready{false};
 };
 std::mutex pipelines_mutex;  // guards the map, not the compiles
-auto& pipelines = *new std::map<std::pair<Context*, std::array<uint32_t, 5>>, std::shared_ptr<PipelineSlot>>();
+auto& pipelines = *new std::map<std::pair<Context*, PipelineKey>, std::shared_ptr<PipelineSlot>>();
 }  // namespace
 
-// Specialisation constants 0-3 (integrator.glsl, mis.glsl, common.glsl, irradiance_cache.glsl)
-// and the program; the preview program uses the scene features only.
-// Without cache_queries the irradiance cache's shaders (and TECH_IC) stay out even where the
-// cache exists (ADRRS alone renders from its adjoint grid).
-std::array<uint32_t, 5> Session::pipeline_key(uint32_t program, bool cache_queries) const {
-    if (program == PROGRAM_PREVIEW) return {0u, 0u, scene_->host().features, 0u, program};
-    const uint32_t techniques = (ic_->enabled() && cache_queries ? TECH_IC : 0u) |
-                                (adrrs_->enabled() ? TECH_ADRRS : 0u) | (guiding_->enabled() ? TECH_GUIDING : 0u);
-    return {params_.method, params_.mis_heuristic, scene_->host().features, techniques, program};
+// The program and its specialisation constants (shaders/shared/specialization.h); the preview
+// program uses the scene features only. Without cache_queries the irradiance cache's shaders
+// (and TECH_IC) stay out even where the cache exists (ADRRS alone renders from its adjoint grid).
+// GPUs make empty shadow calls, lavapipe does not (integrator.glsl, trace_pending_shadow).
+PipelineKey Session::pipeline_key(uint32_t program, bool cache_queries) const {
+    SpecConstants c;
+    c.method = program == PROGRAM_PREVIEW ? 0u : params_.method;
+    c.heuristic = program == PROGRAM_PREVIEW ? 0u : params_.mis_heuristic;
+    c.features = scene_->host().features;
+    c.techniques = program == PROGRAM_PREVIEW ? 0u
+                                              : (ic_->enabled() && cache_queries ? TECH_IC : 0u) |
+                                                    (adrrs_->enabled() ? TECH_ADRRS : 0u) |
+                                                    (guiding_->enabled() ? TECH_GUIDING : 0u);
+    c.empty_shadow_calls = ctx_->is_cpu() ? 0u : 1u;
+    return {program, c};
 }
 
 // The camera pipeline of render frames; prepare, estimate and training frames use the full one.
@@ -232,7 +238,7 @@ void Session::compile() {
 }
 
 RayTracingPipeline& Session::pipeline(uint32_t program, bool cache_queries) {
-    const std::array<uint32_t, 5> key = pipeline_key(program, cache_queries);
+    const PipelineKey key = pipeline_key(program, cache_queries);
     std::shared_ptr<PipelineSlot> slot;
     {
         std::lock_guard<std::mutex> lock(pipelines_mutex);
@@ -248,8 +254,8 @@ RayTracingPipeline& Session::pipeline(uint32_t program, bool cache_queries) {
     return *slot->pipeline;
 }
 
-std::unique_ptr<RayTracingPipeline> Session::build_pipeline(uint32_t program, const std::array<uint32_t, 5>& key) {
-    const uint32_t techniques = key[3];
+std::unique_ptr<RayTracingPipeline> Session::build_pipeline(uint32_t program, const PipelineKey& key) {
+    const uint32_t techniques = key.second.techniques;
     // Stages, then groups: raygen | miss: MISS_SCENE, MISS_SHADOW, MISS_IC_QUERY,
     // MISS_GUIDING_QUERY | hit groups: HIT_GROUP_TRIANGLES (closest-hit + self-skip any-hit), HIT_GROUP_IC (procedural:
     // intersection + any-hit), HIT_GROUP_GUIDING (intersection + closest-hit). A technique's
@@ -296,16 +302,13 @@ std::unique_ptr<RayTracingPipeline> Session::build_pipeline(uint32_t program, co
         groups.insert(groups.begin() + 1 + MISS_GUIDING_QUERY, miss_group);
         groups.push_back(hit_group);
     }
-    if (program != PROGRAM_PREVIEW && (key[2] & FEATURE_TRANSMISSION)) {  // rays leaving a surface skip its triangle (self_skip.rahit)
+    if (program != PROGRAM_PREVIEW && (key.second.features & FEATURE_TRANSMISSION)) {  // rays leaving a surface skip its triangle (self_skip.rahit)
         for (auto& g : groups)
             if (g.type == VK_RAY_TRACING_SHADER_GROUP_TYPE_TRIANGLES_HIT_GROUP_KHR) g.any_hit = uint32_t(stages.size());
         stages.push_back({VK_SHADER_STAGE_ANY_HIT_BIT_KHR, &shader_self_skip_any_hit()});
     }
-    // Specialisation: METHOD, MIS_HEURISTIC, SCENE_FEATURES, TECHNIQUES, EMPTY_SHADOW_CALLS.
-    std::vector<uint32_t> constants(key.begin(), key.begin() + 4);
-    constants.push_back(ctx_->is_cpu() ? 0u : 1u);
     return std::make_unique<RayTracingPipeline>(*ctx_, set_->layout(), uint32_t(sizeof(FrameParams)), stages, groups,
-                                                constants);
+                                                key.second);
 }
 
 ComputePipeline& Session::ic_finish_pipeline() {

@@ -148,8 +148,8 @@ private:
     // irradiance cache's shaders (and TECH_IC) out even where the cache exists.
     RayTracingPipeline& pipeline(uint32_t program, bool cache_queries = true);
     RayTracingPipeline& render_pipeline();
-    std::array<uint32_t, 5> pipeline_key(uint32_t program, bool cache_queries = true) const;
-    std::unique_ptr<RayTracingPipeline> build_pipeline(uint32_t program, const std::array<uint32_t, 5>& key);
+    PipelineKey pipeline_key(uint32_t program, bool cache_queries = true) const;
+    std::unique_ptr<RayTracingPipeline> build_pipeline(uint32_t program, const PipelineKey& key);
     uint32_t camera_program() const { return params_.preview ? PROGRAM_PREVIEW : PROGRAM_CAMERA; }
     ComputePipeline& ic_finish_pipeline();
     std::shared_ptr<Context> ctx_;  // first member: destroyed after everything using it
