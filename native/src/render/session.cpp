@@ -202,14 +202,16 @@ auto& pipelines = *new std::map<std::pair<Context*, PipelineKey>, std::shared_pt
 // GPUs make empty shadow calls, lavapipe does not (integrator.glsl, trace_pending_shadow).
 PipelineKey Session::pipeline_key(uint32_t program, bool cache_queries) const {
     SpecConstants c;
-    c.method = program == PROGRAM_PREVIEW ? 0u : params_.method;
-    c.heuristic = program == PROGRAM_PREVIEW ? 0u : params_.mis_heuristic;
     c.features = scene_->host().features;
-    c.techniques = program == PROGRAM_PREVIEW ? 0u
-                                              : (ic_->enabled() && cache_queries ? TECH_IC : 0u) |
-                                                    (adrrs_->enabled() ? TECH_ADRRS : 0u) |
-                                                    (guiding_->enabled() ? TECH_GUIDING : 0u);
     c.empty_shadow_calls = ctx_->is_cpu() ? 0u : 1u;
+    if (program == PROGRAM_PREVIEW) {
+        c.method = c.heuristic = c.techniques = 0u;
+        return {program, c};
+    }
+    c.method = params_.method;
+    c.heuristic = params_.mis_heuristic;
+    c.techniques = (ic_->enabled() && cache_queries ? TECH_IC : 0u) | (adrrs_->enabled() ? TECH_ADRRS : 0u) |
+                   (guiding_->enabled() ? TECH_GUIDING : 0u);
     return {program, c};
 }
 
