@@ -29,13 +29,9 @@ layout(set = 0, binding = BINDING_GGX_TABLES, scalar) readonly buffer GgxTableBu
 
 layout(push_constant, scalar) uniform PushConstants { FrameParams params; };
 
-// FEATURE_* bits of the scene this pipeline renders; code for anything else folds away.
-layout(constant_id = 2) const uint SCENE_FEATURES = FEATURE_ALL;
-#define HAS(FEATURE) ((SCENE_FEATURES & (FEATURE)) != 0u)
-
-// TECH_* bits of the enabled techniques (shaders/shared/techniques.h); the others fold away.
-layout(constant_id = 3) const uint TECHNIQUES = 0u;
-#define USES(TECH) ((TECHNIQUES & (TECH)) != 0u)
+// The pipeline's specialisation constants (METHOD, MIS_HEURISTIC, SCENE_FEATURES, TECHNIQUES,
+// EMPTY_SHADOW_CALLS) and the HAS / USES conditions: code for what they leave out folds away.
+#include "../shared/specialization.h"
 
 float max3(vec3 v) { return max(v.x, max(v.y, v.z)); }
 float luminance(vec3 c) { return dot(c, vec3(0.2126, 0.7152, 0.0722)); }

@@ -1,6 +1,6 @@
 // Multiple importance sampling weights (Veach 1997, ch. 9): the weight of a strategy with
 // (count-scaled) density pdf_a against another with density pdf_b.
-layout(constant_id = 1) const uint MIS_HEURISTIC = HEURISTIC_POWER;
+// MIS_HEURISTIC: a specialisation constant (shared/specialization.h).
 
 float mis_weight(float pdf_a, float pdf_b) {
     if (MIS_HEURISTIC == HEURISTIC_POWER) {  // beta = 2, eq. 9.13

@@ -94,4 +94,143 @@ void adrrs_queue(uint local, uint P, AdrrsSplit split) {
     adrrs_words[2u * local + 1u] += split.copies;
     if (entries == 0u) adrrs_words[2u * P + atomicAdd(adrrs_active_count, 1u)] = local;
 }
+
+#ifdef PX_TRACE_LOOP
+// ---- hooks of the trace loop (lib/integrator.glsl, techniques.glsl) ----------------------
+
+// A path's use of ADRRS.
+struct AdrrsOptions {
+    bool on;                // roulette and split by the adjoint (needs a pixel estimate)
+    bool first_vertex_only; // estimate frame: end after the first non-delta vertex's emission, NEE and cache
+    float estimate;         // luminance of the pixel estimate I~
+    uint local;             // the pixel's slot in this dispatch's split queue
+    uint pixels;            // pixels of this dispatch
+    uint samples;           // samples per pixel of this dispatch (the split budget's multiple)
+};
+
+AdrrsOptions adrrs_no_options() { return AdrrsOptions(false, false, 0.0, 0u, 0u, 1u); }
+
+// FRAME_ADRRS_ESTIMATE: camera paths to the first non-delta vertex build the pixel estimate.
+bool adrrs_estimate_frame() { return USES(TECH_ADRRS) && params.mode == FRAME_ADRRS_ESTIMATE; }
+// FRAME_ADRRS_SPLITS: the dispatch traces the split queue (adrrs_split_*).
+bool adrrs_split_frame() { return USES(TECH_ADRRS) && params.mode == FRAME_ADRRS_SPLITS; }
+
+// The ADRRS pass of a pixel: its estimate (rgb) while rendering.
+struct AdrrsPixel {
+    vec3 estimate;
+};
+
+// Camera paths of pixel `local` of this dispatch (P pixels); render frames read the pixel's
+// estimate and empty its split queue.
+AdrrsOptions adrrs_camera_options(uint pixel_index, uint local, uint P, out AdrrsPixel px) {
+    AdrrsOptions o = adrrs_no_options();
+    o.first_vertex_only = adrrs_estimate_frame();
+    px.estimate = vec3(0.0);
+    if (USES(TECH_ADRRS) && params.mode == FRAME_RENDER) {
+        o.on = adrrs_pixel_estimate(pixel_index, px.estimate);
+        o.estimate = luminance(px.estimate);
+        o.local = local;
+        o.pixels = P;
+        o.samples = params.sample_count;
+        adrrs_words[2u * local] = 0u;  // this dispatch's queue of the pixel starts empty
+        adrrs_words[2u * local + 1u] = 0u;
+    }
+    return o;
+}
+
+// Estimate frames sum the pixel's radiance into the estimate; true: the film is left alone.
+bool adrrs_frame_output(vec3 sum_radiance, uint pixel_index) {
+    if (!adrrs_estimate_frame()) return false;
+    adrrs_estimates[pixel_index] += vec4(sum_radiance, float(params.sample_count));
+    return true;
+}
+
+void adrrs_write_passes(AdrrsPixel px, uint pixel_index, uint npix) {
+    if (USES(TECH_ADRRS)) film[PASS_ADRRS_ESTIMATE * npix + pixel_index] += vec4(px.estimate * float(params.sample_count), 0.0);
+}
+
+// The vertex's cached indirect irradiance from the adjoint alone, where the cache itself was
+// not queried (ic_vertex left the vertex).
+void adrrs_vertex_adjoint(AdrrsOptions o, Surface surf, bool delta, vec3 p, vec3 n, bool resumed,
+                          inout bool found, inout vec3 irradiance) {
+    bool ic_surface = surf.type == MATERIAL_DIFFUSE || !delta;
+    if (USES(TECH_ADRRS) && ic_surface && !resumed && o.on)
+        found = adrrs_adjoint_irradiance(p, n, irradiance);  // the adjoint alone
+}
+
+// ADRRS on the continuation of a non-delta vertex v, whose cached (or adjoint) irradiance is
+// ic's: roulette or split by the adjoint. The split copies start on the segment that reached
+// the vertex (ps' origin, dir, t_min, t_max). Returns whether ADRRS decided (the throughput
+// roulette then stands aside); `killed`: the path ends.
+bool adrrs_continuation(AdrrsOptions o, IcVertex ic, Vertex v, inout PathState ps, uint segments, bool camera_segment,
+                        inout Rng rng, out bool killed) {
+    killed = false;
+    if (!(USES(TECH_ADRRS) && o.on && ic.found && !v.delta)) return false;
+    float q = adrrs_factor(ps.throughput, v.surf.albedo, ic.irradiance, o.estimate);
+    if (q < 1.0) {
+        if (rnd(rng) >= q) {
+            killed = true;
+            return true;
+        }
+        ps.throughput /= q;
+        ps.roulette_throughput /= q;
+    } else if (q > 1.0) {
+        // Within the pixel's split budget: q is capped before the expected-value
+        // split, so every copy's weight 1/q stays exact.
+        q = min(q, 1.0 + float(adrrs_copies_left(o.local, o.samples)));
+        uint copies = adrrs_split_copies(q, rnd(rng));
+        ps.throughput /= q;
+        ps.roulette_throughput /= q;
+        if (copies > 1u) {
+            uint flags = camera_segment ? ADRRS_SPLIT_CAMERA_RAY : 0u;
+            uint seed = uint(rnd(rng) * 4294967040.0) ^ (segments << 24);
+            adrrs_queue(o.local, o.pixels,
+                        AdrrsSplit(ps.origin, ps.t_min, ps.dir, ps.t_max, ps.throughput, seed,
+                                   ps.bounces | (ps.discrete << 16), copies - 1u, flags, segments,
+                                   ps.self_instance, ps.self_primitive));
+        }
+    }
+    return true;
+}
+
+// ---- the split queue (FRAME_ADRRS_SPLITS) ------------------------------------------------
+// Invocation i traces every copy queued for the i-th pixel with splits, in queue order (copies
+// may queue more), and adds them to that pixel's film sums: one writer per pixel, so the sums
+// stay deterministic. A copy that fails (a NaN, a lost path) adds nothing and the rest of the
+// queue still runs.
+
+// The i-th active pixel of this dispatch (P pixels), if there is one: its slot and its index.
+bool adrrs_split_pixel(uint P, out uint local, out uint pixel_index) {
+    uint i = gl_LaunchIDEXT.y * gl_LaunchSizeEXT.x + gl_LaunchIDEXT.x;
+    local = 0u;
+    pixel_index = 0u;
+    if (i >= adrrs_active_count) return false;
+    local = adrrs_words[2u * P + i];
+    uvec2 pixel = uvec2(local % gl_LaunchSizeEXT.x, local / gl_LaunchSizeEXT.x) + uvec2(params.col_offset, params.row_offset);
+    pixel_index = pixel.y * params.width + pixel.x;
+    return true;
+}
+
+uint adrrs_split_entries(uint local) { return adrrs_words[2u * local]; }
+AdrrsSplit adrrs_split_entry(uint local, uint k) { return adrrs_splits[local * tech.adrrs.slots + k]; }
+
+// A copy's own ADRRS options: the pixel's estimate, its queue slot.
+AdrrsOptions adrrs_split_options(uint pixel_index, uint local, uint P) {
+    AdrrsOptions o = adrrs_no_options();
+    vec3 estimate;
+    o.on = adrrs_pixel_estimate(pixel_index, estimate);
+    o.estimate = luminance(estimate);
+    o.local = local;
+    o.pixels = P;
+    o.samples = params.sample_count;
+    return o;
+}
+
+void adrrs_split_write(uint local, uint pixel_index, vec3 sum, uint rays) {
+    uint npix = params.width * params.height;
+    film[PASS_COMBINED * npix + pixel_index] += vec4(sum, 0.0);
+    film[PASS_ADRRS_SPLITS * npix + pixel_index].x += float(adrrs_copies_queued(local));
+    ray_count[pixel_index] += rays;
+}
+#endif
 #endif

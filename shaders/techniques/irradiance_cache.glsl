@@ -66,4 +66,112 @@ void ic_request(vec3 p, vec3 n, uint pixel, uint sample_index) {
     if (i >= tech.ic.queue_capacity) return;
     ic_requests[i] = IcRequest(p, pixel, n, sample_index);
 }
+
+#ifdef PX_TRACE_LOOP
+// ---- hooks of the trace loop (lib/integrator.glsl, techniques.glsl) ----------------------
+
+// A path's use of the cache.
+struct IcOptions {
+    bool use;      // shade diffuse vertices from the irradiance cache where it has entries
+    bool glossy;   // ... and glossy ones (ADRRS' estimate, thesis 4.4 "IC on glossy")
+    bool create;   // queue cache creation requests at uncovered diffuse vertices
+    bool prepare;  // prepare frame: stop at the first diffuse vertex after the query
+    uint pixel;    // for creation requests (their order on the host)
+};
+
+IcOptions ic_no_options() { return IcOptions(false, false, false, false, 0u); }
+
+// FRAME_IC_PREPARE: camera paths only queue cache entries.
+bool ic_prepare_frame() { return USES(TECH_IC) && params.mode == FRAME_IC_PREPARE; }
+
+// Camera paths. ADRRS alone fills the cache in its prepare frames only: no entry jobs, rebuilds
+// or new adjoint grids between the frames it renders.
+IcOptions ic_camera_options(uint pixel_index, bool estimate_frame, bool training_frame) {
+    IcOptions o;
+    o.use = tech.ic.shade != 0u || estimate_frame;
+    o.glossy = estimate_frame && tech.adrrs.ic_glossy != 0u;
+    o.create = USES(TECH_IC) && !estimate_frame && !training_frame &&
+               (tech.ic.shade != 0u || params.mode == FRAME_IC_PREPARE);
+    o.prepare = ic_prepare_frame();
+    o.pixel = pixel_index;
+    return o;
+}
+
+// ADRRS' split copies of a pixel's paths.
+IcOptions ic_split_options(uint pixel_index) {
+    return IcOptions(tech.ic.shade != 0u, false, tech.ic.shade != 0u, false, pixel_index);
+}
+
+// Entry rays (ic_hemisphere.rgen) read existing entries, never queue new ones.
+IcOptions ic_hemisphere_options() { return IcOptions(true, false, false, false, 0u); }
+
+// What a path found at its first diffuse vertex (the IC passes).
+struct IcPath {
+    bool recorded;
+    vec3 irradiance;  // cache value at the first diffuse vertex (0: no entry there)
+    vec2 gradients;   // its entries' mean |g_t|, |g_r|
+};
+
+IcPath ic_path() { return IcPath(false, vec3(0.0), vec2(0.0)); }
+
+// The cache at a vertex.
+struct IcVertex {
+    bool found;       // entries (or ADRRS' adjoint, adrrs_vertex_adjoint) cover the vertex
+    vec3 irradiance;  // their indirect irradiance
+    bool shaded;      // the vertex is shaded from the cache: the path ends after its NEE
+    bool stop;        // prepare frame: the path ends here, before NEE
+};
+
+// Irradiance cache at diffuse vertices (thesis 4.4): where entries cover this point the
+// path ends here with NEE + albedo/pi * E; elsewhere it may queue a new entry and goes on.
+// With ADRRS the cache's adjoint grid is read at every non-delta vertex (adrrs.glsl);
+// `handled` false leaves the vertex to it.
+IcVertex ic_vertex(inout IcPath path, IcOptions o, Surface surf, bool delta, vec3 p, vec3 n, bool resumed,
+                   vec3 throughput, uint segments, inout vec3 radiance, inout Rng rng, out bool handled) {
+    IcVertex v = IcVertex(false, vec3(0.0), false, false);
+    bool ic_surface = surf.type == MATERIAL_DIFFUSE || ((USES(TECH_ADRRS) || o.glossy) && !delta);
+    handled = USES(TECH_IC) && ic_surface && !resumed && (o.use || o.prepare);
+    if (!handled) return v;
+    vec2 gradients;
+    v.found = ic_lookup(p, n, v.irradiance, gradients);
+    if (!path.recorded) {
+        path.irradiance = v.irradiance;
+        path.gradients = gradients;
+        path.recorded = true;
+    }
+    if (v.found && o.use && (surf.type == MATERIAL_DIFFUSE || o.glossy)) {
+        radiance += throughput * surf.albedo * INV_PI * v.irradiance;
+        v.shaded = true;
+    } else if (!v.found && o.create && rnd(rng) < tech.ic.create_prob) {
+        ic_request(p, n, o.pixel, segments);
+    }
+    if (o.prepare) {
+        if (!v.found) atomicAdd(ic_queue_uncovered, 1u);
+        v.stop = true;
+    }
+    return v;
+}
+
+// The IC passes of a pixel: sums over its samples.
+struct IcPixel {
+    vec3 irradiance;
+    vec2 gradients;
+};
+
+IcPixel ic_pixel() { return IcPixel(vec3(0.0), vec2(0.0)); }
+
+void ic_add_sample(inout IcPixel px, IcPath path) {
+    if (!USES(TECH_IC)) return;
+    // Colour highlight (thesis fig. 4.13): the irradiance less its white part.
+    vec3 e = tech.ic.highlight != 0u ? path.irradiance - vec3(min(path.irradiance.x, min(path.irradiance.y, path.irradiance.z))) : path.irradiance;
+    if (!any(isinf(e)) && !any(isnan(e))) px.irradiance += e;
+    px.gradients += path.gradients / max(tech.ic.gradient_max, 1e-6);
+}
+
+void ic_write_passes(IcPixel px, uint pixel_index, uint npix) {
+    if (!USES(TECH_IC)) return;
+    film[PASS_IC_IRRADIANCE * npix + pixel_index] += vec4(px.irradiance, 0.0);
+    film[PASS_IC_GRADIENTS * npix + pixel_index] += vec4(px.gradients, 0.0, 0.0);
+}
+#endif
 #endif

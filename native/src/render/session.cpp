@@ -198,9 +198,9 @@ struct PipelineSlot {
     std::string error;                   // the last background compile's failure (under pipelines_mutex)
 };
 std::mutex pipelines_mutex;  // guards the map and the slots' errors, not the compiles
-auto& pipelines = *new std::map<std::pair<Context*, std::array<uint32_t, 5>>, std::shared_ptr<PipelineSlot>>();
+auto& pipelines = *new std::map<std::pair<Context*, PipelineKey>, std::shared_ptr<PipelineSlot>>();
 
-std::shared_ptr<PipelineSlot> pipeline_slot(Context* ctx, const std::array<uint32_t, 5>& key) {
+std::shared_ptr<PipelineSlot> pipeline_slot(Context* ctx, const PipelineKey& key) {
     std::lock_guard<std::mutex> lock(pipelines_mutex);
     auto& s = pipelines[{ctx, key}];
     if (!s) s = std::make_shared<PipelineSlot>();
@@ -224,15 +224,23 @@ void wait_for_background_compiles() {
     compiles_done.wait(lock, [] { return compiles_in_flight == 0; });
 }
 
-// Specialisation constants 0-3 (integrator.glsl, mis.glsl, common.glsl, irradiance_cache.glsl)
-// and the program; the preview program uses the scene features only.
-// Without cache_queries the irradiance cache's shaders (and TECH_IC) stay out even where the
-// cache exists (ADRRS alone renders from its adjoint grid).
-std::array<uint32_t, 5> Session::pipeline_key(uint32_t program, bool cache_queries) const {
-    if (program == PROGRAM_PREVIEW) return {0u, 0u, scene_->host().features, 0u, program};
-    const uint32_t techniques = (ic_->enabled() && cache_queries ? TECH_IC : 0u) |
-                                (adrrs_->enabled() ? TECH_ADRRS : 0u) | (guiding_->enabled() ? TECH_GUIDING : 0u);
-    return {params_.method, params_.mis_heuristic, scene_->host().features, techniques, program};
+// The program and its specialisation constants (shaders/shared/specialization.h); the preview
+// program uses the scene features only. Without cache_queries the irradiance cache's shaders
+// (and TECH_IC) stay out even where the cache exists (ADRRS alone renders from its adjoint grid).
+// GPUs make empty shadow calls, lavapipe does not (integrator.glsl, trace_pending_shadow).
+PipelineKey Session::pipeline_key(uint32_t program, bool cache_queries) const {
+    SpecConstants c;
+    c.features = scene_->host().features;
+    c.empty_shadow_calls = ctx_->is_cpu() ? 0u : 1u;
+    if (program == PROGRAM_PREVIEW) {
+        c.method = c.heuristic = c.techniques = 0u;
+        return {program, c};
+    }
+    c.method = params_.method;
+    c.heuristic = params_.mis_heuristic;
+    c.techniques = (ic_->enabled() && cache_queries ? TECH_IC : 0u) | (adrrs_->enabled() ? TECH_ADRRS : 0u) |
+                   (guiding_->enabled() ? TECH_GUIDING : 0u);
+    return {program, c};
 }
 
 // The camera pipeline of render frames; prepare, estimate and training frames use the full one.
@@ -250,28 +258,28 @@ bool Session::pipeline_ready() {
 
 // The render pipeline with every technique off: what frames render while the techniques'
 // pipelines compile in the background.
-std::array<uint32_t, 5> Session::fallback_key() const {
-    std::array<uint32_t, 5> key = pipeline_key(camera_program());
-    key[3] = 0;
+PipelineKey Session::fallback_key() const {
+    PipelineKey key = pipeline_key(camera_program());
+    key.second.techniques = 0;
     return key;
 }
 
 void Session::compile() {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!scene_) throw std::runtime_error("no scene: call update(scene) before compile()");
-    for (const auto& [program, key] : needed_pipelines()) pipeline_for(program, key);
+    for (const PipelineKey& key : needed_pipelines()) pipeline_for(key);
     if (ic_->enabled()) ic_finish_pipeline();
 }
 
 RayTracingPipeline& Session::pipeline(uint32_t program, bool cache_queries) {
-    return pipeline_for(program, pipeline_key(program, cache_queries));
+    return pipeline_for(pipeline_key(program, cache_queries));
 }
 
-RayTracingPipeline& Session::pipeline_for(uint32_t program, const std::array<uint32_t, 5>& key) {
+RayTracingPipeline& Session::pipeline_for(const PipelineKey& key) {
     std::shared_ptr<PipelineSlot> slot = pipeline_slot(ctx_.get(), key);
     // A compile that throws leaves the flag unset: the next call tries again.
     std::call_once(slot->once, [&] {
-        slot->pipeline = build_pipeline(*ctx_, set_->layout(), program, key);
+        slot->pipeline = build_pipeline(*ctx_, set_->layout(), key);
         slot->ready = true;
     });
     return *slot->pipeline;
@@ -280,12 +288,11 @@ RayTracingPipeline& Session::pipeline_for(uint32_t program, const std::array<uin
 // The pipelines a frame with the current settings needs: the render frames' camera program,
 // and with the irradiance cache (on, or built for ADRRS) the full camera program of its
 // prepare and estimate frames and the hemisphere program (the finish compute pipeline aside).
-std::vector<std::pair<uint32_t, std::array<uint32_t, 5>>> Session::needed_pipelines() const {
-    std::vector<std::pair<uint32_t, std::array<uint32_t, 5>>> out = {
-        {camera_program(), pipeline_key(camera_program(), params_.ic.enabled || !params_.adrrs.enabled)}};
+std::vector<PipelineKey> Session::needed_pipelines() const {
+    std::vector<PipelineKey> out = {pipeline_key(camera_program(), params_.ic.enabled || !params_.adrrs.enabled)};
     if (ic_->enabled()) {
-        out.push_back({PROGRAM_CAMERA, pipeline_key(PROGRAM_CAMERA)});
-        out.push_back({PROGRAM_IC_HEMISPHERE, pipeline_key(PROGRAM_IC_HEMISPHERE)});
+        out.push_back(pipeline_key(PROGRAM_CAMERA));
+        out.push_back(pipeline_key(PROGRAM_IC_HEMISPHERE));
     }
     return out;
 }
@@ -300,22 +307,21 @@ void Session::warm() {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!scene_) throw std::runtime_error("no scene: call update(scene) before warm()");
     auto wanted = needed_pipelines();
-    wanted.push_back({camera_program(), fallback_key()});
+    wanted.push_back(fallback_key());
     compiled_or_started(wanted);
 }
 
 // Whether every pipeline of `wanted` is compiled; otherwise starts the missing ones on a
 // worker thread (once per pipeline, shared by every session) and returns false. A failed
 // background compile is raised here, once; the next call compiles again.
-bool Session::compiled_or_started(const std::vector<std::pair<uint32_t, std::array<uint32_t, 5>>>& wanted) {
+bool Session::compiled_or_started(const std::vector<PipelineKey>& wanted) {
     struct Missing {
-        uint32_t program;
-        std::array<uint32_t, 5> key;
+        PipelineKey key;
         std::shared_ptr<PipelineSlot> slot;
     };
     bool ready = true;
     std::vector<Missing> missing;  // not compiled, and no background compile started yet
-    for (const auto& [program, key] : wanted) {
+    for (const PipelineKey& key : wanted) {
         std::shared_ptr<PipelineSlot> slot = pipeline_slot(ctx_.get(), key);
         {
             std::lock_guard<std::mutex> lock(pipelines_mutex);
@@ -327,7 +333,7 @@ bool Session::compiled_or_started(const std::vector<std::pair<uint32_t, std::arr
         }
         if (slot->ready) continue;
         ready = false;
-        if (!slot->compiling.exchange(true)) missing.push_back({program, key, slot});
+        if (!slot->compiling.exchange(true)) missing.push_back({key, slot});
     }
     if (missing.empty()) return ready;
     {
@@ -338,7 +344,7 @@ bool Session::compiled_or_started(const std::vector<std::pair<uint32_t, std::arr
         for (const Missing& m : missing) {
             try {
                 std::call_once(m.slot->once, [&] {
-                    m.slot->pipeline = build_pipeline(*ctx, layout, m.program, m.key);
+                    m.slot->pipeline = build_pipeline(*ctx, layout, m.key);
                     m.slot->ready = true;
                 });
             } catch (const std::exception& e) {
@@ -354,9 +360,10 @@ bool Session::compiled_or_started(const std::vector<std::pair<uint32_t, std::arr
     return false;
 }
 
-std::unique_ptr<RayTracingPipeline> Session::build_pipeline(Context& ctx, VkDescriptorSetLayout layout, uint32_t program,
-                                                            const std::array<uint32_t, 5>& key) {
-    const uint32_t techniques = key[3];
+std::unique_ptr<RayTracingPipeline> Session::build_pipeline(Context& ctx, VkDescriptorSetLayout layout,
+                                                            const PipelineKey& key) {
+    const uint32_t program = key.first;
+    const uint32_t techniques = key.second.techniques;
     // Stages, then groups: raygen | miss: MISS_SCENE, MISS_SHADOW, MISS_IC_QUERY,
     // MISS_GUIDING_QUERY | hit groups: HIT_GROUP_TRIANGLES (closest-hit + self-skip any-hit), HIT_GROUP_IC (procedural:
     // intersection + any-hit), HIT_GROUP_GUIDING (intersection + closest-hit). A technique's
@@ -403,16 +410,12 @@ std::unique_ptr<RayTracingPipeline> Session::build_pipeline(Context& ctx, VkDesc
         groups.insert(groups.begin() + 1 + MISS_GUIDING_QUERY, miss_group);
         groups.push_back(hit_group);
     }
-    if (program != PROGRAM_PREVIEW && (key[2] & FEATURE_TRANSMISSION)) {  // rays leaving a surface skip its triangle (self_skip.rahit)
+    if (program != PROGRAM_PREVIEW && (key.second.features & FEATURE_TRANSMISSION)) {  // rays leaving a surface skip its triangle (self_skip.rahit)
         for (auto& g : groups)
             if (g.type == VK_RAY_TRACING_SHADER_GROUP_TYPE_TRIANGLES_HIT_GROUP_KHR) g.any_hit = uint32_t(stages.size());
         stages.push_back({VK_SHADER_STAGE_ANY_HIT_BIT_KHR, &shader_self_skip_any_hit()});
     }
-    // Specialisation: METHOD, MIS_HEURISTIC, SCENE_FEATURES, TECHNIQUES, EMPTY_SHADOW_CALLS.
-    std::vector<uint32_t> constants(key.begin(), key.begin() + 4);
-    constants.push_back(ctx.is_cpu() ? 0u : 1u);
-    return std::make_unique<RayTracingPipeline>(ctx, layout, uint32_t(sizeof(FrameParams)), stages, groups,
-                                                constants);
+    return std::make_unique<RayTracingPipeline>(ctx, layout, uint32_t(sizeof(FrameParams)), stages, groups, key.second);
 }
 
 ComputePipeline& Session::ic_finish_pipeline() {
@@ -575,13 +578,13 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
     // meanwhile): the image holds the techniques' samples alone, and the fallback's stay
     // counted apart (stats fallback_samples, fallback_milliseconds).
     if (cursor_.at_frame_start()) {
-        const std::array<uint32_t, 5> key = pipeline_key(camera_program(), params_.ic.enabled || !params_.adrrs.enabled);
+        const PipelineKey key = pipeline_key(camera_program(), params_.ic.enabled || !params_.adrrs.enabled);
         const bool was_fallback = fallback_frame_;
-        fallback_frame_ = background_compile_ && key[3] != 0 && !technique_pipelines_ready();
+        fallback_frame_ = background_compile_ && key.second.techniques != 0 && !technique_pipelines_ready();
         if (was_fallback && !fallback_frame_) film_after_fallback_ = true;
     }
     const bool fallback = fallback_frame_;
-    RayTracingPipeline& pipe = fallback ? pipeline_for(camera_program(), fallback_key()) : render_pipeline();
+    RayTracingPipeline& pipe = fallback ? pipeline_for(fallback_key()) : render_pipeline();
     uint32_t completed = 0;
     uint32_t rows_left = frames ? UINT32_MAX : rows;
     bool stop = false;

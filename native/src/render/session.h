@@ -167,15 +167,15 @@ private:
     // irradiance cache's shaders (and TECH_IC) out even where the cache exists.
     RayTracingPipeline& pipeline(uint32_t program, bool cache_queries = true);
     RayTracingPipeline& render_pipeline();
-    std::array<uint32_t, 5> pipeline_key(uint32_t program, bool cache_queries = true) const;
-    RayTracingPipeline& pipeline_for(uint32_t program, const std::array<uint32_t, 5>& key);
+    PipelineKey pipeline_key(uint32_t program, bool cache_queries = true) const;
+    RayTracingPipeline& pipeline_for(const PipelineKey& key);
     // Built from the key alone (no session state), so a worker thread can compile it.
-    static std::unique_ptr<RayTracingPipeline> build_pipeline(Context& ctx, VkDescriptorSetLayout layout, uint32_t program,
-                                                              const std::array<uint32_t, 5>& key);
-    std::vector<std::pair<uint32_t, std::array<uint32_t, 5>>> needed_pipelines() const;
+    static std::unique_ptr<RayTracingPipeline> build_pipeline(Context& ctx, VkDescriptorSetLayout layout,
+                                                              const PipelineKey& key);
+    std::vector<PipelineKey> needed_pipelines() const;
     bool technique_pipelines_ready();
-    bool compiled_or_started(const std::vector<std::pair<uint32_t, std::array<uint32_t, 5>>>& wanted);
-    std::array<uint32_t, 5> fallback_key() const;
+    bool compiled_or_started(const std::vector<PipelineKey>& wanted);
+    PipelineKey fallback_key() const;
     uint32_t camera_program() const { return params_.preview ? PROGRAM_PREVIEW : PROGRAM_CAMERA; }
     ComputePipeline& ic_finish_pipeline();
     std::shared_ptr<Context> ctx_;  // first member: destroyed after everything using it

@@ -103,15 +103,17 @@ static VkShaderModule make_module(Context& ctx, const std::vector<uint32_t>& spi
     return m;
 }
 
+// Every stage gets all the constants (shaders/shared/specialization.h); a stage ignores those it
+// does not declare.
 struct Specialization {
     std::vector<VkSpecializationMapEntry> entries;
     VkSpecializationInfo info{};
-    explicit Specialization(const std::vector<uint32_t>& values) {
-        for (uint32_t i = 0; i < values.size(); ++i) entries.push_back({i, i * 4, 4});
+    explicit Specialization(const SpecConstants& constants) {
+        for (const SpecConstantEntry& e : spec_constant_entries) entries.push_back({e.constant_id, e.offset, sizeof(uint)});
         info.mapEntryCount = uint32_t(entries.size());
         info.pMapEntries = entries.data();
-        info.dataSize = values.size() * 4;
-        info.pData = values.data();
+        info.dataSize = sizeof(SpecConstants);
+        info.pData = &constants;
     }
 };
 
@@ -120,10 +122,10 @@ static VkDeviceSize align_up(VkDeviceSize v, VkDeviceSize a) { return (v + a - 1
 RayTracingPipeline::RayTracingPipeline(Context& ctx, VkDescriptorSetLayout set_layout, uint32_t push_size,
                                        const std::vector<ShaderStage>& stages,
                                        const std::vector<ShaderGroup>& groups,
-                                       const std::vector<uint32_t>& specialization)
+                                       const SpecConstants& constants)
     : ctx_(ctx) {
     layout_ = make_layout(ctx, set_layout, push_size);
-    Specialization spec(specialization);
+    Specialization spec(constants);
     std::vector<VkPipelineShaderStageCreateInfo> stage_infos;
     std::vector<VkShaderModule> modules;
     for (const auto& s : stages) {

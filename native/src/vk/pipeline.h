@@ -3,8 +3,10 @@
 // table, and compute pipelines.
 #pragma once
 #include "vk/buffer.h"
+#include "../../../shaders/shared/specialization.h"
 
 #include <memory>
+#include <utility>
 #include <vector>
 
 namespace px {
@@ -43,12 +45,16 @@ private:
     VkDescriptorSet set_ = VK_NULL_HANDLE;
 };
 
+// What tells one ray-tracing pipeline from another: its program (PROGRAM_*, the raygen shader)
+// and its specialisation constants.
+using PipelineKey = std::pair<uint32_t, SpecConstants>;
+
 class RayTracingPipeline {
 public:
     // Groups must be ordered: one raygen, then the miss groups, then the hit groups.
     RayTracingPipeline(Context& ctx, VkDescriptorSetLayout set_layout, uint32_t push_constant_size,
                        const std::vector<ShaderStage>& stages, const std::vector<ShaderGroup>& groups,
-                       const std::vector<uint32_t>& specialization);
+                       const SpecConstants& constants);
     ~RayTracingPipeline();
     void trace(VkCommandBuffer cmd, VkDescriptorSet set, const void* push, uint32_t push_size,
                uint32_t width, uint32_t height) const;

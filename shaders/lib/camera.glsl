@@ -1,0 +1,25 @@
+// The camera's rays (SceneInfo camera_window, camera_to_world, clip).
+#ifndef PARALLAX_CAMERA_GLSL
+#define PARALLAX_CAMERA_GLSL
+
+// The camera ray through image position (x, y) in pixels (row 0 = top); t_min, t_max from the
+// clip distances, axis_cos = cos of the angle to the view axis.
+void camera_ray(vec2 xy, out vec3 origin, out vec3 dir, out float t_min, out float t_max, out float axis_cos) {
+    vec4 window = scene.camera_window;
+    float sx = mix(window.x, window.y, xy.x / float(params.width));
+    float sy = mix(window.w, window.z, xy.y / float(params.height));
+    vec3 origin_cam, dir_cam;
+    if (scene.camera_type == CAMERA_ORTHOGRAPHIC) {
+        origin_cam = vec3(sx, sy, 0.0);
+        dir_cam = vec3(0.0, 0.0, -1.0);
+    } else {
+        origin_cam = vec3(0.0);
+        dir_cam = normalize(vec3(sx, sy, -1.0));
+    }
+    axis_cos = -dir_cam.z;  // clip distances are along the view axis
+    origin = transform_point(scene.camera_to_world, origin_cam);
+    dir = normalize(transform_vector(scene.camera_to_world, dir_cam));
+    t_min = scene.clip.x / axis_cos;
+    t_max = scene.clip.y / axis_cos;
+}
+#endif

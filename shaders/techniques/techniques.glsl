@@ -1,0 +1,109 @@
+// The techniques of the thesis (ch. 4) in the trace loop: each one's hooks are in its own file
+// (irradiance_cache.glsl, adrrs.glsl, guiding_field.glsl) and guard themselves with USES(), so
+// a pipeline without a technique compiles none of its code. This file is the one list of
+// them: the per-path options and state the trace loop carries, and the hooks that consult more
+// than one technique. Included by lib/integrator.glsl after its base structs (PathOptions,
+// PathState, Vertex).
+#define PX_TRACE_LOOP
+#include "irradiance_cache.glsl"
+#include "adrrs.glsl"
+#include "guiding_field.glsl"
+
+// Techniques whose paths may end at a vertex with its NEE even under METHOD_PT: the cache
+// (a vertex shaded from it) and ADRRS (its estimate frames). Other PT pipelines trace no shadow ray.
+const uint TECHNIQUES_ENDING_WITH_NEE = TECHNIQUES & (TECH_IC | TECH_ADRRS);
+
+// What the techniques do on one path (set by the caller; PathOptions holds the base's).
+struct TechniqueOptions {
+    IcOptions ic;
+    AdrrsOptions adrrs;
+    GuidingOptions guiding;
+};
+
+TechniqueOptions no_techniques() {
+    return TechniqueOptions(ic_no_options(), adrrs_no_options(), guiding_no_options());
+}
+
+// Camera paths of pixel `local` of this dispatch (P pixels); `px` gets the pixel's pass sums.
+struct TechniquePixel {
+    IcPixel ic;
+    AdrrsPixel adrrs;
+    GuidingPixel guiding;
+};
+
+TechniqueOptions camera_techniques(uint pixel_index, uint local, uint P, out TechniquePixel px) {
+    bool estimate_frame = adrrs_estimate_frame(), training_frame = guiding_training_frame();
+    TechniqueOptions o;
+    o.ic = ic_camera_options(pixel_index, estimate_frame, training_frame);
+    o.guiding = guiding_camera_options(pixel_index, estimate_frame);
+    o.adrrs = adrrs_camera_options(pixel_index, local, P, px.adrrs);
+    px.ic = ic_pixel();
+    px.guiding = guiding_pixel();
+    return o;
+}
+
+// Sample s of the pixel (npix: the film's pixels).
+void techniques_sample(inout TechniqueOptions o, uint s, uint pixel_index, uint npix) {
+    guiding_sample_options(o.guiding, s, pixel_index, npix);
+}
+
+// A split copy's (adrrs.glsl's split queue).
+TechniqueOptions split_techniques(uint pixel_index, uint local, uint P) {
+    TechniqueOptions o = no_techniques();
+    o.ic = ic_split_options(pixel_index);
+    o.adrrs = adrrs_split_options(pixel_index, local, P);
+    o.guiding = guiding_split_options();
+    return o;
+}
+
+// Frames whose camera paths only serve a technique (guiding training) add nothing to any sum.
+bool techniques_drop_samples() { return guiding_training_frame(); }
+
+// The techniques' own frames (cache preparation, ADRRS estimates, guiding training): what the
+// frame makes is written here; true: the film is left alone.
+bool techniques_frame_output(vec3 sum_radiance, uint pixel_index) {
+    if (ic_prepare_frame() || guiding_training_frame()) return true;
+    return adrrs_frame_output(sum_radiance, pixel_index);
+}
+
+// The per-path state of the techniques (trace_path's, beside its PathState).
+struct TechniquePath {
+    IcPath ic;
+    GuidingPath guiding;
+};
+
+TechniquePath technique_path(TechniqueOptions o) {
+    return TechniquePath(ic_path(), guiding_path(o.guiding));
+}
+
+// The techniques at a vertex: the guiding mixture there, and the cached (or adjoint)
+// irradiance of the cache and ADRRS.
+struct TechniqueVertex {
+    GuidingVertex guiding;
+    IcVertex ic;
+    bool last;  // the path ends after this vertex's NEE (shaded from the cache, or an estimate)
+};
+
+TechniqueVertex techniques_vertex(inout TechniquePath path, TechniqueOptions o, Vertex v, float t, bool resumed,
+                                  vec3 throughput, uint segments, inout vec3 radiance, inout Rng rng) {
+    TechniqueVertex tv;
+    tv.guiding = guiding_vertex(path.guiding, o.guiding, v.surf, v.roughness, v.delta, t, v.sh.p);
+    bool handled;
+    tv.ic = ic_vertex(path.ic, o.ic, v.surf, v.delta, v.sh.p, v.ns, resumed, throughput, segments, radiance, rng,
+                      handled);
+    if (!handled) adrrs_vertex_adjoint(o.adrrs, v.surf, v.delta, v.sh.p, v.ns, resumed, tv.ic.found, tv.ic.irradiance);
+    tv.last = tv.ic.shaded || (o.adrrs.first_vertex_only && !v.delta);
+    return tv;
+}
+
+void techniques_add_sample(inout TechniquePixel px, TechniqueOptions o, TechniquePath path, uint s, uvec2 pixel,
+                           vec3 origin, vec3 dir, float first_t) {
+    ic_add_sample(px.ic, path.ic);
+    guiding_add_sample(px.guiding, o.guiding, s, pixel, origin, dir, first_t);
+}
+
+void techniques_write_passes(TechniquePixel px, uint pixel_index, uint npix) {
+    ic_write_passes(px.ic, pixel_index, npix);
+    guiding_write_passes(px.guiding, pixel_index, npix);
+    adrrs_write_passes(px.adrrs, pixel_index, npix);
+}
