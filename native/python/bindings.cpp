@@ -21,6 +21,33 @@ nb::ndarray<nb::numpy, float> to_numpy(std::vector<float>&& data, std::vector<si
     return nb::ndarray<nb::numpy, float>(owned->data(), shape.size(), shape.data(), owner);
 }
 
+// A Python value as the core's settings check it (Python's bool is an int: tested first).
+px::SettingValue setting_value(nb::handle h) {
+    px::SettingValue v;
+    v.repr = nb::cast<std::string>(nb::repr(h));
+    PyObject* o = h.ptr();
+    if (PyBool_Check(o)) {
+        v.kind = px::SettingValue::Bool;
+        v.number = o == Py_True ? 1 : 0;
+    } else if (PyFloat_Check(o)) {
+        v.kind = px::SettingValue::Float;
+        v.number = PyFloat_AsDouble(o);
+    } else if (PyUnicode_Check(o)) {
+        v.kind = px::SettingValue::Text;
+        v.text = nb::cast<std::string>(h);
+    } else if (PyIndex_Check(o)) {  // int, numpy integers
+        nb::object index = nb::steal(PyNumber_Index(o));
+        int overflow = 0;
+        const long long x = index.is_valid() ? PyLong_AsLongLongAndOverflow(index.ptr(), &overflow) : 0;
+        if (index.is_valid() && !overflow) {
+            v.kind = px::SettingValue::Int;
+            v.number = double(x);
+        }
+        PyErr_Clear();
+    }
+    return v;
+}
+
 }  // namespace
 
 void bind_guiding(nb::module_& m);  // guiding_bindings.cpp
@@ -53,8 +80,6 @@ NB_MODULE(_native, m) {
        "which one device='auto' picks.");
 
     bind_guiding(m);
-
-    m.attr("METHODS") = nb::make_tuple("pt", "nee", "mis");
 
     nb::exception<px::DeviceMemoryError>(m, "DeviceMemoryError", PyExc_MemoryError);
 
@@ -121,67 +146,83 @@ NB_MODULE(_native, m) {
     limits["camera_scale"] = px::SceneLimits::camera_scale;
     m.attr("LIMITS") = limits;
 
-    // px::RenderParams field by field (parallax_core.RenderParams validates and fills it); the
-    // irradiance cache's IcParams appear flat, under the setting names (ic_accuracy, ...).
-    nb::class_<px::RenderParams>(m, "_RenderParams")
-        .def(nb::init<>())
-        .def_rw("method", &px::RenderParams::method)
-        .def_rw("mis_heuristic", &px::RenderParams::mis_heuristic)
-        .def_rw("samples_per_frame", &px::RenderParams::samples_per_frame)
-        .def_rw("max_depth", &px::RenderParams::max_depth)
-        .def_rw("depth_leeway", &px::RenderParams::depth_leeway)
-        .def_rw("rr_start_depth", &px::RenderParams::rr_start_depth)
-        .def_rw("light_samples", &px::RenderParams::light_samples)
-        .def_rw("seed", &px::RenderParams::seed)
-        .def_rw("preview", &px::RenderParams::preview)
-        .def_rw("light_tree", &px::RenderParams::light_tree)
-#define PX_IC_FIELD(NAME, MEMBER)                                                                      \
-    .def_prop_rw(NAME, [](const px::RenderParams& p) { return p.ic.MEMBER; },                        \
-                 [](px::RenderParams& p, decltype(px::IcParams::MEMBER) v) { p.ic.MEMBER = v; })
-        PX_IC_FIELD("ic", enabled)
-        PX_IC_FIELD("ic_accuracy", accuracy)
-        PX_IC_FIELD("ic_min_radius", min_radius)
-        PX_IC_FIELD("ic_create_prob", create_prob)
-        PX_IC_FIELD("ic_update_prob", update_prob)
-        PX_IC_FIELD("ic_nee_samples", nee_samples)
-        PX_IC_FIELD("ic_gradients", gradients)
-        PX_IC_FIELD("ic_gradient_max", gradient_max)
-        PX_IC_FIELD("ic_visibility_check", visibility_check)
-        PX_IC_FIELD("ic_prepare_frames", prepare_frames)
-        PX_IC_FIELD("ic_capacity", capacity)
-        PX_IC_FIELD("ic_rebuild_interval", rebuild_interval)
-        PX_IC_FIELD("ic_highlight", highlight)
-#define PX_ADRRS_FIELD(NAME, MEMBER)                                                                  \
-    .def_prop_rw(NAME, [](const px::RenderParams& p) { return p.adrrs.MEMBER; },                     \
-                 [](px::RenderParams& p, decltype(px::AdrrsParams::MEMBER) v) { p.adrrs.MEMBER = v; })
-        PX_ADRRS_FIELD("adrrs", enabled)
-        PX_ADRRS_FIELD("adrrs_splitting", splitting)
-        PX_ADRRS_FIELD("adrrs_window", window)
-        PX_ADRRS_FIELD("adrrs_rr_min", rr_min)
-        PX_ADRRS_FIELD("adrrs_max_splits", max_splits)
-        PX_ADRRS_FIELD("adrrs_estimate_spp", estimate_spp)
-        PX_ADRRS_FIELD("adrrs_estimate", estimate)
-        PX_ADRRS_FIELD("adrrs_ic_glossy", ic_glossy)
-#define PX_GUIDING_FIELD(NAME, MEMBER)                                                                \
-    .def_prop_rw(NAME, [](const px::RenderParams& p) { return p.guiding.MEMBER; },                   \
-                 [](px::RenderParams& p, decltype(px::GuidingParams::MEMBER) v) { p.guiding.MEMBER = v; })
-        PX_GUIDING_FIELD("guiding", enabled)
-        PX_GUIDING_FIELD("guiding_prob", prob)
-        PX_GUIDING_FIELD("guiding_parallax", parallax)
-        PX_GUIDING_FIELD("guiding_training_spp", training_spp)
-        PX_GUIDING_FIELD("guiding_min_samples", min_samples)
-        PX_GUIDING_FIELD("guiding_max_components", max_components)
-        PX_GUIDING_FIELD("guiding_split_merge", split_merge)
-        PX_GUIDING_FIELD("guiding_region_splits", region_splits)
-        PX_GUIDING_FIELD("guiding_region_threshold", region_threshold)
-        PX_GUIDING_FIELD("guiding_max_regions", max_regions)
-        PX_GUIDING_FIELD("guiding_probe_x", probe_x)
-        PX_GUIDING_FIELD("guiding_probe_y", probe_y)
-        PX_GUIDING_FIELD("guiding_lobes_phase", lobes_phase)
-        PX_GUIDING_FIELD("guiding_fit", fit);
-#undef PX_GUIDING_FIELD
-#undef PX_ADRRS_FIELD
-#undef PX_IC_FIELD
+    // The settings and passes tables (render/params.h): parallax_core wraps each row in a
+    // namedtuple (SETTINGS, PASSES) and makes RenderParams from the core rows.
+    nb::list settings;
+    for (const px::SettingInfo& r : px::settings()) {
+        nb::dict d;
+        d["name"] = r.name;
+        d["technique"] = r.technique;
+        const bool is_int = r.type == px::SettingType::Int;
+        nb::object lo = nb::none(), hi = nb::none();
+        switch (r.type) {
+        case px::SettingType::Bool:
+            d["type"] = "bool";
+            d["default"] = nb::bool_(r.default_value != 0);
+            break;
+        case px::SettingType::Int:
+            d["type"] = "int";
+            d["default"] = nb::int_(int64_t(r.default_value));
+            break;
+        case px::SettingType::Float:
+            d["type"] = "float";
+            d["default"] = nb::float_(r.default_value);
+            break;
+        case px::SettingType::Enum:
+            d["type"] = "enum";
+            d["default"] = nb::str(r.item(uint32_t(r.default_value))->name);
+            break;
+        }
+        if (r.type == px::SettingType::Int || r.type == px::SettingType::Float) {
+            lo = is_int ? nb::object(nb::int_(int64_t(r.min))) : nb::object(nb::float_(r.min));
+            hi = is_int ? nb::object(nb::int_(int64_t(r.max))) : nb::object(nb::float_(r.max));
+        }
+        d["min"] = lo;
+        d["max"] = hi;
+        nb::list items;
+        for (const px::EnumItem& i : r.items) items.append(nb::make_tuple(i.name, i.label, i.description));
+        d["items"] = nb::tuple(items);
+        d["label"] = r.label;
+        d["tooltip"] = r.tooltip;
+        d["panel"] = r.panel;
+        d["core"] = r.core();
+        settings.append(d);
+    }
+    m.attr("_SETTINGS") = nb::tuple(settings);
+    nb::list passes;
+    for (const px::PassInfo& p : px::passes()) {
+        nb::dict d;
+        d["name"] = p.name;
+        d["label"] = p.label;
+        d["channels"] = p.channels;
+        d["channel_ids"] = p.channel_ids;
+        d["description"] = p.description;
+        d["technique"] = p.technique;
+        d["setting"] = p.setting;
+        passes.append(d);
+    }
+    m.attr("_PASSES") = nb::tuple(passes);
+    m.def("_setting_index",
+          [](const std::string& name) {
+              const px::SettingInfo& row = px::setting(name);
+              return size_t(&row - px::settings().data());
+          },
+          "name"_a, "The row of the setting `name` in SETTINGS (ValueError listing the names if none).");
+
+    // px::RenderParams, opaque: made from {name: value} by the core, which checks each value's
+    // type, range or enum name and then the relations between settings (ValueError naming it).
+    nb::class_<px::RenderParams>(m, "_RenderParams");
+    m.def("_make_params",
+          [](nb::dict values) {
+              px::RenderParams p;
+              for (auto [key, value] : values) {
+                  const std::string name = nb::cast<std::string>(key);
+                  px::set_setting(p, name, setting_value(value));
+              }
+              px::validate(p);
+              return p;
+          },
+          "values"_a, "px::RenderParams from {setting: value} (core settings only), checked.");
 
     nb::class_<px::Session>(m, "Session")
         .def(nb::init<uint32_t, uint32_t, const std::string&>(), "width"_a, "height"_a, "device"_a = "auto",
@@ -303,7 +344,7 @@ NB_MODULE(_native, m) {
         .def_static("pass_names",
                     [] {
                         std::vector<std::string> names;
-                        for (const auto& p : px::pass_table()) names.push_back(p.name);
+                        for (const auto& p : px::passes()) names.push_back(p.name);
                         return names;
                     })
         .def("_test_sampling",

@@ -10,26 +10,6 @@
 
 namespace px {
 
-bool RenderParams::operator==(const RenderParams& o) const {
-    return method == o.method && mis_heuristic == o.mis_heuristic && samples_per_frame == o.samples_per_frame &&
-           max_depth == o.max_depth && depth_leeway == o.depth_leeway && rr_start_depth == o.rr_start_depth &&
-           light_samples == o.light_samples && seed == o.seed && preview == o.preview && light_tree == o.light_tree &&
-           std::memcmp(&ic, &o.ic, sizeof(ic)) == 0 && std::memcmp(&adrrs, &o.adrrs, sizeof(adrrs)) == 0 &&
-           std::memcmp(&guiding, &o.guiding, sizeof(guiding)) == 0;
-}
-
-const std::vector<PassInfo>& pass_table() {
-    static const std::vector<PassInfo> table = {
-        {"combined", PASS_COMBINED, 4}, {"depth", PASS_DEPTH, 1},        {"normal", PASS_NORMAL, 3},
-        {"albedo", PASS_ALBEDO, 3},     {"ray_depth", PASS_RAY_DEPTH, 1},
-        {"ic_irradiance", PASS_IC_IRRADIANCE, 3}, {"ic_gradients", PASS_IC_GRADIENTS, 3},
-        {"adrrs_estimate", PASS_ADRRS_ESTIMATE, 3}, {"adrrs_splits", PASS_ADRRS_SPLITS, 1},
-        {"guiding_regions", PASS_GUIDING_REGIONS, 3}, {"guiding_components", PASS_GUIDING_COMPONENTS, 1},
-        {"guiding_lobes", PASS_GUIDING_LOBES, 3},
-    };
-    return table;
-}
-
 Session::Session(uint32_t width, uint32_t height, const std::string& device) : width_(width), height_(height) {
     if (width == 0 || height == 0 || width > 16384 || height > 16384)
         throw std::invalid_argument("image size " + std::to_string(width) + "x" + std::to_string(height) +
@@ -142,19 +122,7 @@ std::vector<std::string> Session::update(const SceneArrays& arrays, bool spatial
 }
 
 void Session::set_params(const RenderParams& p) {
-    if (p.method > METHOD_MIS) throw std::invalid_argument("unknown method " + std::to_string(p.method));
-    if (p.mis_heuristic > HEURISTIC_POWER) throw std::invalid_argument("unknown MIS heuristic");
-    if (p.samples_per_frame < 1 || p.samples_per_frame > 4096)
-        throw std::invalid_argument("samples_per_frame must be in 1..4096");
-    if (p.light_samples < 1 || p.light_samples > 64) throw std::invalid_argument("light_samples must be in 1..64");
-    if (p.max_depth > 1024 || p.depth_leeway > 1024) throw std::invalid_argument("max_depth/depth_leeway must be <= 1024");
-    validate_ic_params(p.ic);
-    validate_adrrs_params(p.adrrs);
-    validate_guiding_params(p.guiding);
-    if (p.preview > 1) throw std::invalid_argument("preview must be 0 or 1");
-    if (p.light_tree > 1) throw std::invalid_argument("light_tree must be 0 or 1");
-    if (p.preview && (p.ic.enabled || p.adrrs.enabled || p.guiding.enabled))
-        throw std::invalid_argument("preview frames use no technique: turn ic, adrrs and guiding off");
+    validate(p);
     std::lock_guard<std::mutex> updating(update_mutex_);
     if (p == params_) return;
     // The light tree is part of the light table: remade from the kept arrays, uploaded next
@@ -534,14 +502,7 @@ bool Session::render_rows(uint32_t rows) {
 }
 
 std::vector<float> Session::read(const std::string& pass, uint32_t& channels) {
-    const PassInfo* info = nullptr;
-    for (const auto& p : pass_table())
-        if (pass == p.name) info = &p;
-    if (!info) {
-        std::string names;
-        for (const auto& p : pass_table()) names += std::string(names.empty() ? "" : ", ") + p.name;
-        throw std::invalid_argument("unknown pass '" + pass + "' (passes: " + names + ")");
-    }
+    const PassInfo* info = &px::pass(pass);
     std::lock_guard<std::mutex> lock(mutex_);
     const size_t pixels = size_t(width_) * height_;
     std::vector<vec4> sums(pixels), counts(pixels);  // counts: the combined pass, w = samples

@@ -1,6 +1,7 @@
 // Session: one device, one scene, one film. Progressive: every render() call adds
 // samples_per_frame samples per pixel to the running sums; read() divides by the count.
 #pragma once
+#include "render/params.h"
 #include "scene/scene.h"
 #include "techniques/adrrs.h"
 #include "techniques/guiding/guiding.h"
@@ -14,25 +15,6 @@
 #include <mutex>
 
 namespace px {
-
-struct RenderParams {
-    uint32_t method = METHOD_MIS;
-    uint32_t mis_heuristic = HEURISTIC_POWER;
-    uint32_t samples_per_frame = 1;
-    uint32_t max_depth = 8;
-    uint32_t depth_leeway = 4;
-    uint32_t rr_start_depth = 3;
-    uint32_t light_samples = 1;
-    uint32_t seed = 0;
-    // The viewport's first frame: preview.rgen's first-hit shading, which compiles quickly.
-    uint32_t preview = 0;  // 0/1, like the other flags
-    // Local lights picked through the light tree (Cycles' Light Tree, default on); 0: by power.
-    uint32_t light_tree = 1;
-    IcParams ic;  // irradiance cache (techniques/irradiance_cache.h)
-    AdrrsParams adrrs;  // adjoint-driven Russian roulette and splitting (techniques/adrrs.h)
-    GuidingParams guiding;  // path guiding (techniques/guiding/guiding.h)
-    bool operator==(const RenderParams& o) const;
-};
 
 struct SessionStats {
     uint64_t samples = 0;  // per pixel
@@ -49,13 +31,6 @@ struct SessionStats {
     double adrrs_adjoint_milliseconds = 0;
     GuidingStats guiding;
 };
-
-struct PassInfo {
-    const char* name;
-    uint32_t index;
-    uint32_t channels;
-};
-const std::vector<PassInfo>& pass_table();
 
 class Session {
 public:

@@ -15,8 +15,8 @@
 
 namespace px {
 
-// Throws std::invalid_argument naming the setting that is out of range.
-void validate_adrrs_params(const AdrrsParams& p);
+// ADRRS' settings (the fields of AdrrsParams) and passes.
+const SettingTable& adrrs_table();
 
 class Adrrs {
 public:

@@ -9,14 +9,15 @@
 // entries in Morton order (lavapipe's builder splits in input order).
 #pragma once
 #include "scene/scene.h"
+#include "techniques/settings.h"
 #include "vk/pipeline.h"
 
 #include <memory>
 
 namespace px {
 
-// Throws std::invalid_argument naming the setting that is out of range.
-void validate_ic_params(const IcParams& p);
+// The cache's settings (the fields of IcParams) and passes.
+const SettingTable& ic_table();
 
 struct IcStats {
     uint32_t entries = 0;   // used slots
