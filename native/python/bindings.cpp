@@ -185,6 +185,8 @@ NB_MODULE(_native, m) {
         d["label"] = r.label;
         d["tooltip"] = r.tooltip;
         d["panel"] = r.panel;
+        d["group"] = r.group;
+        d["unit"] = r.unit;
         d["core"] = r.core();
         settings.append(d);
     }

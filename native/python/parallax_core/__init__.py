@@ -28,10 +28,11 @@ __all__ = ["Session", "RenderParams", "SETTINGS", "PASSES", "setting", "devices"
 # The core's tables (native/src/render/params.cpp and each technique's module), in order: the
 # base path tracer's settings first, then the irradiance cache's, ADRRS' and guiding's.
 # type: bool | int | float | enum; min/max: None for bool and enum; items: (name, label,
-# description) of an enum; panel: the UI panel ("" = none); core: a RenderParams field (False
-# for the engine's samples and time_limit).
+# description) of an enum; panel: the UI panel ("" = none); group: the sub-panel inside it
+# ("" = the panel itself); unit: "" | "time" | "length"; core: a RenderParams field (False for
+# the engine's samples and time_limit).
 Setting = collections.namedtuple(
-    "Setting", "name technique type default min max items label tooltip panel core")
+    "Setting", "name technique type default min max items label tooltip panel group unit core")
 SETTINGS = tuple(Setting(**row) for row in _SETTINGS)
 # Passes in film order; label: the Blender pass and EXR layer name; setting: the setting
 # that enables the pass ("" = always).

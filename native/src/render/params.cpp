@@ -20,7 +20,7 @@ const SettingTable& base_table() {
             // Sampling
             int_setting("samples", kEngine, 128, 1, 1 << 24, "Samples", "Samples per pixel to render", "sampling"),
             float_setting("time_limit", kEngine, 0.0, 0.0, 1e7, "Time Limit",
-                          "Stop after this many seconds, even if fewer samples are done (0 = no limit)", "sampling"),
+                          "Stop after this many seconds, even if fewer samples are done (0 = no limit)", "sampling").with_unit("time"),
             int_setting("samples_per_frame", PX_FIELD(RenderParams, samples_per_frame), 1, 1, 4096,
                         "Samples per Frame",
                         "Samples per pixel in one GPU submission: more is faster overall, fewer updates the image "

@@ -48,40 +48,42 @@ const SettingTable& ic_table() {
             float_setting("ic_accuracy", PX_FIELD(IcParams, accuracy), 0.2, 0.001, 2.0, "Accuracy",
                           "Ward's accuracy a: an entry is used where its error estimate is below a, i.e. within a "
                           "times its radius and for normals close to its own. Smaller is more accurate and needs "
-                          "more entries (Ward et al. 1988)", "ic"),
+                          "more entries (Ward et al. 1988)", "ic").in_group("Accuracy"),
             float_setting("ic_min_radius", PX_FIELD(IcParams, min_radius), 0.1, 0.0001, 1e6, "Min Radius",
                           "Lower limit of an entry's radius, the harmonic mean distance of its hemisphere paths, in "
                           "scene units: keeps corners and contact regions from needing unbounded numbers of entries",
-                          "ic"),
+                          "ic").in_group("Accuracy").with_unit("length"),
             float_setting("ic_create_prob", PX_FIELD(IcParams, create_prob), 0.01, 0.0, 1.0, "Creation Probability",
                           "Probability that a path vertex without a valid cache entry queues the creation of one "
-                          "(thesis, sec. 4.4)", "ic"),
+                          "(thesis, sec. 4.4)", "ic").in_group("Creation"),
             float_setting("ic_update_prob", PX_FIELD(IcParams, update_prob), 1e-5, 0.0, 1.0, "Update Probability",
                           "Probability per pixel and frame of refreshing a cache entry with new hemisphere paths, so "
-                          "early noisy entries improve over time", "ic"),
+                          "early noisy entries improve over time", "ic").in_group("Creation"),
             int_setting("ic_nee_samples", PX_FIELD(IcParams, nee_samples), 1, 1, 64, "Entry Light Samples",
-                        "Light samples per vertex of the hemisphere paths that compute a cache entry", "ic"),
+                        "Light samples per vertex of the hemisphere paths that compute a cache entry", "ic")
+                .in_group("Creation"),
             bool_setting("ic_gradients", PX_FIELD(IcParams, gradients), false, "Gradients",
                          "Extrapolate each entry with its rotational and translational irradiance gradients (Ward & "
-                         "Heckbert 1992) for smoother interpolation", "ic"),
+                         "Heckbert 1992) for smoother interpolation", "ic").in_group("Gradients"),
             float_setting("ic_gradient_max", PX_FIELD(IcParams, gradient_max), 5.0, 0.0, 1e6, "Max Gradient Length",
                           "Clamp of the gradients' length relative to the entry's irradiance, against extrapolating "
-                          "noisy gradients", "ic"),
+                          "noisy gradients", "ic").in_group("Gradients"),
             bool_setting("ic_visibility_check", PX_FIELD(IcParams, visibility_check), true, "Visibility Check",
                          "Skip entries that lie in front of the shaded point (Ward et al. 1988's 'in front' test), "
-                         "so light does not leak across creases", "ic"),
+                         "so light does not leak across creases", "ic").in_group("Accuracy"),
             int_setting("ic_prepare_frames", PX_FIELD(IcParams, prepare_frames), 50, 0, 10000, "Prepare Frames",
-                        "Frames that only fill the cache before the image starts to accumulate", "ic"),
+                        "Frames that only fill the cache before the image starts to accumulate", "ic")
+                            .in_group("Creation"),
             int_setting("ic_capacity", PX_FIELD(IcParams, capacity), 65536, 1, 4000000, "Capacity",
                         "Maximum number of cache entries; creations beyond it are dropped (and counted in the "
-                        "render stats)", "ic"),
+                        "render stats)", "ic").in_group("Creation"),
             int_setting("ic_rebuild_interval", PX_FIELD(IcParams, rebuild_interval), 1, 1, 100000, "Rebuild Interval",
                         "Rebuild the cache's acceleration structure from scratch, in Morton order, every this many "
                         "frames (in between, frames that add entries only refit it; on lavapipe a refit tree traces "
-                        "several times slower, hence 1)", "ic"),
+                        "several times slower, hence 1)", "ic").in_group("Creation"),
             bool_setting("ic_highlight", PX_FIELD(IcParams, highlight), false, "Colour Highlight",
                          "The IC Irradiance pass shows only the colour (the thesis' colour-highlight mode, fig. "
-                         "4.13)", "ic"),
+                         "4.13)", "ic").in_group("Visualisation"),
         },
         {
             {"ic_irradiance", "IC Irradiance", 3, "RGB",

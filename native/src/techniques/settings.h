@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace px {
@@ -49,6 +50,18 @@ struct SettingInfo {
     // The UI panel: "sampling", "light_paths", "lights", "ic", "adrrs", "guiding"; "": none.
     const char* panel;
     const char* technique = "";  // "base", "ic", "adrrs", "guiding" (set by the table)
+    // The sub-panel inside `panel` ("": the panel itself), e.g. ic_accuracy's "Accuracy".
+    const char* group = "";
+    // How a number reads: "" (plain), "time" (seconds) or "length" (scene units).
+    const char* unit = "";
+    SettingInfo in_group(const char* g) && {
+        group = g;
+        return std::move(*this);
+    }
+    SettingInfo with_unit(const char* u) && {
+        unit = u;
+        return std::move(*this);
+    }
     bool core() const { return field.storage != Storage::None; }
     const EnumItem* item(const std::string& name) const;
     const EnumItem* item(uint32_t value) const;

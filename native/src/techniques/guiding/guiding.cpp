@@ -79,27 +79,29 @@ const SettingTable& guiding_table() {
                         "keep training while the image accumulates", "guiding"),
             int_setting("guiding_min_samples", PX_FIELD(GuidingParams, min_samples), 64, 1, 1 << 24, "Min Samples",
                         "A region fits its mixture once it has accumulated this many lit samples (across frames, so "
-                        "rarely lit regions train too)", "guiding"),
+                        "rarely lit regions train too)", "guiding").in_group("Fitting"),
             int_setting("guiding_max_components", PX_FIELD(GuidingParams, max_components), 16, 1,
-                        GUIDING_MAX_COMPONENTS, "Max Components", "Most lobes per region's mixture", "guiding"),
+                        GUIDING_MAX_COMPONENTS, "Max Components", "Most lobes per region's mixture", "guiding")
+                            .in_group("Fitting"),
             bool_setting("guiding_split_merge", PX_FIELD(GuidingParams, split_merge), true, "Split and Merge",
                          "Split lobes that fit their samples badly and merge lobes that say the same (Ruppert et al. "
-                         "2020)", "guiding"),
+                         "2020)", "guiding").in_group("Fitting"),
             int_setting("guiding_region_splits", PX_FIELD(GuidingParams, region_splits), 3, 0, 20, "Region Splits",
                         "The scene box is halved this many times along its longest axis: 2^n regions to start "
-                        "with, split further as they gather light", "guiding"),
+                        "with, split further as they gather light", "guiding").in_group("Regions"),
             int_setting("guiding_region_threshold", PX_FIELD(GuidingParams, region_threshold), 10000, 0, INT32_MAX,
                         "Region Threshold",
                         "A region that received this many lit samples (paths that found light) splits in two, both "
-                        "halves keeping its mixture (0 = never)", "guiding"),
+                        "halves keeping its mixture (0 = never)", "guiding").in_group("Regions"),
             int_setting("guiding_max_regions", PX_FIELD(GuidingParams, max_regions), 4096, 1, 1 << 22, "Max Regions",
-                        "Adaptive refinement stops at this many regions (at least 2^Region Splits)", "guiding"),
+                        "Adaptive refinement stops at this many regions (at least 2^Region Splits)", "guiding")
+                            .in_group("Regions"),
             int_setting("guiding_probe_x", PX_FIELD(GuidingParams, probe_x), -1, -1, 16383, "Probe X",
                         "Pixel column whose first hit's mixture the Guiding Lobes pass plots (-1 = the image "
-                        "centre)", "guiding"),
+                        "centre)", "guiding").in_group("Visualisation"),
             int_setting("guiding_probe_y", PX_FIELD(GuidingParams, probe_y), -1, -1, 16383, "Probe Y",
                         "Pixel row (from the top) whose first hit's mixture the Guiding Lobes pass plots (-1 = the "
-                        "image centre)", "guiding"),
+                        "image centre)", "guiding").in_group("Visualisation"),
             // The add-on's Animate Lobes derives it from the timeline: not a panel setting.
             float_setting("guiding_lobes_phase", PX_FIELD(GuidingParams, lobes_phase), -1.0, -1.0, 1.0,
                           "Lobes Phase",
@@ -114,11 +116,11 @@ const SettingTable& guiding_table() {
                           {"device", "Device",
                            "Fit the mixtures in compute shaders where the samples are: no sample readback; regions "
                            "refine as with the CPU fit (a few bytes per region read back)", GUIDING_FIT_DEVICE}},
-                         "Fit On", "Where the guiding mixtures are fitted", "guiding"),
+                         "Fit On", "Where the guiding mixtures are fitted", "guiding").in_group("Fitting"),
         },
         {
-            {"guiding_regions", "Guiding Regions", 3, "RGB", "Path guiding: a colour per guiding region at the first hit",
-             PASS_GUIDING_REGIONS, "guiding"},
+            {"guiding_regions", "Guiding Regions", 3, "RGB",
+             "Path guiding: a colour per guiding region at the first hit", PASS_GUIDING_REGIONS, "guiding"},
             {"guiding_components", "Guiding Components", 1, "X",
              "Path guiding: active lobes of the first hit's region / Max Components", PASS_GUIDING_COMPONENTS,
              "guiding"},
