@@ -1,6 +1,7 @@
 // nanobind bindings: the only place the core meets Python. C++ exceptions become Python
 // exceptions (std::invalid_argument -> ValueError, others -> RuntimeError).
 #include "render/session.h"
+#include "techniques/guiding/guiding.h"
 #include "scene/light_tree.h"
 
 #include <nanobind/nanobind.h>
@@ -9,6 +10,7 @@
 #include <nanobind/stl/vector.h>
 
 #include <cstring>
+#include <variant>
 
 namespace nb = nanobind;
 using namespace nb::literals;
@@ -290,7 +292,8 @@ NB_MODULE(_native, m) {
         .def("reset", &px::Session::reset, nb::call_guard<nb::gil_scoped_release>())
         .def("guiding_mixture",
              [](px::Session& s, nb::ndarray<const double, nb::c_contig, nb::device::cpu> point) {
-                 const px::guiding::GuidingField* f = s.guiding_field();
+                 const auto* guiding = dynamic_cast<const px::Guiding*>(s.technique("guiding"));
+                 const px::guiding::GuidingField* f = guiding ? guiding->host_field() : nullptr;
                  if (!f) throw std::invalid_argument("guiding_mixture needs guiding on with guiding_fit = cpu");
                  return guiding_mixture_at(*f, point);
              }, "point"_a,
@@ -311,35 +314,8 @@ NB_MODULE(_native, m) {
                  d["blas_builds"] = st.blas_builds;
                  d["light_tree_nodes"] = st.light_tree_nodes;
                  d["contact_boxes"] = st.contact_boxes;
-                 d["ic_entries"] = st.ic.entries;
-                 d["ic_capacity"] = st.ic.capacity;
-                 d["ic_dropped"] = st.ic.dropped;
-                 d["ic_deferred"] = st.ic.deferred;
-                 d["ic_merged"] = st.ic.merged;
-                 d["ic_jobs"] = st.ic.jobs;
-                 d["ic_job_milliseconds"] = st.ic.job_milliseconds;
-                 d["ic_build_milliseconds"] = st.ic.build_milliseconds;
-                 d["adrrs_estimate_frames"] = st.adrrs_estimate_frames;
-                 d["adrrs_image_refreshes"] = st.adrrs_image_refreshes;
-                 d["adrrs_adjoint_builds"] = st.adrrs_adjoint_builds;
-                 d["adrrs_adjoint_milliseconds"] = st.adrrs_adjoint_milliseconds;
-                 const px::GuidingStats& g = st.guiding;
-                 d["guiding_training_frames"] = g.training_frames;
-                 d["guiding_regions"] = g.regions;
-                 d["guiding_trained_regions"] = g.trained_regions;
-                 d["guiding_lobes"] = g.lobes;
-                 d["guiding_samples"] = g.samples_added;
-                 d["guiding_samples_dropped"] = g.samples_dropped;
-                 d["guiding_region_fits"] = g.region_fits;
-                 d["guiding_refinements"] = g.refinements;
-                 d["guiding_fit_on"] = g.device_fit ? "device" : "cpu";
-                 d["guiding_frame_milliseconds"] = g.frame_milliseconds;
-                 d["guiding_readback_milliseconds"] = g.readback_milliseconds;
-                 d["guiding_fit_milliseconds"] = g.fit_milliseconds;
-                 d["guiding_fit_wait_milliseconds"] = g.fit_wait_milliseconds;
-                 d["guiding_upload_milliseconds"] = g.upload_milliseconds;
-                 d["guiding_bytes_per_region"] = g.bytes_per_region;
-                 d["guiding_sample_buffer_bytes"] = g.sample_buffer_bytes;
+                 for (const auto& [name, value] : st.techniques)
+                     std::visit([&, &name = name](const auto& v) { d[name.c_str()] = v; }, value);
                  d["device"] = s.device().name;
                  return d;
              })

@@ -286,7 +286,7 @@ def build_parser():
     r.add_argument("--engine", help=".blend only: PARALLAX (default) or CYCLES")
     r.add_argument("--set", action="append", metavar="PROP=VALUE",
                    help="a setting; repeatable. .npz: a render parameter (method=nee, ic=1, "
-                   "ic_accuracy=0.3; overrides the options above). .blend: a Parallax setting "
+                   "max_depth=4; overrides the options above). .blend: a Parallax setting "
                    "(samples=64) or a path from the scene (render.resolution_x=320, "
                    "cycles.samples=64)")
     r.add_argument("--method", help="the method setting (the core's default if not given; "

@@ -146,11 +146,18 @@ void set_setting(RenderParams& p, const std::string& name, const SettingValue& v
     write_setting(&p, row, value);
 }
 
+bool technique_on(const RenderParams& p, const std::string& name) {
+    return read_setting(&p, setting(name)) != 0;
+}
+
 void validate(const RenderParams& p) {
     check_settings(&p, settings());
     validate_guiding_params(p.guiding);  // the relations between guiding's settings
-    if (p.preview && (p.ic.enabled || p.adrrs.enabled || p.guiding.enabled))
-        throw std::invalid_argument("preview frames use no technique: turn ic, adrrs and guiding off");
+    if (!p.preview) return;
+    std::string on;
+    for (const Block& b : blocks())
+        if (std::strcmp(b.table.technique, "base") != 0 && technique_on(p, b.table.technique)) on += std::string(on.empty() ? "" : ", ") + b.table.technique;
+    if (!on.empty()) throw std::invalid_argument("preview frames use no technique: turn " + on + " off");
 }
 
 }  // namespace px

@@ -39,6 +39,10 @@ const SettingInfo& setting(const std::string& name);
 const std::vector<PassInfo>& passes();
 const PassInfo& pass(const std::string& name);  // std::invalid_argument listing the names
 
+// Whether technique `name` is switched on in `p`: its switch is the bool setting named as the
+// technique (ic, adrrs, guiding).
+bool technique_on(const RenderParams& p, const std::string& name);
+
 // Writes one setting (type, range and enum name checked: std::invalid_argument naming it).
 void set_setting(RenderParams& p, const std::string& name, const SettingValue& value);
 // Every setting within its range, and the checks that relate settings (a technique's own,

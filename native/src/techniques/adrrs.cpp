@@ -82,11 +82,43 @@ const SettingTable& adrrs_table() {
     return table;
 }
 
-Adrrs::Adrrs(Context& ctx) : ctx_(ctx) {
-    configure(AdrrsParams{}, 1, 1, 1);
+Adrrs::Adrrs(Context& ctx, const IrradianceCache& cache) : ctx_(ctx), cache_(cache) {
+    setup(AdrrsParams{}, 1, 1, 1);
 }
 
-void Adrrs::configure(const AdrrsParams& params, uint32_t width, uint32_t height, uint32_t samples_per_frame) {
+void Adrrs::configure(const RenderParams& params, const TechniqueSetup& config, bool) {
+    setup(params.adrrs, config.width, config.height, params.samples_per_frame);
+}
+
+void Adrrs::record_after_trace(const FrameParams& frame,
+                               const std::function<void(const FrameParams&)>& retrace) const {
+    if (!enabled()) return;
+    FrameParams splits = frame;
+    splits.mode = FRAME_ADRRS_SPLITS;
+    retrace(splits);
+}
+
+// Estimate frames are numbered from 2^30 (FrameParams.frame): their random streams are apart
+// from the render frames' and the cache's prepare frames'.
+void Adrrs::begin_host_frame(FrameParams& frame) const {
+    frame.frame = 0x40000000u + estimate_frames_;
+    frame.mode = FRAME_ADRRS_ESTIMATE;
+}
+
+void Adrrs::sync(TechniqueHost& host) {
+    if (!update_adjoint()) return;
+    bind(host.descriptors());
+    host.upload_technique_params();
+}
+
+void Adrrs::stats(StatList& out) const {
+    out.insert(out.end(), {{"adrrs_estimate_frames", uint64_t(estimate_frames_)},
+                           {"adrrs_image_refreshes", uint64_t(image_refreshes_)},
+                           {"adrrs_adjoint_builds", uint64_t(adjoint_builds_)},
+                           {"adrrs_adjoint_milliseconds", adjoint_milliseconds_}});
+}
+
+void Adrrs::setup(const AdrrsParams& params, uint32_t width, uint32_t height, uint32_t samples_per_frame) {
     params_ = params;
     width_ = width;
     height_ = height;
@@ -128,11 +160,11 @@ void Adrrs::bind(DescriptorSet& set) const {
 // The cache's entries averaged over a grid around them, per cell and per normal direction
 // (the dominant signed axis): each entry reaches the cells within its harmonic-mean distance
 // R (at least half a cell, at most kMaxSplatCells), weighted 1 / (1 + d/R) like Ward's weight.
-bool Adrrs::update_adjoint(const IrradianceCache& cache) {
+bool Adrrs::update_adjoint() {
     // Remade when the cache has grown by an eighth since (a new entry changes little).
-    if (!enabled() || cache.count() == 0 || uint64_t(cache.count()) * 8 < uint64_t(adjoint_entries_) * 9) return false;
+    if (!enabled() || cache_.count() == 0 || uint64_t(cache_.count()) * 8 < uint64_t(adjoint_entries_) * 9) return false;
     const auto start = std::chrono::steady_clock::now();
-    const std::vector<IcEntry> entries = cache.download_entries();
+    const std::vector<IcEntry> entries = cache_.download_entries();
     adjoint_entries_ = uint32_t(entries.size());
     float lo[3] = {1e30f, 1e30f, 1e30f}, hi[3] = {-1e30f, -1e30f, -1e30f};
     for (const IcEntry& e : entries) {
@@ -178,11 +210,13 @@ bool Adrrs::update_adjoint(const IrradianceCache& cache) {
     return true;
 }
 
-void Adrrs::record_queue_clear(VkCommandBuffer cmd) const {
-    queue_.record_fill_zero(cmd, 16);
+void Adrrs::record_before_trace(VkCommandBuffer cmd) const {
+    if (enabled()) queue_.record_fill_zero(cmd, 16);
 }
 
-void Adrrs::after_frame(const Buffer& film, uint64_t samples) {
+void Adrrs::after_frame(TechniqueHost& host, const FrameEnd& frame) {
+    const Buffer& film = host.film();
+    const uint64_t samples = frame.samples;
     if (!enabled() || params_.estimate != ADRRS_ESTIMATE_IMAGE || samples < next_refresh_) return;
     while (next_refresh_ <= samples) next_refresh_ *= 2;
     const size_t pixels = size_t(width_) * height_;

@@ -1,5 +1,7 @@
 #include "techniques/irradiance_cache.h"
 
+#include "shaders_embedded.h"
+
 
 #include <algorithm>
 #include <cassert>
@@ -7,6 +9,8 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <map>
+#include <mutex>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -97,10 +101,80 @@ const SettingTable& ic_table() {
 }
 
 IrradianceCache::IrradianceCache(Context& ctx) : ctx_(ctx) {
-    configure(IcParams{}, SceneInfo{}, 0);
+    setup(IcParams{}, SceneInfo{}, 0);
 }
 
-void IrradianceCache::configure(const IcParams& params, const SceneInfo& scene, uint64_t paths_per_frame) {
+void IrradianceCache::configure(const RenderParams& params, const TechniqueSetup& config, bool needed) {
+    IcParams cache = params.ic;
+    cache.enabled = params.ic.enabled || needed;
+    cache.shade = params.ic.enabled;
+    pixels_ = uint64_t(config.width) * config.height;
+    setup(cache, config.scene.info, pixels_ * params.samples_per_frame);
+}
+
+const std::vector<uint32_t>* IrradianceCache::raygen(uint32_t program) const {
+    return program == PROGRAM_IC_HEMISPHERE ? &shader_ic_hemisphere() : nullptr;
+}
+
+// The cache query (zero-length rays against the entries' spheres): a miss shader and a
+// procedural hit group (intersection + any-hit).
+void IrradianceCache::add_shaders(uint32_t bits, PipelineShaders& s) const {
+    if (!(bits & TECH_IC)) return;
+    const uint32_t miss = s.add(VK_SHADER_STAGE_MISS_BIT_KHR, shader_ic_query_miss());
+    const uint32_t intersection = s.add(VK_SHADER_STAGE_INTERSECTION_BIT_KHR, shader_ic_query_intersection());
+    const uint32_t any_hit = s.add(VK_SHADER_STAGE_ANY_HIT_BIT_KHR, shader_ic_query_any_hit());
+    s.misses[MISS_IC_QUERY] = {VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, miss};
+    s.hits[HIT_GROUP_IC] = {VK_RAY_TRACING_SHADER_GROUP_TYPE_PROCEDURAL_HIT_GROUP_KHR, VK_SHADER_UNUSED_KHR,
+                            VK_SHADER_UNUSED_KHR, any_hit, intersection};
+}
+
+// ic_finish.comp's pipeline: one per device, shared by every session, kept for the process
+// (like the ray-tracing pipelines, session.cpp).
+static ComputePipeline& finish_pipeline(TechniqueHost& host) {
+    static std::mutex mutex;
+    static auto& pipelines = *new std::map<Context*, std::unique_ptr<ComputePipeline>>();
+    std::lock_guard<std::mutex> lock(mutex);
+    auto& p = pipelines[&host.context()];
+    if (!p)
+        p = std::make_unique<ComputePipeline>(host.context(), host.descriptors().layout(), uint32_t(sizeof(FrameParams)),
+                                              shader_ic_finish());
+    return *p;
+}
+
+void IrradianceCache::compile(TechniqueHost& host) {
+    if (!enabled()) return;
+    host.host_pipeline(PROGRAM_CAMERA);
+    host.host_pipeline(PROGRAM_IC_HEMISPHERE);
+    finish_pipeline(host);
+}
+
+// Prepare frames are numbered from 2^31 (FrameParams.frame): their random streams are apart
+// from the render frames'.
+void IrradianceCache::begin_host_frame(FrameParams& frame) const {
+    frame.frame = 0x80000000u + prepared_frames_;
+    frame.mode = FRAME_IC_PREPARE;
+}
+
+void IrradianceCache::end_host_frame(TechniqueHost& host, const FrameParams& frame, double) {
+    make_entries(host, frame, pixels_, true);
+}
+
+void IrradianceCache::after_frame(TechniqueHost& host, const FrameEnd& frame) {
+    make_entries(host, frame.frame, frame.paths, false);
+}
+
+void IrradianceCache::stats(StatList& out) const {
+    out.insert(out.end(), {{"ic_entries", uint64_t(stats_.entries)},
+                           {"ic_capacity", uint64_t(stats_.capacity)},
+                           {"ic_dropped", stats_.dropped},
+                           {"ic_deferred", stats_.deferred},
+                           {"ic_merged", stats_.merged},
+                           {"ic_jobs", stats_.jobs},
+                           {"ic_job_milliseconds", stats_.job_milliseconds},
+                           {"ic_build_milliseconds", stats_.build_milliseconds}});
+}
+
+void IrradianceCache::setup(const IcParams& params, const SceneInfo& scene, uint64_t paths_per_frame) {
     params_ = params;
     params_.queue_capacity = enabled() ? queue_capacity(params.create_prob, paths_per_frame) : 1;
     if (queue_.size() < 16 + size_t(params_.queue_capacity) * sizeof(IcRequest))
@@ -136,8 +210,8 @@ void IrradianceCache::allocate() {
     built_slots_ = 0;  // nothing built yet
 }
 
-void IrradianceCache::record_frame_start(VkCommandBuffer cmd) const {
-    queue_.record_fill_zero(cmd, 16);
+void IrradianceCache::record_frame_start(VkCommandBuffer cmd, const Technique* host_frame) const {
+    if (enabled() && (!host_frame || host_frame == this)) queue_.record_fill_zero(cmd, 16);
 }
 
 void IrradianceCache::reset() {
@@ -212,9 +286,11 @@ size_t IrradianceCache::bytes_per_entry() const {
     return sizeof(IcEntry) + sizeof(VkAabbPositionsKHR) + size_t(accel_->blas_bytes() / std::max(allocated_, 1u));
 }
 
-void IrradianceCache::after_frame(const RayTracingPipeline& hemisphere, const ComputePipeline& finish,
-                                  DescriptorSet& set, FrameParams frame, uint64_t paths, bool prepare) {
+void IrradianceCache::make_entries(TechniqueHost& host, FrameParams frame, uint64_t paths, bool prepare) {
     assert(enabled());
+    const RayTracingPipeline& hemisphere = host.host_pipeline(PROGRAM_IC_HEMISPHERE);
+    const ComputePipeline& finish = finish_pipeline(host);
+    DescriptorSet& set = host.descriptors();
     ++frame_counter_;
     ++frames_since_rebuild_;
     if (prepare) ++prepared_frames_;

@@ -60,6 +60,9 @@ void check_number(const SettingInfo& row, double v, const std::string& got) {
     } else if (row.type == SettingType::Enum) {
         if (v != std::floor(v) || v < 0 || v > 4294967295.0 || !row.item(uint32_t(v)))
             fail(row, "one of " + item_names(row), got);
+    } else if (row.field.storage == Storage::F32) {  // the ends as the field holds them
+        const float f = float(v);
+        if (!(f >= float(row.min) && f <= float(row.max))) fail(row, range_text(row), got);
     } else if (!(v >= row.min && v <= row.max)) {
         fail(row, range_text(row), got);
     }

@@ -50,7 +50,7 @@ struct SettingInfo {
     // The UI panel: "sampling", "light_paths", "lights", "ic", "adrrs", "guiding"; "": none.
     const char* panel;
     const char* technique = "";  // "base", "ic", "adrrs", "guiding" (set by the table)
-    // The sub-panel inside `panel` ("": the panel itself), e.g. ic_accuracy's "Accuracy".
+    // The sub-panel inside `panel` ("": the panel itself), as the cache's "Accuracy".
     const char* group = "";
     // How a number reads: "" (plain), "time" (seconds) or "length" (scene units).
     const char* unit = "";

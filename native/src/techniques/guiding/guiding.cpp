@@ -1,5 +1,7 @@
 #include "techniques/guiding/guiding.h"
 
+#include "shaders_embedded.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -150,8 +152,65 @@ void Guiding::build_placeholder() {
     upload_layout(guiding::RegionTree());
 }
 
-void Guiding::configure(const GuidingParams& params, const SceneHost& scene, uint64_t scene_version, uint32_t seed,
-                        uint32_t width, uint32_t height, uint32_t samples_per_frame) {
+void Guiding::configure(const RenderParams& params, const TechniqueSetup& config, bool) {
+    setup(params.guiding, config.scene, config.scene_version, params.seed, config.width, config.height,
+          params.samples_per_frame);
+}
+
+// The region query of the Guiding Lobes pass' spheres: a miss shader and a procedural hit
+// group (intersection + closest-hit).
+void Guiding::add_shaders(uint32_t bits, PipelineShaders& s) const {
+    if (!(bits & TECH_GUIDING)) return;
+    const uint32_t miss = s.add(VK_SHADER_STAGE_MISS_BIT_KHR, shader_guiding_query_miss());
+    const uint32_t intersection = s.add(VK_SHADER_STAGE_INTERSECTION_BIT_KHR, shader_guiding_query_intersection());
+    const uint32_t closest_hit = s.add(VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR, shader_guiding_query_closest_hit());
+    s.misses[MISS_GUIDING_QUERY] = {VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, miss};
+    s.hits[HIT_GROUP_GUIDING] = {VK_RAY_TRACING_SHADER_GROUP_TYPE_PROCEDURAL_HIT_GROUP_KHR, VK_SHADER_UNUSED_KHR,
+                                 closest_hit, VK_SHADER_UNUSED_KHR, intersection};
+}
+
+// Training frames are numbered from 2^29 (FrameParams.frame): their random streams are apart
+// from the render frames', the prepare and the estimate frames'.
+void Guiding::begin_host_frame(FrameParams& frame) const {
+    frame.frame = 0x20000000u + training_frames_;
+    frame.mode = FRAME_GUIDING_TRAIN;
+    frame.guiding_record = 1;
+}
+
+void Guiding::end_host_frame(TechniqueHost& host, const FrameParams&, double milliseconds) {
+    fit_frame(host.descriptors(), milliseconds);
+}
+
+void Guiding::after_frame(TechniqueHost& host, const FrameEnd& frame) {
+    fit_frame(host.descriptors(), frame.milliseconds);
+}
+
+const guiding::GuidingField* Guiding::host_field() const {
+    return enabled() && !device_fit_ ? field() : nullptr;
+}
+
+void Guiding::stats(StatList& out) const {
+    const GuidingStats g = current_stats();
+    out.insert(out.end(), {{"guiding_training_frames", uint64_t(g.training_frames)},
+                           {"guiding_regions", uint64_t(g.regions)},
+                           {"guiding_trained_regions", uint64_t(g.trained_regions)},
+                           {"guiding_lobes", uint64_t(g.lobes)},
+                           {"guiding_samples", g.samples_added},
+                           {"guiding_samples_dropped", g.samples_dropped},
+                           {"guiding_region_fits", g.region_fits},
+                           {"guiding_refinements", uint64_t(g.refinements)},
+                           {"guiding_fit_on", std::string(g.device_fit ? "device" : "cpu")},
+                           {"guiding_frame_milliseconds", g.frame_milliseconds},
+                           {"guiding_readback_milliseconds", g.readback_milliseconds},
+                           {"guiding_fit_milliseconds", g.fit_milliseconds},
+                           {"guiding_fit_wait_milliseconds", g.fit_wait_milliseconds},
+                           {"guiding_upload_milliseconds", g.upload_milliseconds},
+                           {"guiding_bytes_per_region", g.bytes_per_region},
+                           {"guiding_sample_buffer_bytes", g.sample_buffer_bytes}});
+}
+
+void Guiding::setup(const GuidingParams& params, const SceneHost& scene, uint64_t scene_version, uint32_t seed,
+                    uint32_t width, uint32_t height, uint32_t samples_per_frame) {
     params_ = params;
     const uint64_t pixels = uint64_t(width) * height;
     // Every path of a frame records while GUIDING_MAX_RECORD_PATHS allows (a GPU's frames
@@ -269,11 +328,11 @@ void Guiding::upload_layout(const guiding::RegionTree& tree) {
     });
 }
 
-void Guiding::record_frame_start(VkCommandBuffer cmd) const {
-    samples_.record_fill_zero(cmd, VK_WHOLE_SIZE);
+void Guiding::record_frame_start(VkCommandBuffer cmd, const Technique* host_frame) const {
+    if (host_frame == this || (!host_frame && records_render_frames())) samples_.record_fill_zero(cmd, VK_WHOLE_SIZE);
 }
 
-void Guiding::after_frame(DescriptorSet& set, double frame_milliseconds) {
+void Guiding::fit_frame(DescriptorSet& set, double frame_milliseconds) {
     if (!enabled() || !field_) return;
     auto start = std::chrono::steady_clock::now();
     if (device_fit_) {  // compute passes where the samples are; the frame loop waits for them
@@ -339,7 +398,7 @@ const guiding::GuidingField* Guiding::field() const {
     return field_.get();
 }
 
-GuidingStats Guiding::stats() const {
+GuidingStats Guiding::current_stats() const {
     finish_fit();
     GuidingStats s = stats_;
     s.training_frames = training_frames_;
