@@ -346,7 +346,7 @@ void Session::host_frame(Technique& technique) {
     });
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     technique.end_host_frame(*this, fp, ms);
-    for (const auto& t : techniques_) t->sync(*this);
+    for (const auto& t : techniques_) t->sync(*this, &technique);
 }
 
 // Frames go to the device in submissions of dispatches up to the plan's budget; cancel() is
@@ -403,7 +403,7 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
                 if (t->steps_after_frame()) t->after_frame(*this, end);
             frame_milliseconds = 0;
             ++completed;
-            for (const auto& t : techniques_) t->sync(*this);
+            for (const auto& t : techniques_) t->sync(*this, nullptr);
         }
         if (frame_done && frames == 0) break;
         stop = cancel_.exchange(false);

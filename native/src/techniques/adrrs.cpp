@@ -105,8 +105,8 @@ void Adrrs::begin_host_frame(FrameParams& frame) const {
     frame.mode = FRAME_ADRRS_ESTIMATE;
 }
 
-void Adrrs::sync(TechniqueHost& host) {
-    if (!update_adjoint()) return;
+void Adrrs::sync(TechniqueHost& host, const Technique* stepped) {
+    if ((stepped && !depends_on(*stepped)) || !update_adjoint()) return;
     bind(host.descriptors());
     host.upload_technique_params();
 }

@@ -49,8 +49,8 @@ public:
     // samples reach estimate_spp, and again each time they double.
     bool steps_after_frame() const override { return enabled(); }
     void after_frame(TechniqueHost& host, const FrameEnd& frame) override;
-    // The adjoint grid follows the cache's entries.
-    void sync(TechniqueHost& host) override;
+    // The adjoint grid follows the cache's entries (after its prepare frames and render frames).
+    void sync(TechniqueHost& host, const Technique* stepped) override;
     void stats(StatList& out) const override;
 
     const AdrrsParams& params() const { return params_; }  // with slots filled in

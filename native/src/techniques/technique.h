@@ -128,8 +128,14 @@ public:
     // one frame).
     virtual bool steps_after_frame() const { return false; }
     virtual void after_frame(TechniqueHost& /*host*/, const FrameEnd& /*frame*/) {}
-    // After any technique's host step: follows what the techniques it needs changed.
-    virtual void sync(TechniqueHost& /*host*/) {}
+    // After a host step: follows what the techniques it needs changed. `stepped`: the
+    // technique whose host frame ran (nullptr: the steps after a render frame).
+    virtual void sync(TechniqueHost& /*host*/, const Technique* /*stepped*/) {}
+    bool depends_on(const Technique& other) const {
+        for (const std::string& name : needs())
+            if (name == other.name()) return true;
+        return false;
+    }
 
     virtual void stats(StatList& /*out*/) const {}
 };
