@@ -1,6 +1,7 @@
 // nanobind bindings: the only place the core meets Python. C++ exceptions become Python
 // exceptions (std::invalid_argument -> ValueError, others -> RuntimeError).
 #include "render/session.h"
+#include "techniques/guiding/guiding.h"
 #include "scene/light_tree.h"
 
 #include <nanobind/nanobind.h>
@@ -9,6 +10,7 @@
 #include <nanobind/stl/vector.h>
 
 #include <cstring>
+#include <variant>
 
 namespace nb = nanobind;
 using namespace nb::literals;
@@ -19,6 +21,33 @@ nb::ndarray<nb::numpy, float> to_numpy(std::vector<float>&& data, std::vector<si
     auto* owned = new std::vector<float>(std::move(data));
     nb::capsule owner(owned, [](void* p) noexcept { delete static_cast<std::vector<float>*>(p); });
     return nb::ndarray<nb::numpy, float>(owned->data(), shape.size(), shape.data(), owner);
+}
+
+// A Python value as the core's settings check it (Python's bool is an int: tested first).
+px::SettingValue setting_value(nb::handle h) {
+    px::SettingValue v;
+    v.repr = nb::cast<std::string>(nb::repr(h));
+    PyObject* o = h.ptr();
+    if (PyBool_Check(o)) {
+        v.kind = px::SettingValue::Bool;
+        v.number = o == Py_True ? 1 : 0;
+    } else if (PyFloat_Check(o)) {
+        v.kind = px::SettingValue::Float;
+        v.number = PyFloat_AsDouble(o);
+    } else if (PyUnicode_Check(o)) {
+        v.kind = px::SettingValue::Text;
+        v.text = nb::cast<std::string>(h);
+    } else if (PyIndex_Check(o)) {  // int, numpy integers
+        nb::object index = nb::steal(PyNumber_Index(o));
+        int overflow = 0;
+        const long long x = index.is_valid() ? PyLong_AsLongLongAndOverflow(index.ptr(), &overflow) : 0;
+        if (index.is_valid() && !overflow) {
+            v.kind = px::SettingValue::Int;
+            v.number = double(x);
+        }
+        PyErr_Clear();
+    }
+    return v;
 }
 
 }  // namespace
@@ -53,8 +82,6 @@ NB_MODULE(_native, m) {
        "which one device='auto' picks.");
 
     bind_guiding(m);
-
-    m.attr("METHODS") = nb::make_tuple("pt", "nee", "mis");
 
     nb::exception<px::DeviceMemoryError>(m, "DeviceMemoryError", PyExc_MemoryError);
 
@@ -127,67 +154,85 @@ NB_MODULE(_native, m) {
     limits["camera_scale"] = px::SceneLimits::camera_scale;
     m.attr("LIMITS") = limits;
 
-    // px::RenderParams field by field (parallax_core.RenderParams validates and fills it); the
-    // irradiance cache's IcParams appear flat, under the setting names (ic_accuracy, ...).
-    nb::class_<px::RenderParams>(m, "_RenderParams")
-        .def(nb::init<>())
-        .def_rw("method", &px::RenderParams::method)
-        .def_rw("mis_heuristic", &px::RenderParams::mis_heuristic)
-        .def_rw("samples_per_frame", &px::RenderParams::samples_per_frame)
-        .def_rw("max_depth", &px::RenderParams::max_depth)
-        .def_rw("depth_leeway", &px::RenderParams::depth_leeway)
-        .def_rw("rr_start_depth", &px::RenderParams::rr_start_depth)
-        .def_rw("light_samples", &px::RenderParams::light_samples)
-        .def_rw("seed", &px::RenderParams::seed)
-        .def_rw("preview", &px::RenderParams::preview)
-        .def_rw("light_tree", &px::RenderParams::light_tree)
-#define PX_IC_FIELD(NAME, MEMBER)                                                                      \
-    .def_prop_rw(NAME, [](const px::RenderParams& p) { return p.ic.MEMBER; },                        \
-                 [](px::RenderParams& p, decltype(px::IcParams::MEMBER) v) { p.ic.MEMBER = v; })
-        PX_IC_FIELD("ic", enabled)
-        PX_IC_FIELD("ic_accuracy", accuracy)
-        PX_IC_FIELD("ic_min_radius", min_radius)
-        PX_IC_FIELD("ic_create_prob", create_prob)
-        PX_IC_FIELD("ic_update_prob", update_prob)
-        PX_IC_FIELD("ic_nee_samples", nee_samples)
-        PX_IC_FIELD("ic_gradients", gradients)
-        PX_IC_FIELD("ic_gradient_max", gradient_max)
-        PX_IC_FIELD("ic_visibility_check", visibility_check)
-        PX_IC_FIELD("ic_prepare_frames", prepare_frames)
-        PX_IC_FIELD("ic_capacity", capacity)
-        PX_IC_FIELD("ic_rebuild_interval", rebuild_interval)
-        PX_IC_FIELD("ic_highlight", highlight)
-#define PX_ADRRS_FIELD(NAME, MEMBER)                                                                  \
-    .def_prop_rw(NAME, [](const px::RenderParams& p) { return p.adrrs.MEMBER; },                     \
-                 [](px::RenderParams& p, decltype(px::AdrrsParams::MEMBER) v) { p.adrrs.MEMBER = v; })
-        PX_ADRRS_FIELD("adrrs", enabled)
-        PX_ADRRS_FIELD("adrrs_splitting", splitting)
-        PX_ADRRS_FIELD("adrrs_window", window)
-        PX_ADRRS_FIELD("adrrs_rr_min", rr_min)
-        PX_ADRRS_FIELD("adrrs_max_splits", max_splits)
-        PX_ADRRS_FIELD("adrrs_estimate_spp", estimate_spp)
-        PX_ADRRS_FIELD("adrrs_estimate", estimate)
-        PX_ADRRS_FIELD("adrrs_ic_glossy", ic_glossy)
-#define PX_GUIDING_FIELD(NAME, MEMBER)                                                                \
-    .def_prop_rw(NAME, [](const px::RenderParams& p) { return p.guiding.MEMBER; },                   \
-                 [](px::RenderParams& p, decltype(px::GuidingParams::MEMBER) v) { p.guiding.MEMBER = v; })
-        PX_GUIDING_FIELD("guiding", enabled)
-        PX_GUIDING_FIELD("guiding_prob", prob)
-        PX_GUIDING_FIELD("guiding_parallax", parallax)
-        PX_GUIDING_FIELD("guiding_training_spp", training_spp)
-        PX_GUIDING_FIELD("guiding_min_samples", min_samples)
-        PX_GUIDING_FIELD("guiding_max_components", max_components)
-        PX_GUIDING_FIELD("guiding_split_merge", split_merge)
-        PX_GUIDING_FIELD("guiding_region_splits", region_splits)
-        PX_GUIDING_FIELD("guiding_region_threshold", region_threshold)
-        PX_GUIDING_FIELD("guiding_max_regions", max_regions)
-        PX_GUIDING_FIELD("guiding_probe_x", probe_x)
-        PX_GUIDING_FIELD("guiding_probe_y", probe_y)
-        PX_GUIDING_FIELD("guiding_lobes_phase", lobes_phase)
-        PX_GUIDING_FIELD("guiding_fit", fit);
-#undef PX_GUIDING_FIELD
-#undef PX_ADRRS_FIELD
-#undef PX_IC_FIELD
+    // The settings and passes tables (render/params.h): parallax_core wraps each row in a
+    // namedtuple (SETTINGS, PASSES) and makes RenderParams from the core rows.
+    nb::list settings;
+    for (const px::SettingInfo& r : px::settings()) {
+        nb::dict d;
+        d["name"] = r.name;
+        d["technique"] = r.technique;
+        const bool is_int = r.type == px::SettingType::Int;
+        nb::object lo = nb::none(), hi = nb::none();
+        switch (r.type) {
+        case px::SettingType::Bool:
+            d["type"] = "bool";
+            d["default"] = nb::bool_(r.default_value != 0);
+            break;
+        case px::SettingType::Int:
+            d["type"] = "int";
+            d["default"] = nb::int_(int64_t(r.default_value));
+            break;
+        case px::SettingType::Float:
+            d["type"] = "float";
+            d["default"] = nb::float_(r.default_value);
+            break;
+        case px::SettingType::Enum:
+            d["type"] = "enum";
+            d["default"] = nb::str(r.item(uint32_t(r.default_value))->name);
+            break;
+        }
+        if (r.type == px::SettingType::Int || r.type == px::SettingType::Float) {
+            lo = is_int ? nb::object(nb::int_(int64_t(r.min))) : nb::object(nb::float_(r.min));
+            hi = is_int ? nb::object(nb::int_(int64_t(r.max))) : nb::object(nb::float_(r.max));
+        }
+        d["min"] = lo;
+        d["max"] = hi;
+        nb::list items;
+        for (const px::EnumItem& i : r.items) items.append(nb::make_tuple(i.name, i.label, i.description));
+        d["items"] = nb::tuple(items);
+        d["label"] = r.label;
+        d["tooltip"] = r.tooltip;
+        d["panel"] = r.panel;
+        d["group"] = r.group;
+        d["unit"] = r.unit;
+        d["core"] = r.core();
+        settings.append(d);
+    }
+    m.attr("_SETTINGS") = nb::tuple(settings);
+    nb::list passes;
+    for (const px::PassInfo& p : px::passes()) {
+        nb::dict d;
+        d["name"] = p.name;
+        d["label"] = p.label;
+        d["channels"] = p.channels;
+        d["channel_ids"] = p.channel_ids;
+        d["description"] = p.description;
+        d["technique"] = p.technique;
+        d["setting"] = p.setting;
+        passes.append(d);
+    }
+    m.attr("_PASSES") = nb::tuple(passes);
+    m.def("_setting_index",
+          [](const std::string& name) {
+              const px::SettingInfo& row = px::setting(name);
+              return size_t(&row - px::settings().data());
+          },
+          "name"_a, "The row of the setting `name` in SETTINGS (ValueError listing the names if none).");
+
+    // px::RenderParams, opaque: made from {name: value} by the core, which checks each value's
+    // type, range or enum name and then the relations between settings (ValueError naming it).
+    nb::class_<px::RenderParams>(m, "_RenderParams");
+    m.def("_make_params",
+          [](nb::dict values) {
+              px::RenderParams p;
+              for (auto [key, value] : values) {
+                  const std::string name = nb::cast<std::string>(key);
+                  px::set_setting(p, name, setting_value(value));
+              }
+              px::validate(p);
+              return p;
+          },
+          "values"_a, "px::RenderParams from {setting: value} (core settings only), checked.");
 
     nb::class_<px::Session>(m, "Session")
         .def(nb::init<uint32_t, uint32_t, const std::string&>(), "width"_a, "height"_a, "device"_a = "auto",
@@ -264,7 +309,8 @@ NB_MODULE(_native, m) {
         .def("reset", &px::Session::reset, nb::call_guard<nb::gil_scoped_release>())
         .def("guiding_mixture",
              [](px::Session& s, nb::ndarray<const double, nb::c_contig, nb::device::cpu> point) {
-                 const px::guiding::GuidingField* f = s.guiding_field();
+                 const auto* guiding = dynamic_cast<const px::Guiding*>(s.technique("guiding"));
+                 const px::guiding::GuidingField* f = guiding ? guiding->host_field() : nullptr;
                  if (!f) throw std::invalid_argument("guiding_mixture needs guiding on with guiding_fit = cpu");
                  return guiding_mixture_at(*f, point);
              }, "point"_a,
@@ -288,42 +334,15 @@ NB_MODULE(_native, m) {
                  d["blas_builds"] = st.blas_builds;
                  d["light_tree_nodes"] = st.light_tree_nodes;
                  d["contact_boxes"] = st.contact_boxes;
-                 d["ic_entries"] = st.ic.entries;
-                 d["ic_capacity"] = st.ic.capacity;
-                 d["ic_dropped"] = st.ic.dropped;
-                 d["ic_deferred"] = st.ic.deferred;
-                 d["ic_merged"] = st.ic.merged;
-                 d["ic_jobs"] = st.ic.jobs;
-                 d["ic_job_milliseconds"] = st.ic.job_milliseconds;
-                 d["ic_build_milliseconds"] = st.ic.build_milliseconds;
-                 d["adrrs_estimate_frames"] = st.adrrs_estimate_frames;
-                 d["adrrs_image_refreshes"] = st.adrrs_image_refreshes;
-                 d["adrrs_adjoint_builds"] = st.adrrs_adjoint_builds;
-                 d["adrrs_adjoint_milliseconds"] = st.adrrs_adjoint_milliseconds;
-                 const px::GuidingStats& g = st.guiding;
-                 d["guiding_training_frames"] = g.training_frames;
-                 d["guiding_regions"] = g.regions;
-                 d["guiding_trained_regions"] = g.trained_regions;
-                 d["guiding_lobes"] = g.lobes;
-                 d["guiding_samples"] = g.samples_added;
-                 d["guiding_samples_dropped"] = g.samples_dropped;
-                 d["guiding_region_fits"] = g.region_fits;
-                 d["guiding_refinements"] = g.refinements;
-                 d["guiding_fit_on"] = g.device_fit ? "device" : "cpu";
-                 d["guiding_frame_milliseconds"] = g.frame_milliseconds;
-                 d["guiding_readback_milliseconds"] = g.readback_milliseconds;
-                 d["guiding_fit_milliseconds"] = g.fit_milliseconds;
-                 d["guiding_fit_wait_milliseconds"] = g.fit_wait_milliseconds;
-                 d["guiding_upload_milliseconds"] = g.upload_milliseconds;
-                 d["guiding_bytes_per_region"] = g.bytes_per_region;
-                 d["guiding_sample_buffer_bytes"] = g.sample_buffer_bytes;
+                 for (const auto& [name, value] : st.techniques)
+                     std::visit([&, &name = name](const auto& v) { d[name.c_str()] = v; }, value);
                  d["device"] = s.device().name;
                  return d;
              })
         .def_static("pass_names",
                     [] {
                         std::vector<std::string> names;
-                        for (const auto& p : px::pass_table()) names.push_back(p.name);
+                        for (const auto& p : px::passes()) names.push_back(p.name);
                         return names;
                     })
         .def("_test_sampling",

@@ -1,5 +1,6 @@
 // _native.guiding: thin bindings of the guiding library (native/src/techniques/guiding/) for
 // tests and tools. Arrays in, arrays out; std::invalid_argument becomes ValueError.
+#include "render/params.h"
 #include "techniques/guiding/device_fit.h"
 #include "techniques/guiding/field.h"
 
@@ -390,8 +391,9 @@ void bind_guiding(nb::module_& parent) {
         .def_prop_ro("count", [](const VmmState& s) { return s.vmm.count; })
         .def_prop_ro("fits", [](const VmmState& s) { return s.fits; });
 
+    // Made at guiding_table()'s defaults.
     nb::class_<px::GuidingParams>(m, "GuidingParams")
-        .def(nb::init<>())
+        .def("__init__", [](px::GuidingParams* p) { new (p) px::GuidingParams(px::RenderParams().guiding); })
         .def_rw("enabled", &px::GuidingParams::enabled)
         .def_rw("prob", &px::GuidingParams::prob)
         .def_rw("parallax", &px::GuidingParams::parallax)
@@ -414,7 +416,7 @@ void bind_guiding(nb::module_& parent) {
             const Vec3 a = vec3(lo, "scene_min"), b = vec3(hi, "scene_max");
             const float fa[3] = {float(a.x), float(a.y), float(a.z)}, fb[3] = {float(b.x), float(b.y), float(b.z)};
             new (f) GuidingField(p, fa, fb, seed, o, threads);
-        }, "scene_min"_a, "scene_max"_a, "params"_a = px::GuidingParams(), "seed"_a = 0, "options"_a = FitOptions(),
+        }, "scene_min"_a, "scene_max"_a, "params"_a = px::RenderParams().guiding, "seed"_a = 0, "options"_a = FitOptions(),
            "threads"_a = 0)
         .def("add_samples", [](GuidingField& f, nb::ndarray<const uint32_t, nb::c_contig, nb::device::cpu> records) {
             if (records.ndim() != 2 || records.shape(1) != 8)

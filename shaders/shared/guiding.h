@@ -22,21 +22,21 @@ PX_CONST uint GUIDING_FIT_DEVICE = 1;  // compute passes (device_fit.h): no read
 PX_CONST uint GUIDING_FIT_AUTO = 2;    // device on a GPU, cpu on lavapipe (where each is faster)
 
 // User settings (issue 12; the same names with a guiding_ prefix in Session.set_params and
-// --set). The host validates them (validate_guiding_params) before a field uses them.
+// --set): defaults and ranges are guiding_table()'s (native/src/techniques/guiding/guiding.cpp).
 struct GuidingParams {
-    uint enabled PX_DEFAULT(0);              // guiding
-    float prob PX_DEFAULT(0.5f);             // guiding_prob: one-sample MIS, P(sample the VMM)
-    uint parallax PX_DEFAULT(1);             // guiding_parallax: lobes aim at their targets
-    uint training_spp PX_DEFAULT(32);        // guiding_training_spp (GUIDING_KEEP_TRAINING: always)
-    uint min_samples PX_DEFAULT(64);         // guiding_min_samples: a region fits once it has these
-    uint max_components PX_DEFAULT(16);      // guiding_max_components, <= GUIDING_MAX_COMPONENTS
-    uint split_merge PX_DEFAULT(1);          // guiding_split_merge
-    uint region_splits PX_DEFAULT(3);        // guiding_region_splits: 2^k initial regions
-    uint region_threshold PX_DEFAULT(10000); // guiding_region_threshold: lit samples before a region splits (0: never)
-    uint max_regions PX_DEFAULT(4096);       // adaptive refinement stops at this many regions
-    int probe_x PX_DEFAULT(-1);              // guiding_probe_x: pixel of the Guiding Lobes pass (-1: centre)
-    int probe_y PX_DEFAULT(-1);              // guiding_probe_y
-    float lobes_phase PX_DEFAULT(-1.0f);     // guiding_lobes_phase: the Guiding Lobes pass' spheres sit
+    uint enabled;                            // guiding
+    float prob;                              // guiding_prob: one-sample MIS, P(sample the VMM)
+    uint parallax;                           // guiding_parallax: lobes aim at their targets
+    uint training_spp;                       // guiding_training_spp (GUIDING_KEEP_TRAINING: always)
+    uint min_samples;                        // guiding_min_samples: a region fits once it has these
+    uint max_components;                     // guiding_max_components, <= GUIDING_MAX_COMPONENTS
+    uint split_merge;                        // guiding_split_merge
+    uint region_splits;                      // guiding_region_splits: 2^k initial regions
+    uint region_threshold;                   // guiding_region_threshold: lit samples before a region splits (0: never)
+    uint max_regions;                        // adaptive refinement stops at this many regions
+    int probe_x;                             // guiding_probe_x: pixel of the Guiding Lobes pass (-1: centre)
+    int probe_y;                             // guiding_probe_y
+    float lobes_phase;                       // guiding_lobes_phase: the Guiding Lobes pass' spheres sit
                                              // at their regions' centres (-1) or, in [0, 1), move
                                              // through them (thesis fig. 4.20; the add-on's Animate
                                              // Lobes derives it from the timeline)
@@ -46,7 +46,7 @@ struct GuidingParams {
                                              // s < record_samples of a frame record, into slot
                                              // s * pixels + i (a frame's samples train, up to
                                              // GUIDING_MAX_RECORD_PATHS paths)
-    uint fit PX_DEFAULT(2);                  // guiding_fit: GUIDING_FIT_CPU, _DEVICE or _AUTO
+    uint fit;                                // guiding_fit: GUIDING_FIT_CPU, _DEVICE or _AUTO
 };
 
 // Training samples: each recording path fills up to GUIDING_PATH_VERTICES slots (its first

@@ -1,6 +1,8 @@
 // Settings and records of the thesis' techniques that cross the host/device boundary
 // (DESIGN: "One settings struct per technique"). Polyglot like types.h, which includes it.
-// PX_DEFAULT gives C++ members their defaults; GLSL ignores it.
+// The user settings' defaults and ranges are their rows' (the techniques' tables, e.g.
+// ic_table() in native/src/techniques/irradiance_cache.cpp); PX_DEFAULT gives the fields the
+// host derives theirs (GLSL ignores it).
 #ifndef PARALLAX_SHARED_TECHNIQUES_H
 #define PARALLAX_SHARED_TECHNIQUES_H
 
@@ -19,6 +21,7 @@ PX_CONST uint TECH_GUIDING = 1u << 2;  // path guiding (region tree, VMM samplin
 PX_CONST uint PROGRAM_CAMERA = 0;         // raygen.rgen: camera paths into the film
 PX_CONST uint PROGRAM_IC_HEMISPHERE = 1;  // techniques/ic_hemisphere.rgen: cache entry rays
 PX_CONST uint PROGRAM_PREVIEW = 2;        // preview.rgen: first-hit shading (RenderParams.preview)
+PX_CONST uint PROGRAM_COUNT = 3;
 
 // FrameParams.mode
 PX_CONST uint FRAME_RENDER = 0;      // camera paths accumulate into the film
@@ -36,19 +39,19 @@ PX_CONST float IC_MAX_RADIUS_FACTOR = 64.0;  // R <= 64 * min_radius (Krivanek e
 PX_CONST float IC_QUERY_T = 1e-3;            // t_max of the zero-length cache query ray
 
 struct IcParams {
-    uint enabled PX_DEFAULT(0);             // ic
-    float accuracy PX_DEFAULT(0.2f);        // a: influence radius a*R, weight threshold 1/a
-    float min_radius PX_DEFAULT(0.1f);      // lower clamp of the harmonic-mean distance R (m)
-    float create_prob PX_DEFAULT(0.01f);    // uncovered diffuse vertex -> creation request
-    float update_prob PX_DEFAULT(1e-5f);    // per pixel and frame: refresh one entry (host)
-    uint nee_samples PX_DEFAULT(1);         // light samples per vertex of hemisphere paths
-    uint gradients PX_DEFAULT(0);           // Ward & Heckbert rotational + translational
-    float gradient_max PX_DEFAULT(5.0f);    // clamp of the relative gradients' length
-    uint visibility_check PX_DEFAULT(1);    // Ward 1988: reject entries in front of the point
-    uint prepare_frames PX_DEFAULT(50);     // most frames that only fill the cache (host)
-    uint capacity PX_DEFAULT(65536);        // entries
-    uint rebuild_interval PX_DEFAULT(1);    // frames between BLAS rebuilds (refits in between)
-    uint highlight PX_DEFAULT(0);           // IC Irradiance pass: colour only (thesis fig. 4.13)
+    uint enabled;                           // ic
+    float accuracy;                         // a: influence radius a*R, weight threshold 1/a
+    float min_radius;                       // lower clamp of the harmonic-mean distance R (m)
+    float create_prob;                      // uncovered diffuse vertex -> creation request
+    float update_prob;                      // per pixel and frame: refresh one entry (host)
+    uint nee_samples;                       // light samples per vertex of hemisphere paths
+    uint gradients;                         // Ward & Heckbert rotational + translational
+    float gradient_max;                     // clamp of the relative gradients' length
+    uint visibility_check;                  // Ward 1988: reject entries in front of the point
+    uint prepare_frames;                    // most frames that only fill the cache (host)
+    uint capacity;                          // entries
+    uint rebuild_interval;                  // frames between BLAS rebuilds (refits in between)
+    uint highlight;                         // IC Irradiance pass: colour only (thesis fig. 4.13)
     uint queue_capacity PX_DEFAULT(0);      // derived by the host: requests one frame may queue
     uint shade PX_DEFAULT(0);               // derived by the host: paths are shaded from the cache
                                             // (ic on); ADRRS alone builds it for its adjoint only
@@ -59,15 +62,15 @@ PX_CONST uint ADRRS_ESTIMATE_IC = 0;     // N spp to the first non-delta vertex:
 PX_CONST uint ADRRS_ESTIMATE_IMAGE = 1;  // the running accumulated image, blurred
 
 struct AdrrsParams {
-    uint enabled PX_DEFAULT(0);          // adrrs
-    uint splitting PX_DEFAULT(1);        // adrrs_splitting: split above the window (else RR only)
-    float window PX_DEFAULT(5.0f);       // adrrs_window: s, delta+ = s delta-
-    float rr_min PX_DEFAULT(0.1f);       // adrrs_rr_min: lowest survival probability
-    uint max_splits PX_DEFAULT(10);      // adrrs_max_splits: extra paths per pixel sample
-    uint estimate_spp PX_DEFAULT(4);     // adrrs_estimate_spp: estimate frames (ic), or the
+    uint enabled;                        // adrrs
+    uint splitting;                      // adrrs_splitting: split above the window (else RR only)
+    float window;                        // adrrs_window: s, delta+ = s delta-
+    float rr_min;                        // adrrs_rr_min: lowest survival probability
+    uint max_splits;                     // adrrs_max_splits: extra paths per pixel sample
+    uint estimate_spp;                   // adrrs_estimate_spp: estimate frames (ic), or the
                                          // samples before the first image estimate (image)
-    uint estimate PX_DEFAULT(0);         // adrrs_estimate: ADRRS_ESTIMATE_IC or _IMAGE
-    uint ic_glossy PX_DEFAULT(1);        // adrrs_ic_glossy: the ic estimate reads the cache at
+    uint estimate;                       // adrrs_estimate: ADRRS_ESTIMATE_IC or _IMAGE
+    uint ic_glossy;                      // adrrs_ic_glossy: the ic estimate reads the cache at
                                          // glossy vertices too (thesis 4.4 "IC on glossy")
     uint slots PX_DEFAULT(0);            // derived by the host: queue entries per pixel
     // Derived by the host: the adjoint grid (BINDING_ADRRS_ADJOINT), the cache's entries

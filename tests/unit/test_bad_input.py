@@ -48,7 +48,7 @@ def test_unknown_pass_and_params(session):
     session.update(scenes.cornell_box(8, 8))
     with pytest.raises(ValueError, match="unknown pass"):
         session.read("beauty")
-    with pytest.raises(ValueError, match="unknown method"):
+    with pytest.raises(ValueError, match="method must be one of mis, nee, pt, got 'bdpt'"):
         session.set_params(method="bdpt")
     with pytest.raises(ValueError, match="samples_per_frame"):
         session.set_params(samples_per_frame=0)

@@ -11,129 +11,67 @@
 from __future__ import annotations
 
 import atexit
+import collections
 import dataclasses
 import operator
 import os
 
-from ._native import (LIMITS, METHODS, DeviceMemoryError, background_compiles, devices, light_tree_min_lights, memory,
-                      primitive_order, set_light_tree_min_lights, set_memory_budget, validation_enabled,
-                      validation_messages, wait_for_background_compiles)
+from ._native import (LIMITS, DeviceMemoryError, background_compiles, devices, light_tree_min_lights, memory, primitive_order,
+                      set_light_tree_min_lights, set_memory_budget, validation_enabled, validation_messages,
+                      wait_for_background_compiles)
 from ._native import Session as _NativeSession
-from ._native import _RenderParams
+from ._native import _PASSES, _SETTINGS, _make_params, _setting_index
 from .scene import PART_KEYS, PARTS, parts_set
 
-__all__ = ["Session", "RenderParams", "devices", "METHODS", "PASSES", "PARTS", "LIMITS", "DeviceMemoryError",
-           "memory", "set_memory_budget", "validation_enabled", "validation_messages", "light_tree_min_lights",
-           "set_light_tree_min_lights", "primitive_order", "background_compiles", "wait_for_background_compiles"]
+__all__ = ["Session", "RenderParams", "SETTINGS", "PASSES", "setting", "devices", "METHODS", "PARTS", "LIMITS",
+           "DeviceMemoryError", "memory", "set_memory_budget", "validation_enabled", "validation_messages",
+           "light_tree_min_lights", "set_light_tree_min_lights", "primitive_order", "background_compiles",
+           "wait_for_background_compiles"]
 
 # A pipeline still compiling on a worker thread when the process tears down crashed it: wait.
 atexit.register(wait_for_background_compiles)
 
-PASSES = tuple(_NativeSession.pass_names())
-HEURISTICS = ("balance", "power")
-ADRRS_ESTIMATES = ("ic", "image")  # px::ADRRS_ESTIMATE_IC, ADRRS_ESTIMATE_IMAGE
-GUIDING_FITS = ("cpu", "device", "auto")  # px::GUIDING_FIT_CPU, GUIDING_FIT_DEVICE, GUIDING_FIT_AUTO
-SIGNED_FIELDS = ("guiding_probe_x", "guiding_probe_y")  # -1: the image centre
+# The core's tables (native/src/render/params.cpp and each technique's module), in order: the
+# base path tracer's settings first, then the irradiance cache's, ADRRS' and guiding's.
+# type: bool | int | float | enum; min/max: None for bool and enum; items: (name, label,
+# description) of an enum; panel: the UI panel ("" = none); group: the sub-panel inside it
+# ("" = the panel itself); unit: "" | "time" | "length"; core: a RenderParams field (False for
+# the engine's samples and time_limit).
+Setting = collections.namedtuple(
+    "Setting", "name technique type default min max items label tooltip panel group unit core")
+SETTINGS = tuple(Setting(**row) for row in _SETTINGS)
+# Passes in film order; label: the Blender pass and EXR layer name; setting: the setting
+# that enables the pass ("" = always).
+Pass = collections.namedtuple("Pass", "name label channels channel_ids description technique setting")
+PASSES = tuple(Pass(**row) for row in _PASSES)
 
 
-@dataclasses.dataclass
-class RenderParams:
-    """Integrator settings; mirrors px::RenderParams (native/src/render/session.h)."""
+def setting(name: str) -> Setting:
+    """The row of setting ``name``; ValueError listing the names if there is none."""
+    return SETTINGS[_setting_index(name)]
 
-    method: str = "mis"             # pt | nee | mis
-    mis_heuristic: str = "power"    # balance | power
-    samples_per_frame: int = 1
-    max_depth: int = 8              # bounces (Cycles' "max bounces")
-    depth_leeway: int = 4           # delta bounces not counted towards max_depth
-    rr_start_depth: int = 3         # Russian roulette from this bounce on; 0 = off
-    light_samples: int = 1          # NEE samples per vertex
-    light_tree: bool = True         # local lights picked through the light tree (Cycles' Light Tree); off: by power
-    seed: int = 0
-    preview: bool = False           # first-hit shading only (preview.rgen): compiles in a fraction
-                                    # of the path tracer's time; the viewport's first frame
-    # Irradiance cache (thesis 3.2.3, 4.4; px::IcParams in shaders/shared/techniques.h, which
-    # checks the ranges).
-    ic: bool = False                # on/off
-    ic_accuracy: float = 0.2        # Ward's a: influence radius a*R, weight threshold 1/a
-    ic_min_radius: float = 0.1      # lower clamp of the harmonic-mean distance R (metres)
-    ic_create_prob: float = 0.01    # an uncovered diffuse vertex queues a new entry
-    ic_update_prob: float = 1e-5    # per path and frame: refresh one entry (round robin)
-    ic_nee_samples: int = 1         # light samples per vertex of the entries' hemisphere paths
-    ic_gradients: bool = False      # Ward & Heckbert rotational + translational gradients
-    ic_gradient_max: float = 5.0    # clamp of the relative gradients' length
-    ic_visibility_check: bool = True  # skip entries in front of the query point (Ward 1988)
-    ic_prepare_frames: int = 50     # frames that only fill the cache before accumulation
-    ic_capacity: int = 65536        # entries
-    ic_rebuild_interval: int = 1    # frames between BLAS rebuilds (refits in between)
-    ic_highlight: bool = False      # IC Irradiance pass shows the colour only (fig. 4.13)
-    # Adjoint-driven Russian roulette and splitting (thesis 3.2.4, 4.5; px::AdrrsParams). It
-    # builds the irradiance cache for its adjoint, with or without ic.
-    adrrs: bool = False             # on/off
-    adrrs_splitting: bool = True    # split paths above the weight window (else roulette only)
-    adrrs_window: float = 5.0       # s: delta+ = s * delta-, delta- = 2C / (1 + s)
-    adrrs_rr_min: float = 0.1       # lowest survival probability below the window
-    adrrs_max_splits: int = 10      # extra paths per pixel sample
-    adrrs_estimate_spp: int = 4     # ic: estimate frames; image: samples before the first estimate
-    adrrs_estimate: str = "ic"      # pixel estimate: ic (NEE + cache at the first hit) | image (blurred)
-    adrrs_ic_glossy: bool = True    # the ic estimate reads the cache at glossy vertices too
-    # Path guiding with parallax-aware vMF mixtures (thesis 3.2.5-3.2.8, 4.6; Ruppert et al. 2020;
-    # px::GuidingParams in shaders/shared/guiding.h, checked by px::validate_guiding_params).
-    guiding: bool = False           # on/off
-    guiding_prob: float = 0.5       # one-sample MIS: probability of sampling the VMM (else the BSDF)
-    guiding_parallax: bool = True   # lobes aim at their target points (thesis eq. 4.5)
-    guiding_training_spp: int = 32  # 1-spp training frames before the image accumulates; 0 = keep training
-    guiding_min_samples: int = 64  # a region fits once it has accumulated this many lit samples
-    guiding_max_components: int = 16  # lobes per region (1..16)
-    guiding_split_merge: bool = True  # split and merge lobes (Ruppert et al. 2020, sec. 4)
-    guiding_region_splits: int = 3  # 2^k initial regions (halvings of the scene box), refined as they gather light
-    guiding_region_threshold: int = 10000  # lit samples (non-zero weight) before a region splits; 0 = never
-    guiding_max_regions: int = 4096  # adaptive refinement stops here
-    guiding_probe_x: int = -1       # pixel of the Guiding Lobes inset; -1 = image centre
-    guiding_probe_y: int = -1
-    guiding_lobes_phase: float = -1.0  # Guiding Lobes spheres: at the regions' centres (-1) or moving through them, [0, 1) (fig. 4.20)
-    guiding_fit: str = "auto"       # where mixtures are fitted: cpu (readback) | device (compute passes) | auto
 
-    def validate(self) -> None:
-        if self.method not in METHODS:
-            raise ValueError(f"unknown method {self.method!r} (choose from {', '.join(METHODS)})")
-        if self.mis_heuristic not in HEURISTICS:
-            raise ValueError(f"unknown MIS heuristic {self.mis_heuristic!r} (balance or power)")
-        if self.adrrs_estimate not in ADRRS_ESTIMATES:
-            raise ValueError(f"unknown adrrs_estimate {self.adrrs_estimate!r} (ic or image)")
-        if self.guiding_fit not in GUIDING_FITS:
-            raise ValueError(f"unknown guiding_fit {self.guiding_fit!r} (cpu, device or auto)")
-        for f in dataclasses.fields(self):
-            value = getattr(self, f.name)
-            if f.name in SIGNED_FIELDS:
-                if isinstance(value, bool) or not isinstance(value, int) or not -1 <= value < 2**31:
-                    raise ValueError(f"{f.name} must be an integer >= -1, got {value!r}")
-            elif f.type in ("int", "bool"):
-                if not isinstance(value, int) or value < 0 or value >= 2**32 or (f.type == "bool" and value > 1):
-                    kind = "a boolean" if f.type == "bool" else "a non-negative integer"
-                    raise ValueError(f"{f.name} must be {kind}, got {value!r}")
-            elif f.type == "float":
-                if isinstance(value, bool) or not isinstance(value, (int, float)):
-                    raise ValueError(f"{f.name} must be a number, got {value!r}")
+METHODS = tuple(item[0] for item in setting("method").items)
+_TYPES = {"bool": bool, "int": int, "float": float, "enum": str}
 
-    def native(self):
-        """The px::RenderParams these settings make (the core validates the ranges)."""
-        p = _RenderParams()
-        for f in dataclasses.fields(self):
-            value = getattr(self, f.name)
-            if f.name == "method":
-                value = METHODS.index(value)
-            elif f.name == "mis_heuristic":
-                value = HEURISTICS.index(value)
-            elif f.name == "adrrs_estimate":
-                value = ADRRS_ESTIMATES.index(value)
-            elif f.name == "guiding_fit":
-                value = GUIDING_FITS.index(value)
-            elif f.type == "bool":
-                value = int(bool(value))
-            elif f.type == "float":
-                value = float(value)
-            setattr(p, f.name, value)
-        return p
+
+def _validate(self) -> None:
+    """Checks every value's type, range and enum name in the core (ValueError naming it)."""
+    _make_params(dataclasses.asdict(self))
+
+
+def _native_params(self):
+    """The px::RenderParams these settings make, checked by the core."""
+    return _make_params(dataclasses.asdict(self))
+
+
+# Integrator settings: px::RenderParams (native/src/render/params.h), one field per core row
+# of SETTINGS, at the row's default; enumerations by name (method="mis").
+RenderParams = dataclasses.make_dataclass(
+    "RenderParams",
+    [(s.name, _TYPES[s.type], dataclasses.field(default=s.default)) for s in SETTINGS if s.core],
+    namespace={"validate": _validate, "native": _native_params, "__module__": __name__,
+               "__doc__": "Integrator settings, one field per core row of SETTINGS (see setting(name))."})
 
 
 class Session(_NativeSession):
@@ -164,8 +102,7 @@ class Session(_NativeSession):
         if unknown:
             raise TypeError(f"unknown render parameter(s): {', '.join(sorted(unknown))}")
         params = dataclasses.replace(self._params, **changes)
-        params.validate()
-        self._set_params(params.native())
+        self._set_params(params.native())  # the core checks every value
         self._params = params
 
     def update(self, scene, spatial_order: bool = True, parts=None) -> list[str]:
@@ -207,7 +144,7 @@ class Session(_NativeSession):
 
     def read_all(self) -> dict:
         """Every pass, by name."""
-        return {name: self.read(name) for name in PASSES}
+        return {p.name: self.read(p.name) for p in PASSES}
 
     def test_sampling(self, routine: int, params, count: int, seed: int = 0, directions=None, constants=None):
         """Run shaders/tests/sampling_test.comp; returns float32 (count, 2, 4). Test use only.

@@ -73,30 +73,28 @@ def _parse_str(text):
     return text
 
 
-_PARSERS = {"bool": _parse_bool, "int": _parse_int, "float": _parse_float, "str": _parse_str}
+_PARSERS = {"bool": _parse_bool, "int": _parse_int, "float": _parse_float, "enum": _parse_str}
 
 
-def parse_params(assignments, params_type=None):
+def parse_params(assignments):
     """``NAME=VALUE`` pairs (``--set`` for .npz scenes) -> keyword arguments for
-    ``Session.set_params``. NAME must be a field of ``params_type`` (RenderParams); VALUE is
-    parsed by the field's type. Raises ValueError naming the item."""
-    if params_type is None:
-        from . import RenderParams as params_type
-    fields = {f.name: f for f in dataclasses.fields(params_type)}
+    ``Session.set_params`` (and the engine's ``samples`` and ``time_limit``). NAME is a row of
+    ``parallax_core.SETTINGS``; VALUE is parsed by the row's type (the core checks its range
+    or enum name). Raises ValueError naming the item."""
+    from . import SETTINGS
+
+    rows = {s.name: s for s in SETTINGS}
     params = {}
     for item in assignments:
         name, sep, text = item.partition("=")
         name, text = name.strip(), text.strip()
         if not sep:
             raise ValueError(f"--set {item!r}: expected NAME=VALUE")
-        field = fields.get(name)
-        if field is None:
-            raise ValueError(f"--set {item!r}: for .npz scenes NAME is a render parameter: "
-                             f"{', '.join(fields)}")
-        kind = field.type if isinstance(field.type, str) else getattr(field.type, "__name__", "")
-        parse = _PARSERS.get(kind) or _PARSERS.get(type(field.default).__name__, _parse_str)
+        row = rows.get(name)
+        if row is None:
+            raise ValueError(f"--set {item!r}: for .npz scenes NAME is a setting: {', '.join(rows)}")
         try:
-            params[name] = parse(text)
+            params[name] = _PARSERS[row.type](text)
         except ValueError as e:
             raise ValueError(f"--set {item!r}: {e}") from None
     return params
@@ -178,6 +176,10 @@ def cmd_render(args):
     if args.engine:
         raise ValueError("--engine applies to .blend files only")
     overrides = parse_params(args.set) if args.set else {}  # (needs the native module)
+    # The engine's settings (no core field): samples per pixel and a time limit.
+    if "samples" in overrides:
+        args.samples = overrides.pop("samples")
+    time_limit = overrides.pop("time_limit", 0.0)
     from .exr import write_exr, write_png
     from .scene import SceneData
 
@@ -200,10 +202,12 @@ def cmd_render(args):
         print(f"parallax: note: {spp} spp is not a multiple of --spp-per-frame {per_frame}; "
               f"rendering {frames * per_frame}", file=sys.stderr)
 
-    from . import Session
+    from . import PASSES, Session
 
     session = Session(width, height, device=_device_arg(args.device or "auto"))
-    params = dict(method=args.method, samples_per_frame=per_frame)
+    params = dict(samples_per_frame=per_frame)
+    if args.method is not None:
+        params["method"] = args.method
     for key in ("seed", "max_depth", "light_samples"):
         if getattr(args, key) is not None:
             params[key] = getattr(args, key)
@@ -215,6 +219,8 @@ def cmd_render(args):
     start = time.perf_counter()
     try:
         for frame in range(frames):
+            if time_limit > 0 and frame > 0 and time.perf_counter() - start >= time_limit:
+                break
             session.render(1)  # the first call runs the irradiance cache's prepare frames too
             stats = session.stats()
             seconds = stats.get("milliseconds", 0.0) / 1e3 or (time.perf_counter() - start)
@@ -224,10 +230,9 @@ def cmd_render(args):
         sys.stderr.write("\n")
 
     ic, adrrs, guiding = params.get("ic", False), params.get("adrrs", False), params.get("guiding", False)
-    # A technique's passes only with the technique on.
-    passes = {name: session.read(name) for name in session.pass_names()
-              if (ic or not name.startswith("ic_")) and (adrrs or not name.startswith("adrrs_"))
-              and (guiding or not name.startswith("guiding_"))}
+    # A pass whose setting is off is left out (a technique's passes only with the technique on).
+    settings = dataclasses.asdict(session.params)
+    passes = {p.name: session.read(p.name) for p in PASSES if not p.setting or settings[p.setting]}
     write_exr(args.output, passes)
     if args.png:
         write_png(args.png, passes["combined"])
@@ -281,10 +286,11 @@ def build_parser():
     r.add_argument("--engine", help=".blend only: PARALLAX (default) or CYCLES")
     r.add_argument("--set", action="append", metavar="PROP=VALUE",
                    help="a setting; repeatable. .npz: a render parameter (method=nee, ic=1, "
-                   "ic_accuracy=0.3; overrides the options above). .blend: a Parallax setting "
+                   "max_depth=4; overrides the options above). .blend: a Parallax setting "
                    "(samples=64) or a path from the scene (render.resolution_x=320, "
                    "cycles.samples=64)")
-    r.add_argument("--method", choices=("pt", "nee", "mis"), default="mis")
+    r.add_argument("--method", help="the method setting (the core's default if not given; "
+                   "parallax_core.setting('method').items lists them)")
     r.add_argument("--device", help="auto (default), cpu, gpu or a device index")
     r.add_argument("--seed", type=int)
     r.add_argument("--width", type=int, help="override the scene's resolution")

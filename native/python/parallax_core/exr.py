@@ -1,4 +1,4 @@
-"""EXR and PNG helpers: passes in Blender's multilayer channel naming, PNG without Pillow."""
+"""EXR and PNG helpers: passes under their Blender names (PASSES labels), PNG without Pillow."""
 from __future__ import annotations
 
 import struct
@@ -6,28 +6,18 @@ import zlib
 
 import numpy as np
 
-# pass name -> (layer name in the file, channel letters by channel count)
-PASS_LAYERS = {
-    "combined": ("Combined", None),
-    "depth": ("Depth", {1: "Z"}),
-    "normal": ("Normal", {3: "XYZ"}),
-    "albedo": ("Albedo", None),
-    "ray_depth": ("RayDepth", None),
-    "ic_irradiance": ("IC Irradiance", None),  # the names Blender's render layers use
-    "ic_gradients": ("IC Gradients", None),
-}
-DEFAULT_CHANNELS = {1: "V", 2: "XY", 3: "RGB", 4: "RGBA"}
-
-
 def layer_channels(name, channels):
-    """EXR channel names for a pass: ("combined", 4) -> ["Combined.R", ..., "Combined.A"]."""
-    layer, letters = PASS_LAYERS.get(name, (None, None))
-    if layer is None:
-        layer = "".join(w[:1].upper() + w[1:] for w in name.split("_"))
-    letters = (letters or {}).get(channels) or DEFAULT_CHANNELS.get(channels)
-    if letters is None:
-        return [f"{layer}.{i}" for i in range(channels)]
-    return [f"{layer}.{c}" for c in letters]
+    """EXR channel names for a pass of parallax_core.PASSES, by its label and channel ids:
+    ("combined", 4) -> ["Combined.R", ..., "Combined.A"]. Raises ValueError for a name that
+    is no pass or a channel count that is not the pass'."""
+    from . import PASSES
+
+    row = next((p for p in PASSES if p.name == name), None)
+    if row is None:
+        raise ValueError(f"EXR: unknown pass '{name}' (passes: {', '.join(p.name for p in PASSES)})")
+    if channels != row.channels:
+        raise ValueError(f"EXR pass '{name}': {channels} channels, the pass has {row.channels}")
+    return [f"{row.label}.{c}" for c in row.channel_ids]
 
 
 def write_exr(path, layers):

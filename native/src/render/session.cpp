@@ -1,5 +1,9 @@
 #include "render/session.h"
 
+#include "techniques/adrrs.h"
+#include "techniques/guiding/guiding.h"
+#include "techniques/irradiance_cache.h"
+
 #include "shaders_embedded.h"
 #include "../../../shaders/shared/ggx_tables.h"
 
@@ -12,32 +16,21 @@
 
 namespace px {
 
-bool RenderParams::operator==(const RenderParams& o) const {
-    return method == o.method && mis_heuristic == o.mis_heuristic && samples_per_frame == o.samples_per_frame &&
-           max_depth == o.max_depth && depth_leeway == o.depth_leeway && rr_start_depth == o.rr_start_depth &&
-           light_samples == o.light_samples && seed == o.seed && preview == o.preview && light_tree == o.light_tree &&
-           std::memcmp(&ic, &o.ic, sizeof(ic)) == 0 && std::memcmp(&adrrs, &o.adrrs, sizeof(adrrs)) == 0 &&
-           std::memcmp(&guiding, &o.guiding, sizeof(guiding)) == 0;
-}
-
-const std::vector<PassInfo>& pass_table() {
-    static const std::vector<PassInfo> table = {
-        {"combined", PASS_COMBINED, 4}, {"depth", PASS_DEPTH, 1},        {"normal", PASS_NORMAL, 3},
-        {"albedo", PASS_ALBEDO, 3},     {"ray_depth", PASS_RAY_DEPTH, 1},
-        {"ic_irradiance", PASS_IC_IRRADIANCE, 3}, {"ic_gradients", PASS_IC_GRADIENTS, 3},
-        {"adrrs_estimate", PASS_ADRRS_ESTIMATE, 3}, {"adrrs_splits", PASS_ADRRS_SPLITS, 1},
-        {"guiding_regions", PASS_GUIDING_REGIONS, 3}, {"guiding_components", PASS_GUIDING_COMPONENTS, 1},
-        {"guiding_lobes", PASS_GUIDING_LOBES, 3},
-    };
-    return table;
-}
-
 Session::Session(uint32_t width, uint32_t height, const std::string& device) : width_(width), height_(height) {
     if (width == 0 || height == 0 || width > 16384 || height > 16384)
         throw std::invalid_argument("image size " + std::to_string(width) + "x" + std::to_string(height) +
                                     " is out of range (1..16384)");
     ctx_ = Context::shared(device);
-    set_ = std::make_unique<DescriptorSet>(*ctx_, BINDING_COUNT, std::vector<uint32_t>{BINDING_TLAS, BINDING_IC_TLAS, BINDING_GUIDING_TLAS});
+    // The techniques, in the order their hooks run: the one place that names them.
+    auto cache = std::make_unique<IrradianceCache>(*ctx_);
+    auto adrrs = std::make_unique<Adrrs>(*ctx_, *cache);  // reads the cache as its adjoint
+    techniques_.push_back(std::move(cache));
+    techniques_.push_back(std::move(adrrs));
+    techniques_.push_back(std::make_unique<Guiding>(*ctx_));
+    std::vector<uint32_t> tlas_bindings = {BINDING_TLAS};
+    for (const auto& t : techniques_)
+        for (uint32_t b : t->tlas_bindings()) tlas_bindings.push_back(b);
+    set_ = std::make_unique<DescriptorSet>(*ctx_, BINDING_COUNT, tlas_bindings);
     const size_t pixels = size_t(width) * height;
     film_ = Buffer(*ctx_, pixels * PASS_COUNT * sizeof(vec4), kStorageUsage);
     ray_count_ = Buffer(*ctx_, pixels * sizeof(uint32_t), kStorageUsage);
@@ -49,48 +42,39 @@ Session::Session(uint32_t width, uint32_t height, const std::string& device) : w
     set_->bind_buffer(BINDING_TECH_PARAMS, technique_params_);
     ggx_tables_ = Buffer::with_data(*ctx_, GGX_TABLE_WORDS, sizeof(GGX_TABLE_WORDS), kStorageUsage);
     set_->bind_buffer(BINDING_GGX_TABLES, ggx_tables_);
-    ic_ = std::make_unique<IrradianceCache>(*ctx_);
-    ic_->bind(*set_);
-    adrrs_ = std::make_unique<Adrrs>(*ctx_);
-    adrrs_->bind(*set_);
-    guiding_ = std::make_unique<Guiding>(*ctx_);
-    guiding_->bind(*set_);
+    for (const auto& t : techniques_) t->bind(*set_);
     upload_technique_params();
     reset();
 }
 
 void Session::upload_technique_params() {
     TechniqueParams t{};
-    t.ic = ic_->params();
-    t.adrrs = adrrs_->params();
-    t.guiding = guiding_->params();
+    for (const auto& technique : techniques_) technique->write_params(t);
     technique_params_.upload(&t, sizeof(t));
 }
 
 // Caller holds mutex_.
-void Session::reset_accumulation(bool keep_cache) {
+void Session::reset_accumulation(bool view_only) {
     stats_ = {};
     cursor_ = {};
     fallback_frame_ = film_after_fallback_ = false;
     film_.fill_zero();
     ray_count_.fill_zero();
     if (!scene_) return;
-    if (keep_cache) {  // the cache, its buffers and settings stay; the pixel estimate is remade
-        adrrs_->reset();
+    if (view_only) {  // what the techniques hold in world space stays
+        for (const auto& t : techniques_) t->view_changed();
         return;
     }
-    // ADRRS reads the cache as its adjoint: it builds the cache even where paths are not
-    // shaded from it (ic off).
-    IcParams cache = params_.ic;
-    cache.enabled = params_.ic.enabled || params_.adrrs.enabled;
-    cache.shade = params_.ic.enabled;
-    ic_->configure(cache, scene_->host().info, uint64_t(width_) * height_ * params_.samples_per_frame);
-    ic_->bind(*set_);  // configure may have made new buffers and a new TLAS
-    adrrs_->configure(params_.adrrs, width_, height_, params_.samples_per_frame);
-    adrrs_->bind(*set_);
-    guiding_->configure(params_.guiding, scene_->host(), scene_version_, params_.seed, width_, height_,
-                        params_.samples_per_frame);
-    guiding_->bind(*set_);
+    const TechniqueSetup setup{scene_->host(), scene_version_, width_, height_};
+    for (const auto& t : techniques_) {
+        // Built where a technique that is on needs it (Technique::needs), even if off itself.
+        bool needed = false;
+        for (const auto& other : techniques_)
+            for (const std::string& name : other->needs())
+                needed = needed || (name == t->name() && technique_on(params_, other->name()));
+        t->configure(params_, setup, needed);
+        t->bind(*set_);  // configure may have made new buffers and a new TLAS
+    }
     upload_technique_params();
 }
 
@@ -137,27 +121,15 @@ std::vector<std::string> Session::update(const SceneArrays& arrays, bool spatial
     scene_ = std::move(next);
     arrays_ = std::move(next_arrays);
     scene_->bind(*set_);
-    if (parts != PART_CAMERA) ++scene_version_;  // guiding starts over (its field survives camera moves)
-    // Edited scene data: the cache starts over (no stale irradiance). A camera move leaves
-    // the irradiance where it was: the cache is kept and fills the new view's holes.
+    if (parts != PART_CAMERA) ++scene_version_;  // (TechniqueSetup: what survives camera moves)
+    // Edited scene data: the techniques start over (nothing stale). A camera move keeps what
+    // they hold in world space (Technique::view_changed).
     reset_accumulation(parts == PART_CAMERA);
     return warnings;
 }
 
 void Session::set_params(const RenderParams& p) {
-    if (p.method > METHOD_MIS) throw std::invalid_argument("unknown method " + std::to_string(p.method));
-    if (p.mis_heuristic > HEURISTIC_POWER) throw std::invalid_argument("unknown MIS heuristic");
-    if (p.samples_per_frame < 1 || p.samples_per_frame > 4096)
-        throw std::invalid_argument("samples_per_frame must be in 1..4096");
-    if (p.light_samples < 1 || p.light_samples > 64) throw std::invalid_argument("light_samples must be in 1..64");
-    if (p.max_depth > 1024 || p.depth_leeway > 1024) throw std::invalid_argument("max_depth/depth_leeway must be <= 1024");
-    validate_ic_params(p.ic);
-    validate_adrrs_params(p.adrrs);
-    validate_guiding_params(p.guiding);
-    if (p.preview > 1) throw std::invalid_argument("preview must be 0 or 1");
-    if (p.light_tree > 1) throw std::invalid_argument("light_tree must be 0 or 1");
-    if (p.preview && (p.ic.enabled || p.adrrs.enabled || p.guiding.enabled))
-        throw std::invalid_argument("preview frames use no technique: turn ic, adrrs and guiding off");
+    validate(p);
     std::lock_guard<std::mutex> updating(update_mutex_);
     if (p == params_) return;
     // The light tree is part of the light table: remade from the kept arrays, uploaded next
@@ -174,7 +146,7 @@ void Session::set_params(const RenderParams& p) {
         scene_->bind(*set_);
     }
     params_ = p;
-    reset_accumulation();  // any setting changes what the cache holds: it starts over
+    reset_accumulation();  // any setting may change what a technique holds: they start over
 }
 
 void Session::reset() {
@@ -225,10 +197,10 @@ void wait_for_background_compiles() {
 }
 
 // The program and its specialisation constants (shaders/shared/specialization.h); the preview
-// program uses the scene features only. Without cache_queries the irradiance cache's shaders
-// (and TECH_IC) stay out even where the cache exists (ADRRS alone renders from its adjoint grid).
-// GPUs make empty shadow calls, lavapipe does not (integrator.glsl, trace_pending_shadow).
-PipelineKey Session::pipeline_key(uint32_t program, bool cache_queries) const {
+// program uses the scene features only. A technique's bit may differ between render frames and
+// host frames (Technique::spec_bit). GPUs make empty shadow calls, lavapipe does not
+// (integrator.glsl, trace_pending_shadow).
+PipelineKey Session::pipeline_key(uint32_t program, bool render_frame) const {
     SpecConstants c;
     c.features = scene_->host().features;
     c.empty_shadow_calls = ctx_->is_cpu() ? 0u : 1u;
@@ -238,68 +210,62 @@ PipelineKey Session::pipeline_key(uint32_t program, bool cache_queries) const {
     }
     c.method = params_.method;
     c.heuristic = params_.mis_heuristic;
-    c.techniques = (ic_->enabled() && cache_queries ? TECH_IC : 0u) | (adrrs_->enabled() ? TECH_ADRRS : 0u) |
-                   (guiding_->enabled() ? TECH_GUIDING : 0u);
+    c.techniques = 0u;
+    for (const auto& t : techniques_) c.techniques |= t->spec_bit(render_frame);
     return {program, c};
 }
 
-// The camera pipeline of render frames; prepare, estimate and training frames use the full one.
 RayTracingPipeline& Session::render_pipeline() {
-    return pipeline(camera_program(), params_.ic.enabled || !params_.adrrs.enabled);
+    return pipeline(camera_program(), true);
 }
 
 bool Session::pipeline_ready() {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!scene_) return false;
     std::lock_guard<std::mutex> plock(pipelines_mutex);
-    auto it = pipelines.find({ctx_.get(), pipeline_key(camera_program(), params_.ic.enabled || !params_.adrrs.enabled)});
+    auto it = pipelines.find({ctx_.get(), pipeline_key(camera_program(), true)});
     return it != pipelines.end() && it->second->ready;
-}
-
-// The render pipeline with every technique off: what frames render while the techniques'
-// pipelines compile in the background.
-PipelineKey Session::fallback_key() const {
-    PipelineKey key = pipeline_key(camera_program());
-    key.second.techniques = 0;
-    return key;
 }
 
 void Session::compile() {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!scene_) throw std::runtime_error("no scene: call update(scene) before compile()");
-    for (const PipelineKey& key : needed_pipelines()) pipeline_for(key);
-    if (ic_->enabled()) ic_finish_pipeline();
+    render_pipeline();
+    for (const auto& t : techniques_) t->compile(*this);
 }
 
-RayTracingPipeline& Session::pipeline(uint32_t program, bool cache_queries) {
-    return pipeline_for(pipeline_key(program, cache_queries));
+RayTracingPipeline& Session::pipeline(uint32_t program, bool render_frame) {
+    return pipeline_for(pipeline_key(program, render_frame));
 }
 
 RayTracingPipeline& Session::pipeline_for(const PipelineKey& key) {
     std::shared_ptr<PipelineSlot> slot = pipeline_slot(ctx_.get(), key);
     // A compile that throws leaves the flag unset: the next call tries again.
     std::call_once(slot->once, [&] {
-        slot->pipeline = build_pipeline(*ctx_, set_->layout(), key);
+        slot->pipeline = create_pipeline(*ctx_, set_->layout(), pipeline_shaders(key));
         slot->ready = true;
     });
     return *slot->pipeline;
 }
 
-// The pipelines a frame with the current settings needs: the render frames' camera program,
-// and with the irradiance cache (on, or built for ADRRS) the full camera program of its
-// prepare and estimate frames and the hemisphere program (the finish compute pipeline aside).
+// The pipelines a frame with the current settings needs: the render frames' camera program
+// and, while a technique is on, the host frames' programs (its host frames' camera program and
+// those of its own, such as the cache's hemisphere rays).
 std::vector<PipelineKey> Session::needed_pipelines() const {
-    std::vector<PipelineKey> out = {pipeline_key(camera_program(), params_.ic.enabled || !params_.adrrs.enabled)};
-    if (ic_->enabled()) {
-        out.push_back(pipeline_key(PROGRAM_CAMERA));
-        out.push_back(pipeline_key(PROGRAM_IC_HEMISPHERE));
-    }
+    std::vector<PipelineKey> out = {pipeline_key(camera_program(), true)};
+    bool any = false;
+    for (const auto& t : techniques_) any = any || t->enabled();
+    if (!any) return out;
+    out.push_back(pipeline_key(PROGRAM_CAMERA, false));
+    for (uint32_t program = 0; program < PROGRAM_COUNT; ++program)
+        for (const auto& t : techniques_)
+            if (t->enabled() && t->raygen(program)) out.push_back(pipeline_key(program, false));
     return out;
 }
 
 bool Session::technique_pipelines_ready() {
     if (!compiled_or_started(needed_pipelines())) return false;
-    if (ic_->enabled()) ic_finish_pipeline();  // one compute shader: quick
+    for (const auto& t : techniques_) t->compile(*this);  // its compute pipelines (quick) and the compiled rest
     return true;
 }
 
@@ -311,12 +277,21 @@ void Session::warm() {
     compiled_or_started(wanted);
 }
 
+// The render pipeline with every technique off: what frames render while the techniques'
+// pipelines compile in the background.
+PipelineKey Session::fallback_key() const {
+    PipelineKey key = pipeline_key(camera_program(), true);
+    key.second.techniques = 0;
+    return key;
+}
+
 // Whether every pipeline of `wanted` is compiled; otherwise starts the missing ones on a
 // worker thread (once per pipeline, shared by every session) and returns false. A failed
 // background compile is raised here, once; the next call compiles again.
 bool Session::compiled_or_started(const std::vector<PipelineKey>& wanted) {
     struct Missing {
         PipelineKey key;
+        PipelineRecipe recipe;  // gathered here: the worker reads no session state
         std::shared_ptr<PipelineSlot> slot;
     };
     bool ready = true;
@@ -333,7 +308,7 @@ bool Session::compiled_or_started(const std::vector<PipelineKey>& wanted) {
         }
         if (slot->ready) continue;
         ready = false;
-        if (!slot->compiling.exchange(true)) missing.push_back({key, slot});
+        if (!slot->compiling.exchange(true)) missing.push_back({key, pipeline_shaders(key), slot});
     }
     if (missing.empty()) return ready;
     {
@@ -344,7 +319,7 @@ bool Session::compiled_or_started(const std::vector<PipelineKey>& wanted) {
         for (const Missing& m : missing) {
             try {
                 std::call_once(m.slot->once, [&] {
-                    m.slot->pipeline = build_pipeline(*ctx, layout, m.key);
+                    m.slot->pipeline = create_pipeline(*ctx, layout, m.recipe);
                     m.slot->ready = true;
                 });
             } catch (const std::exception& e) {
@@ -360,71 +335,44 @@ bool Session::compiled_or_started(const std::vector<PipelineKey>& wanted) {
     return false;
 }
 
-std::unique_ptr<RayTracingPipeline> Session::build_pipeline(Context& ctx, VkDescriptorSetLayout layout,
-                                                            const PipelineKey& key) {
+Session::PipelineRecipe Session::pipeline_shaders(const PipelineKey& key) const {
     const uint32_t program = key.first;
-    const uint32_t techniques = key.second.techniques;
-    // Stages, then groups: raygen | miss: MISS_SCENE, MISS_SHADOW, MISS_IC_QUERY,
-    // MISS_GUIDING_QUERY | hit groups: HIT_GROUP_TRIANGLES (closest-hit + self-skip any-hit), HIT_GROUP_IC (procedural:
-    // intersection + any-hit), HIT_GROUP_GUIDING (intersection + closest-hit). A technique's
-    // shaders are left out of pipelines that never use it (less to compile); guiding without
-    // the cache puts copies of its groups into the cache's slots.
-    std::vector<ShaderStage> stages = {
-        {VK_SHADER_STAGE_RAYGEN_BIT_KHR, program == PROGRAM_IC_HEMISPHERE ? &shader_ic_hemisphere()
-                                         : program == PROGRAM_PREVIEW     ? &shader_preview()
-                                                                          : &shader_raygen()},
-        {VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR, &shader_closesthit()},
-        {VK_SHADER_STAGE_MISS_BIT_KHR, &shader_miss()},
-        {VK_SHADER_STAGE_MISS_BIT_KHR, &shader_shadow_miss()},
-    };
-    std::vector<ShaderGroup> groups = {
-        {VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, 0},
-        {VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, 2},
-        {VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, 3},
-        {VK_RAY_TRACING_SHADER_GROUP_TYPE_TRIANGLES_HIT_GROUP_KHR, VK_SHADER_UNUSED_KHR, 1},
-    };
-    if (program == PROGRAM_PREVIEW) {  // traces no shadow rays: no shadow miss shader
-        stages.pop_back();
-        groups.erase(groups.begin() + 2);
-    }
-    if (techniques & TECH_IC) {
-        stages.push_back({VK_SHADER_STAGE_MISS_BIT_KHR, &shader_ic_query_miss()});
-        stages.push_back({VK_SHADER_STAGE_INTERSECTION_BIT_KHR, &shader_ic_query_intersection()});
-        stages.push_back({VK_SHADER_STAGE_ANY_HIT_BIT_KHR, &shader_ic_query_any_hit()});
-        groups.insert(groups.begin() + 3, {VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, 4});  // misses before hits
-        groups.push_back({VK_RAY_TRACING_SHADER_GROUP_TYPE_PROCEDURAL_HIT_GROUP_KHR, VK_SHADER_UNUSED_KHR,
-                          VK_SHADER_UNUSED_KHR, 6, 5});
-    }
-    if (techniques & TECH_GUIDING) {
-        const uint32_t miss = uint32_t(stages.size());
-        stages.push_back({VK_SHADER_STAGE_MISS_BIT_KHR, &shader_guiding_query_miss()});
-        stages.push_back({VK_SHADER_STAGE_INTERSECTION_BIT_KHR, &shader_guiding_query_intersection()});
-        stages.push_back({VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR, &shader_guiding_query_closest_hit()});
-        const ShaderGroup miss_group{VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, miss};
-        const ShaderGroup hit_group{VK_RAY_TRACING_SHADER_GROUP_TYPE_PROCEDURAL_HIT_GROUP_KHR, VK_SHADER_UNUSED_KHR,
-                                    miss + 2, VK_SHADER_UNUSED_KHR, miss + 1};
-        if (!(techniques & TECH_IC)) {
-            groups.insert(groups.begin() + 1 + MISS_IC_QUERY, miss_group);  // the cache's slots
-            groups.push_back(hit_group);
-        }
-        groups.insert(groups.begin() + 1 + MISS_GUIDING_QUERY, miss_group);
-        groups.push_back(hit_group);
-    }
+    // Stages and groups gathered from the path tracer and the techniques (those whose bit is
+    // in the key's TECHNIQUES): the raygen of `program`, misses by slot (MISS_*), hit groups by slot
+    // (HIT_GROUP_*). A technique's shaders are left out of pipelines that never use it (less
+    // to compile).
+    PipelineShaders shaders;
+    const std::vector<uint32_t>* raygen = program == PROGRAM_PREVIEW ? &shader_preview() : &shader_raygen();
+    for (const auto& t : techniques_)
+        if (const std::vector<uint32_t>* own = t->raygen(program)) raygen = own;
+    shaders.add(VK_SHADER_STAGE_RAYGEN_BIT_KHR, *raygen);
+    const uint32_t closest_hit = shaders.add(VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR, shader_closesthit());
+    shaders.misses[MISS_SCENE] = {VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR,
+                                  shaders.add(VK_SHADER_STAGE_MISS_BIT_KHR, shader_miss())};
+    if (program != PROGRAM_PREVIEW)  // the preview traces no shadow rays
+        shaders.misses[MISS_SHADOW] = {VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR,
+                                       shaders.add(VK_SHADER_STAGE_MISS_BIT_KHR, shader_shadow_miss())};
+    shaders.hits[HIT_GROUP_TRIANGLES] = {VK_RAY_TRACING_SHADER_GROUP_TYPE_TRIANGLES_HIT_GROUP_KHR, VK_SHADER_UNUSED_KHR,
+                                         closest_hit};
+    for (const auto& t : techniques_) t->add_shaders(key.second.techniques, shaders);
     if (program != PROGRAM_PREVIEW && (key.second.features & FEATURE_TRANSMISSION)) {  // rays leaving a surface skip its triangle (self_skip.rahit)
-        for (auto& g : groups)
-            if (g.type == VK_RAY_TRACING_SHADER_GROUP_TYPE_TRIANGLES_HIT_GROUP_KHR) g.any_hit = uint32_t(stages.size());
-        stages.push_back({VK_SHADER_STAGE_ANY_HIT_BIT_KHR, &shader_self_skip_any_hit()});
+        const uint32_t any_hit = shaders.add(VK_SHADER_STAGE_ANY_HIT_BIT_KHR, shader_self_skip_any_hit());
+        for (auto& [slot, g] : shaders.hits)
+            if (g.type == VK_RAY_TRACING_SHADER_GROUP_TYPE_TRIANGLES_HIT_GROUP_KHR) g.any_hit = any_hit;
     }
-    return std::make_unique<RayTracingPipeline>(ctx, layout, uint32_t(sizeof(FrameParams)), stages, groups, key.second);
+    // Raygen, misses, hits; a slot below the last that no shader fills (its technique is off)
+    // takes the next filled slot's group: the shader binding table has a record for each.
+    std::vector<ShaderGroup> groups = {{VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, 0}};
+    for (const auto* slots : {&shaders.misses, &shaders.hits})
+        for (uint32_t slot = 0; slot <= slots->rbegin()->first; ++slot)
+            groups.push_back(slots->lower_bound(slot)->second);
+    return {shaders.stages, groups, key.second};
 }
 
-ComputePipeline& Session::ic_finish_pipeline() {
-    static std::mutex mutex;
-    static auto& pipelines = *new std::map<Context*, std::unique_ptr<ComputePipeline>>();
-    std::lock_guard<std::mutex> lock(mutex);
-    auto& p = pipelines[ctx_.get()];
-    if (!p) p = std::make_unique<ComputePipeline>(*ctx_, set_->layout(), uint32_t(sizeof(FrameParams)), shader_ic_finish());
-    return *p;
+std::unique_ptr<RayTracingPipeline> Session::create_pipeline(Context& ctx, VkDescriptorSetLayout layout,
+                                                             const PipelineRecipe& recipe) {
+    return std::make_unique<RayTracingPipeline>(ctx, layout, uint32_t(sizeof(FrameParams)), recipe.stages,
+                                                recipe.groups, recipe.constants);
 }
 
 FrameParams Session::frame_params(uint32_t frame) const {
@@ -440,7 +388,7 @@ FrameParams Session::frame_params(uint32_t frame) const {
     fp.rr_start_depth = params_.rr_start_depth;
     fp.light_samples = params_.light_samples;
     fp.mode = FRAME_RENDER;
-    fp.guiding_record = guiding_->records_render_frames() ? 1u : 0u;
+    for (const auto& t : techniques_) t->fill_frame_params(fp);
     return fp;
 }
 
@@ -448,12 +396,13 @@ Session::DispatchPlan Session::dispatch_plan() const {
     DispatchPlan plan{};
     // Rays of one path at most: camera ray and bounces up to the depth limits, with the
     // shadow rays of each vertex.
-    // With guiding, a sample adds the passes' queries (a region lookup is no ray: a tree walk).
-    plan.cost = uint64_t(params_.max_depth + params_.depth_leeway + 2) * (1 + params_.light_samples) +
-                (guiding_->enabled() ? 2 : 0);
+    // The techniques add rays to a sample's path and copies of it (Technique::extra_rays_per_sample,
+    // copies_per_sample).
+    plan.cost = uint64_t(params_.max_depth + params_.depth_leeway + 2) * (1 + params_.light_samples);
+    for (const auto& t : techniques_) plan.cost += t->extra_rays_per_sample();
+    for (const auto& t : techniques_) plan.cost *= t->copies_per_sample();
     plan.budget = ctx_->report().type == "cpu" ? (uint64_t(1) << 21) : (uint64_t(1) << 30);
     const uint64_t spp = params_.samples_per_frame;
-    if (adrrs_->enabled()) plan.cost *= 1 + params_.adrrs.max_splits;  // a sample's split copies too
     const uint64_t row = uint64_t(width_) * plan.cost;
     auto fit = [&](uint64_t unit, uint32_t most) { return uint32_t(std::clamp<uint64_t>(plan.budget / unit, 1, most)); };
     // Whole rows with all samples if a row fits, else one row with some samples, else
@@ -484,14 +433,16 @@ uint64_t Session::record_dispatch(VkCommandBuffer cmd, RayTracingPipeline& pipe,
                              VK_PIPELINE_STAGE_RAY_TRACING_SHADER_BIT_KHR | VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &b,
                              0, nullptr, 0, nullptr);
     };
-    const bool splits = adrrs_->enabled() && !fallback_frame_;
-    if (splits) adrrs_->record_queue_clear(cmd);
-    pipe.trace(cmd, set_->set(), &fp, sizeof(fp), w, h);
-    barrier();
-    if (splits) {  // the copies the camera paths split off, in the same frame
-        fp.mode = FRAME_ADRRS_SPLITS;
-        pipe.trace(cmd, set_->set(), &fp, sizeof(fp), w, h);
+    auto trace = [&](const FrameParams& f) {
+        pipe.trace(cmd, set_->set(), &f, sizeof(f), w, h);
         barrier();
+    };
+    if (fallback_frame_) {  // the fallback pipeline has no technique (see trace)
+        trace(fp);
+    } else {
+        for (const auto& t : techniques_) t->record_before_trace(cmd);
+        trace(fp);
+        for (const auto& t : techniques_) t->record_after_trace(fp, trace);
     }
     // Columns, then samples, then rows: a band of rows is complete when all its samples are.
     frame_done = false;
@@ -508,63 +459,29 @@ uint64_t Session::record_dispatch(VkCommandBuffer cmd, RayTracingPipeline& pipe,
     return plan.cost * w * h * n;
 }
 
-// A prepare frame (thesis 4.4): camera paths to their first diffuse vertex only queue cache
-// entries, which are made before the next frame; nothing reaches the film.
-void Session::prepare_frame() {
-    RayTracingPipeline& camera = pipeline(PROGRAM_CAMERA);
-    FrameParams fp = frame_params(0x80000000u | ic_->prepared_frames());
-    fp.mode = FRAME_IC_PREPARE;
-    fp.samples_per_frame = fp.sample_count = 1;  // thesis 4.4: prepare frames at 1 spp
-    ctx_->submit_and_wait([&](VkCommandBuffer cmd) {
-        ic_->record_frame_start(cmd);
-        camera.trace(cmd, set_->set(), &fp, sizeof(fp), width_, height_);
-    });
-    ic_->after_frame(pipeline(PROGRAM_IC_HEMISPHERE), ic_finish_pipeline(), *set_, fp, uint64_t(width_) * height_,
-                     true);
-    refresh_adjoint();
-}
-
-// ADRRS' adjoint grid follows the cache's entries (after prepare frames and frames that
-// added entries).
-void Session::refresh_adjoint() {
-    if (!adrrs_->update_adjoint(*ic_)) return;
-    adrrs_->bind(*set_);
-    upload_technique_params();
-}
-
-// An ADRRS estimate frame (thesis 4.5): 1 spp to the first non-delta vertex, shaded with
-// NEE and the cache, added to the pixel estimate; nothing reaches the film.
-void Session::estimate_frame() {
-    RayTracingPipeline& camera = pipeline(PROGRAM_CAMERA);
-    FrameParams fp = frame_params(0x40000000u | adrrs_->estimate_frames());
-    fp.mode = FRAME_ADRRS_ESTIMATE;
+// A host frame (Technique::needs_host_frame; thesis 4.4-4.6): 1 spp camera paths over the
+// whole image that feed the technique alone.
+void Session::host_frame(Technique& technique) {
+    RayTracingPipeline& camera = host_pipeline(PROGRAM_CAMERA);
+    FrameParams fp = frame_params(0);
+    technique.begin_host_frame(fp);  // its mode and frame index
     fp.samples_per_frame = fp.sample_count = 1;
-    ctx_->submit_and_wait([&](VkCommandBuffer cmd) { camera.trace(cmd, set_->set(), &fp, sizeof(fp), width_, height_); });
-    adrrs_->estimate_frame_done();
-}
-
-// A guiding training frame (thesis 4.6.2): 1 spp camera paths record training samples with
-// the field as it stands, nothing reaches the film; then the fit and the upload.
-void Session::training_frame() {
-    RayTracingPipeline& camera = pipeline(PROGRAM_CAMERA);
-    FrameParams fp = frame_params(0x20000000u | guiding_->training_frames());
-    fp.mode = FRAME_GUIDING_TRAIN;
-    fp.samples_per_frame = fp.sample_count = 1;
-    fp.guiding_record = 1;
     auto start = std::chrono::steady_clock::now();
     ctx_->submit_and_wait([&](VkCommandBuffer cmd) {
-        guiding_->record_frame_start(cmd);
+        for (const auto& t : techniques_) t->record_frame_start(cmd, &technique);
         camera.trace(cmd, set_->set(), &fp, sizeof(fp), width_, height_);
     });
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-    guiding_->after_frame(*set_, ms);
+    technique.end_host_frame(*this, fp, ms);
+    for (const auto& t : techniques_) t->sync(*this, &technique);
 }
 
 // Frames go to the device in submissions of dispatches up to the plan's budget; cancel() is
-// checked between submissions. With the irradiance cache a submission ends with its frame,
-// which is followed by the cache's host step (its creation jobs and BLAS refit), and a new
-// frame is preceded by the cache's remaining prepare frames: all of them for render(), one
-// per call for render_rows() (so a caller can still stop between short calls).
+// checked between submissions. Where a technique steps after each frame (Technique::
+// steps_after_frame) a submission ends with its frame, which is followed by
+// the techniques' after_frame; a new frame is preceded by the host frames the techniques still
+// need: all of them for render(), one per call for render_rows() (so a caller can still stop
+// between short calls).
 uint32_t Session::trace(uint32_t frames, uint32_t rows) {
     if (!scene_) throw std::runtime_error("no scene: call update(scene) before render()");
     if (cancel_.exchange(false)) return 0;
@@ -574,13 +491,12 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
     // With background compiles, a frame that starts while the techniques' pipelines compile
     // renders with the techniques off (the fallback), and so does the rest of that frame.
     // Once they are compiled, the film starts over with the techniques' first render frame
-    // (their prepare, estimate or training frames come first, the fallback's image shown
-    // meanwhile): the image holds the techniques' samples alone, and the fallback's stay
-    // counted apart (stats fallback_samples, fallback_milliseconds).
+    // (their host frames come first, the fallback's image shown meanwhile): the image holds
+    // the techniques' samples alone, the fallback's are counted apart (fallback_samples).
     if (cursor_.at_frame_start()) {
-        const PipelineKey key = pipeline_key(camera_program(), params_.ic.enabled || !params_.adrrs.enabled);
         const bool was_fallback = fallback_frame_;
-        fallback_frame_ = background_compile_ && key.second.techniques != 0 && !technique_pipelines_ready();
+        fallback_frame_ = background_compile_ && pipeline_key(camera_program(), true).second.techniques != 0 &&
+                          !technique_pipelines_ready();
         if (was_fallback && !fallback_frame_) film_after_fallback_ = true;
     }
     const bool fallback = fallback_frame_;
@@ -588,48 +504,40 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
     uint32_t completed = 0;
     uint32_t rows_left = frames ? UINT32_MAX : rows;
     bool stop = false;
-    double frame_milliseconds = 0;  // the submissions of the frame in progress (guiding's stats)
+    double frame_milliseconds = 0;  // the submissions of the frame in progress (FrameEnd)
     while (!stop && (frames ? completed < frames : rows_left > 0)) {
-        if (!fallback && ic_->enabled() && cursor_.at_frame_start() && ic_->needs_prepare()) {
-            prepare_frame();
+        Technique* host = nullptr;  // the first technique that needs a host frame now
+        for (const auto& t : techniques_)
+            if (!fallback && !host && cursor_.at_frame_start() && t->needs_host_frame()) host = t.get();
+        if (host) {
+            host_frame(*host);
             stop = frames == 0 || cancel_.exchange(false);
             continue;
         }
-        if (!fallback && cursor_.at_frame_start() && adrrs_->needs_estimate_frame()) {
-            estimate_frame();
-            stop = frames == 0 || cancel_.exchange(false);
-            continue;
-        }
-        if (!fallback && cursor_.at_frame_start() && guiding_->needs_training_frame()) {
-            training_frame();
-            stop = frames == 0 || cancel_.exchange(false);
-            continue;
-        }
+        // Techniques that step after each frame: a submission holds at most one frame.
         if (film_after_fallback_) {
             film_after_fallback_ = false;
-            const SessionStats fallback = stats_;
+            const SessionStats fallback_stats = stats_;
             stats_ = {};
-            stats_.fallback_samples = fallback.fallback_samples;
-            stats_.fallback_milliseconds = fallback.fallback_milliseconds;
+            stats_.fallback_samples = fallback_stats.fallback_samples;
+            stats_.fallback_milliseconds = fallback_stats.fallback_milliseconds;
             film_.fill_zero();
             ray_count_.fill_zero();
             start = std::chrono::steady_clock::now();
         }
-        // The cache's and guiding's host steps come after each frame: a submission holds at
-        // most one frame.
-        const bool host_step = !fallback && (ic_->enabled() || guiding_->records_render_frames());
-        bool frame_done = false, ic_step = false;
+        bool host_step = false;
+        for (const auto& t : techniques_) host_step = host_step || (!fallback && t->steps_after_frame());
+        bool frame_done = false, step = false;
         const auto submit_start = std::chrono::steady_clock::now();
         ctx_->submit_and_wait([&](VkCommandBuffer cmd) {
-            // With the cache a submission holds at most one frame: clear its request queue.
-            if (host_step && ic_->enabled() && cursor_.at_frame_start()) ic_->record_frame_start(cmd);
-            if (host_step && guiding_->records_render_frames() && cursor_.at_frame_start()) guiding_->record_frame_start(cmd);
+            if (cursor_.at_frame_start() && !fallback)
+                for (const auto& t : techniques_) t->record_frame_start(cmd, nullptr);
             uint64_t work = 0;
             while (work < plan.budget && (frames ? completed < frames : rows_left > 0)) {
                 work += record_dispatch(cmd, pipe, plan, stats_.frames + completed, rows_left, frame_done);
                 if (!frame_done) continue;
-                if (host_step) {  // the cache's or guiding's host step comes next
-                    ic_step = true;
+                if (host_step) {  // the techniques' steps come next
+                    step = true;
                     break;
                 }
                 ++completed;
@@ -637,15 +545,14 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
             }
         });
         frame_milliseconds += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - submit_start).count();
-        if (ic_step) {  // (ADRRS builds the cache: its frames end here too)
-            if (ic_->enabled())
-                ic_->after_frame(pipeline(PROGRAM_IC_HEMISPHERE), ic_finish_pipeline(), *set_,
-                                 frame_params(stats_.frames + completed), paths, false);
-            if (guiding_->records_render_frames()) guiding_->after_frame(*set_, frame_milliseconds);
+        if (step) {
+            const uint64_t samples = stats_.samples + uint64_t(completed + 1) * params_.samples_per_frame;
+            const FrameEnd end{frame_params(stats_.frames + completed), paths, samples, frame_milliseconds};
+            for (const auto& t : techniques_)
+                if (t->steps_after_frame()) t->after_frame(*this, end);
             frame_milliseconds = 0;
             ++completed;
-            adrrs_->after_frame(film_, stats_.samples + uint64_t(completed) * params_.samples_per_frame);
-            refresh_adjoint();
+            for (const auto& t : techniques_) t->sync(*this, nullptr);
         }
         if (frame_done && frames == 0) break;
         stop = cancel_.exchange(false);
@@ -672,14 +579,7 @@ bool Session::render_rows(uint32_t rows) {
 }
 
 std::vector<float> Session::read(const std::string& pass, uint32_t& channels) {
-    const PassInfo* info = nullptr;
-    for (const auto& p : pass_table())
-        if (pass == p.name) info = &p;
-    if (!info) {
-        std::string names;
-        for (const auto& p : pass_table()) names += std::string(names.empty() ? "" : ", ") + p.name;
-        throw std::invalid_argument("unknown pass '" + pass + "' (passes: " + names + ")");
-    }
+    const PassInfo* info = &px::pass(pass);
     std::lock_guard<std::mutex> lock(mutex_);
     const size_t pixels = size_t(width_) * height_;
     std::vector<vec4> sums(pixels), counts(pixels);  // counts: the combined pass, w = samples
@@ -696,9 +596,10 @@ std::vector<float> Session::read(const std::string& pass, uint32_t& channels) {
     return out;
 }
 
-const guiding::GuidingField* Session::guiding_field() const {
-    if (!guiding_ || !guiding_->enabled() || guiding_->fits_on_device()) return nullptr;
-    return guiding_->field();
+const Technique* Session::technique(const std::string& name) const {
+    for (const auto& t : techniques_)
+        if (name == t->name()) return t.get();
+    return nullptr;
 }
 
 SessionStats Session::stats() {
@@ -714,12 +615,7 @@ SessionStats Session::stats() {
     out.fallback_film = fallback_frame_ || film_after_fallback_;
     out.light_tree_nodes = scene_ ? scene_->host().info.light_tree_nodes : 0;
     out.contact_boxes = scene_ ? scene_->host().info.contact_box_count : 0;
-    out.ic = ic_->stats();
-    out.adrrs_estimate_frames = adrrs_->estimate_frames();
-    out.adrrs_image_refreshes = adrrs_->image_refreshes();
-    out.adrrs_adjoint_builds = adrrs_->adjoint_builds();
-    out.adrrs_adjoint_milliseconds = adrrs_->adjoint_milliseconds();
-    out.guiding = guiding_->stats();
+    for (const auto& t : techniques_) t->stats(out.techniques);
     return out;
 }
 
@@ -728,7 +624,7 @@ std::vector<float> Session::test_sampling(uint32_t routine, const std::vector<fl
     std::lock_guard<std::mutex> lock(mutex_);
     if (!scene_) throw std::runtime_error("no scene: call update(scene) before test_sampling()");
     if (params.size() != 5) throw std::invalid_argument("test_sampling needs 5 parameters");
-    // count*8 floats (directions for eval mode), then whole vec4s of constants (guiding lobes)
+    // count*8 floats (directions for eval mode), then whole vec4s of constants (a mixture's lobes)
     if (!input.empty() && (input.size() < size_t(count) * 8 || (input.size() - size_t(count) * 8) % 4 != 0))
         throw std::invalid_argument("test input must be count*8 floats followed by whole vec4s");
     if (!test_pipeline_)

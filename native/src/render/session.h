@@ -1,10 +1,9 @@
 // Session: one device, one scene, one film. Progressive: every render() call adds
 // samples_per_frame samples per pixel to the running sums; read() divides by the count.
 #pragma once
+#include "render/params.h"
 #include "scene/scene.h"
-#include "techniques/adrrs.h"
-#include "techniques/guiding/guiding.h"
-#include "techniques/irradiance_cache.h"
+#include "techniques/technique.h"
 #include "vk/pipeline.h"
 
 #include <array>
@@ -14,25 +13,6 @@
 #include <mutex>
 
 namespace px {
-
-struct RenderParams {
-    uint32_t method = METHOD_MIS;
-    uint32_t mis_heuristic = HEURISTIC_POWER;
-    uint32_t samples_per_frame = 1;
-    uint32_t max_depth = 8;
-    uint32_t depth_leeway = 4;
-    uint32_t rr_start_depth = 3;
-    uint32_t light_samples = 1;
-    uint32_t seed = 0;
-    // The viewport's first frame: preview.rgen's first-hit shading, which compiles quickly.
-    uint32_t preview = 0;  // 0/1, like the other flags
-    // Local lights picked through the light tree (Cycles' Light Tree, default on); 0: by power.
-    uint32_t light_tree = 1;
-    IcParams ic;  // irradiance cache (techniques/irradiance_cache.h)
-    AdrrsParams adrrs;  // adjoint-driven Russian roulette and splitting (techniques/adrrs.h)
-    GuidingParams guiding;  // path guiding (techniques/guiding/guiding.h)
-    bool operator==(const RenderParams& o) const;
-};
 
 struct SessionStats {
     uint64_t samples = 0;  // per pixel
@@ -47,27 +27,15 @@ struct SessionStats {
     uint64_t blas_builds = 0;  // BLASes built by this session's updates (never reset; debugging)
     uint32_t light_tree_nodes = 0;  // nodes of the scene's light tree (0: lights picked by power)
     uint32_t contact_boxes = 0;     // boxes round transmissive instances (SceneInfo.contact_lo/hi)
-    IcStats ic;
-    uint32_t adrrs_estimate_frames = 0;  // estimate frames run (ADRRS_ESTIMATE_IC)
-    uint32_t adrrs_image_refreshes = 0;  // image estimates made (ADRRS_ESTIMATE_IMAGE)
-    uint32_t adrrs_adjoint_builds = 0;   // adjoint grids made from the cache
-    double adrrs_adjoint_milliseconds = 0;
-    GuidingStats guiding;
+    StatList techniques;  // each technique's own (Technique::stats)
 };
-
-struct PassInfo {
-    const char* name;
-    uint32_t index;
-    uint32_t channels;
-};
-const std::vector<PassInfo>& pass_table();
 
 // Pipelines compiling on worker threads (Session::set_background_compile, Session::warm), and a
 // wait for them all: the process must not exit while one is inside the driver.
 uint32_t background_compiles();
 void wait_for_background_compiles();
 
-class Session {
+class Session : private TechniqueHost {
 public:
     Session(uint32_t width, uint32_t height, const std::string& device);
     ~Session();
@@ -85,10 +53,11 @@ public:
     // the frames completed, fewer than `frames` when cancel() stopped it.
     uint32_t render(uint32_t frames);
     // Traces the next `rows` rows of the current frame (short dispatches, so a caller can
-    // react between them); returns true when that completed the frame. With the irradiance
-    // cache on, a call at a frame's start may instead run one cache prepare frame (false). Sample counts include
-    // completed frames only, so read() is exact after a completed frame (in between, traced
-    // rows hold one frame more). update, set_params and reset drop a partial frame.
+    // react between them); returns true when that completed the frame. While a technique
+    // needs host frames, a call at a frame's start may instead run one of them (false). Sample
+    // counts include completed frames only, so read() is exact after a completed frame (in
+    // between, traced rows hold one frame more). update, set_params and reset drop a partial
+    // frame.
     bool render_rows(uint32_t rows);
     // Thread-safe, from any thread: stops the render() or render_rows() call in progress at
     // its next dispatch boundary (see dispatch_plan), or the next such call if none is in
@@ -105,9 +74,8 @@ public:
     std::vector<float> read(const std::string& pass, uint32_t& channels);
     void reset();
     SessionStats stats();
-    // The guiding field the host fits (guiding_fit = cpu), its fit in flight finished; null
-    // without guiding or with the device fit (whose mixtures live on the GPU only).
-    const guiding::GuidingField* guiding_field() const;
+    // The technique called `name` (its table's technique name); null if there is none.
+    const Technique* technique(const std::string& name) const;
 
     // Runs shaders/tests/sampling_test.comp: see that file. Returns count * 8 floats.
     std::vector<float> test_sampling(uint32_t routine, const std::vector<float>& params, uint32_t count,
@@ -155,29 +123,40 @@ private:
     // `frame_done` when it completed the frame.
     uint64_t record_dispatch(VkCommandBuffer cmd, RayTracingPipeline& pipe, const DispatchPlan& plan, uint32_t frame,
                              uint32_t& rows, bool& frame_done);
-    void prepare_frame();           // one irradiance-cache prepare frame, then its entries
-    void estimate_frame();          // one ADRRS estimate frame (1 spp into the estimate)
-    void refresh_adjoint();         // ADRRS' adjoint grid after the cache changed
-    void training_frame();          // one guiding training frame (1 spp, samples only), then the fit
-    // Film, stats and partial frame; the irradiance cache starts over unless `keep_cache`.
-    void reset_accumulation(bool keep_cache = false);
-    void upload_technique_params();
+    // One host frame of `technique` (Technique::needs_host_frame): 1 spp over the whole image,
+    // nothing reaches the film; then every technique's sync.
+    void host_frame(Technique& technique);
+    // Film, stats and partial frame; the techniques start over unless `view_only` (only the
+    // camera moved: Technique::view_changed).
+    void reset_accumulation(bool view_only = false);
     FrameParams frame_params(uint32_t frame) const;
-    // The pipeline of `program` for the current settings; without cache_queries it leaves the
-    // irradiance cache's shaders (and TECH_IC) out even where the cache exists.
-    RayTracingPipeline& pipeline(uint32_t program, bool cache_queries = true);
+    // The pipeline of `program` for the current settings, for render frames (`render_frame`:
+    // each technique's spec_bit(true)) or host frames.
+    RayTracingPipeline& pipeline(uint32_t program, bool render_frame);
     RayTracingPipeline& render_pipeline();
-    PipelineKey pipeline_key(uint32_t program, bool cache_queries = true) const;
+    PipelineKey pipeline_key(uint32_t program, bool render_frame) const;
     RayTracingPipeline& pipeline_for(const PipelineKey& key);
-    // Built from the key alone (no session state), so a worker thread can compile it.
-    static std::unique_ptr<RayTracingPipeline> build_pipeline(Context& ctx, VkDescriptorSetLayout layout,
-                                                              const PipelineKey& key);
+    // What a pipeline is made of, gathered from the session and its techniques; made into a
+    // pipeline from that alone (no session state), so a worker thread can compile it.
+    struct PipelineRecipe {
+        std::vector<ShaderStage> stages;
+        std::vector<ShaderGroup> groups;
+        SpecConstants constants;
+    };
+    PipelineRecipe pipeline_shaders(const PipelineKey& key) const;
+    static std::unique_ptr<RayTracingPipeline> create_pipeline(Context& ctx, VkDescriptorSetLayout layout,
+                                                               const PipelineRecipe& recipe);
     std::vector<PipelineKey> needed_pipelines() const;
     bool technique_pipelines_ready();
     bool compiled_or_started(const std::vector<PipelineKey>& wanted);
     PipelineKey fallback_key() const;
     uint32_t camera_program() const { return params_.preview ? PROGRAM_PREVIEW : PROGRAM_CAMERA; }
-    ComputePipeline& ic_finish_pipeline();
+    // TechniqueHost
+    Context& context() override { return *ctx_; }
+    DescriptorSet& descriptors() override { return *set_; }
+    RayTracingPipeline& host_pipeline(uint32_t program) override { return pipeline(program, false); }
+    void upload_technique_params() override;
+    const Buffer& film() const override { return film_; }
     std::shared_ptr<Context> ctx_;  // first member: destroyed after everything using it
     uint32_t width_, height_;
     std::unique_ptr<DescriptorSet> set_;
@@ -186,9 +165,8 @@ private:
     std::map<std::string, std::shared_ptr<const OwnedArray>> arrays_;  // the last arrays of every part
     uint64_t blas_builds_ = 0;
     Buffer film_, ray_count_, test_io_, technique_params_, ggx_tables_;  // ggx: constant, multiscatter albedos
-    std::unique_ptr<IrradianceCache> ic_;
-    std::unique_ptr<Adrrs> adrrs_;
-    std::unique_ptr<Guiding> guiding_;
+    // The techniques, in the order their hooks run (built by the constructor).
+    std::vector<std::unique_ptr<Technique>> techniques_;
     uint64_t scene_version_ = 0;  // bumped by every update but a camera-only one (guiding keeps its field)
     // One pipeline per (method, heuristic, scene features) combination, built on first use.
     std::unique_ptr<ComputePipeline> test_pipeline_;
@@ -196,7 +174,7 @@ private:
     SessionStats stats_;
     Cursor cursor_;            // progress through the current frame
     std::atomic<bool> background_compile_{false};
-    bool fallback_frame_ = false;  // the current frame renders with the techniques off
+    bool fallback_frame_ = false;       // the current frame renders with the techniques off
     bool film_after_fallback_ = false;  // the film starts over before the next render dispatch
     std::atomic<bool> cancel_{false};
     std::mutex mutex_;         // the scene, film and stats against concurrent render()/read()

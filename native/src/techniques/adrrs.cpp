@@ -1,6 +1,5 @@
 #include "techniques/adrrs.h"
 
-#include "techniques/validate.h"
 
 #include <algorithm>
 #include <chrono>
@@ -40,23 +39,86 @@ void box_pass(std::vector<vec3>& image, uint32_t width, uint32_t height, bool al
 
 }  // namespace
 
-void validate_adrrs_params(const AdrrsParams& p) {
-    check_flag("adrrs", p.enabled);
-    check_flag("adrrs_splitting", p.splitting);
-    check_flag("adrrs_ic_glossy", p.ic_glossy);
-    check_range("adrrs_window", p.window, 1.0, 1e6);
-    check_range("adrrs_rr_min", p.rr_min, 0.0, 1.0, true);
-    check_range("adrrs_max_splits", p.max_splits, 0, 64);
-    check_range("adrrs_estimate_spp", p.estimate_spp, 1, 65536);
-    if (p.estimate != ADRRS_ESTIMATE_IC && p.estimate != ADRRS_ESTIMATE_IMAGE)
-        throw std::invalid_argument("adrrs_estimate must be 'ic' or 'image'");
+// ADRRS' settings (thesis 4.5; Vorba & Krivanek 2016) and passes.
+const SettingTable& adrrs_table() {
+    static const SettingTable table{"adrrs",
+        {
+            bool_setting("adrrs", PX_FIELD(AdrrsParams, enabled), false, "ADRRS",
+                         "Adjoint-driven Russian roulette and splitting: end paths whose continuation matters little "
+                         "and split those that matter much, judged by the irradiance cache and a pixel estimate "
+                         "(Vorba & Krivanek 2016; thesis, sec. 4.5). Unbiased; builds the irradiance cache for its "
+                         "estimates even with the cache off", "adrrs"),
+            bool_setting("adrrs_splitting", PX_FIELD(AdrrsParams, splitting), true, "Splitting",
+                         "Split paths whose weight lies above the window (else only roulette below it)", "adrrs"),
+            float_setting("adrrs_window", PX_FIELD(AdrrsParams, window), 5.0, 1.0, 1e6, "Window Width",
+                          "s: the weight window spans 2C/(1+s) to 2sC/(1+s) around the ideal weight C (Vorba & "
+                          "Krivanek recommend 5)", "adrrs"),
+            float_setting("adrrs_rr_min", PX_FIELD(AdrrsParams, rr_min), 0.1, 0.001, 1.0, "Min Survival",
+                          "Lowest survival probability of Russian roulette below the window (against fireflies)",
+                          "adrrs"),
+            int_setting("adrrs_max_splits", PX_FIELD(AdrrsParams, max_splits), 10, 0, 64, "Max Splits",
+                        "Most extra paths split off per pixel sample", "adrrs"),
+            int_setting("adrrs_estimate_spp", PX_FIELD(AdrrsParams, estimate_spp), 4, 1, 65536, "Estimate Samples",
+                        "Irradiance Cache: estimate frames (1 sample per pixel each); Image: samples before the "
+                        "first estimate", "adrrs"),
+            enum_setting("adrrs_estimate", PX_FIELD(AdrrsParams, estimate), ADRRS_ESTIMATE_IC,
+                         {{"ic", "Irradiance Cache",
+                           "Estimate frames after the cache's prepare frames: paths to the first non-specular hit, "
+                           "lit by NEE and the cache (thesis 4.5)", ADRRS_ESTIMATE_IC},
+                          {"image", "Image",
+                           "The image rendered so far, blurred; refreshed each time the samples double (the "
+                           "alternative the thesis names in 4.5)", ADRRS_ESTIMATE_IMAGE}},
+                         "Estimate", "Where the pixel estimate comes from", "adrrs"),
+            bool_setting("adrrs_ic_glossy", PX_FIELD(AdrrsParams, ic_glossy), true, "Cache on Glossy",
+                         "The Irradiance Cache estimate reads the cache at glossy surfaces too (thesis, sec. 4.4)",
+                         "adrrs"),
+        },
+        {
+            {"adrrs_estimate", "ADRRS Estimate", 3, "RGB", "ADRRS: the pixel estimate its weight window is centred on",
+             PASS_ADRRS_ESTIMATE, "adrrs"},
+            {"adrrs_splits", "ADRRS Splits", 1, "X", "ADRRS: extra paths split off per pixel sample",
+             PASS_ADRRS_SPLITS, "adrrs"},
+        }};
+    return table;
 }
 
-Adrrs::Adrrs(Context& ctx) : ctx_(ctx) {
-    configure(AdrrsParams{}, 1, 1, 1);
+Adrrs::Adrrs(Context& ctx, const IrradianceCache& cache) : ctx_(ctx), cache_(cache) {
+    setup(AdrrsParams{}, 1, 1, 1);
 }
 
-void Adrrs::configure(const AdrrsParams& params, uint32_t width, uint32_t height, uint32_t samples_per_frame) {
+void Adrrs::configure(const RenderParams& params, const TechniqueSetup& config, bool) {
+    setup(params.adrrs, config.width, config.height, params.samples_per_frame);
+}
+
+void Adrrs::record_after_trace(const FrameParams& frame,
+                               const std::function<void(const FrameParams&)>& retrace) const {
+    if (!enabled()) return;
+    FrameParams splits = frame;
+    splits.mode = FRAME_ADRRS_SPLITS;
+    retrace(splits);
+}
+
+// Estimate frames are numbered from 2^30 (FrameParams.frame): their random streams are apart
+// from the render frames' and the cache's prepare frames'.
+void Adrrs::begin_host_frame(FrameParams& frame) const {
+    frame.frame = 0x40000000u + estimate_frames_;
+    frame.mode = FRAME_ADRRS_ESTIMATE;
+}
+
+void Adrrs::sync(TechniqueHost& host, const Technique* stepped) {
+    if ((stepped && !depends_on(*stepped)) || !update_adjoint()) return;
+    bind(host.descriptors());
+    host.upload_technique_params();
+}
+
+void Adrrs::stats(StatList& out) const {
+    out.insert(out.end(), {{"adrrs_estimate_frames", uint64_t(estimate_frames_)},
+                           {"adrrs_image_refreshes", uint64_t(image_refreshes_)},
+                           {"adrrs_adjoint_builds", uint64_t(adjoint_builds_)},
+                           {"adrrs_adjoint_milliseconds", adjoint_milliseconds_}});
+}
+
+void Adrrs::setup(const AdrrsParams& params, uint32_t width, uint32_t height, uint32_t samples_per_frame) {
     params_ = params;
     width_ = width;
     height_ = height;
@@ -98,11 +160,11 @@ void Adrrs::bind(DescriptorSet& set) const {
 // The cache's entries averaged over a grid around them, per cell and per normal direction
 // (the dominant signed axis): each entry reaches the cells within its harmonic-mean distance
 // R (at least half a cell, at most kMaxSplatCells), weighted 1 / (1 + d/R) like Ward's weight.
-bool Adrrs::update_adjoint(const IrradianceCache& cache) {
+bool Adrrs::update_adjoint() {
     // Remade when the cache has grown by an eighth since (a new entry changes little).
-    if (!enabled() || cache.count() == 0 || uint64_t(cache.count()) * 8 < uint64_t(adjoint_entries_) * 9) return false;
+    if (!enabled() || cache_.count() == 0 || uint64_t(cache_.count()) * 8 < uint64_t(adjoint_entries_) * 9) return false;
     const auto start = std::chrono::steady_clock::now();
-    const std::vector<IcEntry> entries = cache.download_entries();
+    const std::vector<IcEntry> entries = cache_.download_entries();
     adjoint_entries_ = uint32_t(entries.size());
     float lo[3] = {1e30f, 1e30f, 1e30f}, hi[3] = {-1e30f, -1e30f, -1e30f};
     for (const IcEntry& e : entries) {
@@ -148,11 +210,13 @@ bool Adrrs::update_adjoint(const IrradianceCache& cache) {
     return true;
 }
 
-void Adrrs::record_queue_clear(VkCommandBuffer cmd) const {
-    queue_.record_fill_zero(cmd, 16);
+void Adrrs::record_before_trace(VkCommandBuffer cmd) const {
+    if (enabled()) queue_.record_fill_zero(cmd, 16);
 }
 
-void Adrrs::after_frame(const Buffer& film, uint64_t samples) {
+void Adrrs::after_frame(TechniqueHost& host, const FrameEnd& frame) {
+    const Buffer& film = host.film();
+    const uint64_t samples = frame.samples;
     if (!enabled() || params_.estimate != ADRRS_ESTIMATE_IMAGE || samples < next_refresh_) return;
     while (next_refresh_ <= samples) next_refresh_ *= 2;
     const size_t pixels = size_t(width_) * height_;

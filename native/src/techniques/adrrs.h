@@ -6,8 +6,8 @@
 // with NEE and the cache) or, with ADRRS_ESTIMATE_IMAGE, from the accumulated image itself,
 // blurred, refreshed each time the samples double. The queue holds, per pixel of one dispatch,
 // adrrs.slots split entries (max_splits per sample of a frame, fewer where the image is so large
-// that the queue would pass kMaxQueuedSplits); the session follows each camera dispatch with a
-// split dispatch over the same pixels (record_dispatch).
+// that the queue would pass kMaxQueuedSplits); each camera dispatch is followed by a split
+// dispatch over the same pixels (record_after_trace).
 #pragma once
 #include "scene/scene.h"
 #include "techniques/irradiance_cache.h"
@@ -15,38 +15,56 @@
 
 namespace px {
 
-// Throws std::invalid_argument naming the setting that is out of range.
-void validate_adrrs_params(const AdrrsParams& p);
+// ADRRS' settings (the fields of AdrrsParams) and passes.
+const SettingTable& adrrs_table();
 
-class Adrrs {
+class Adrrs : public Technique {
 public:
-    explicit Adrrs(Context& ctx);
-    // New settings or image size: the estimate is dropped and made again.
-    void configure(const AdrrsParams& params, uint32_t width, uint32_t height, uint32_t samples_per_frame);
-    void reset();  // the estimate is made again (the scene changed)
-    void bind(DescriptorSet& set) const;
+    // `cache`: its adjoint (the cache's entries, averaged over a grid).
+    Adrrs(Context& ctx, const IrradianceCache& cache);
+    // Technique (technique.h).
+    const SettingTable& table() const override { return adrrs_table(); }
+    std::vector<std::string> needs() const override { return {"ic"}; }  // the adjoint: the cache
+    void configure(const RenderParams& params, const TechniqueSetup& setup, bool needed) override;
+    void view_changed() override { reset(); }  // the pixel estimate is made again
+    bool enabled() const override { return params_.enabled != 0; }
+    void bind(DescriptorSet& set) const override;
+    void write_params(TechniqueParams& params) const override { params.adrrs = params_; }
+    uint32_t spec_bit(bool) const override { return enabled() ? TECH_ADRRS : 0u; }
+    // A pixel sample's paths: itself and up to max_splits copies split off.
+    uint64_t copies_per_sample() const override { return enabled() ? 1 + params_.max_splits : 1; }
+    // Each camera dispatch starts with an empty split queue and is followed by a split
+    // dispatch over the same pixels (FRAME_ADRRS_SPLITS) that traces the copies.
+    void record_before_trace(VkCommandBuffer cmd) const override;
+    void record_after_trace(const FrameParams& frame,
+                            const std::function<void(const FrameParams&)>& retrace) const override;
+    // Estimate frames (ADRRS_ESTIMATE_IC; thesis 4.5): 1 spp to the first non-delta vertex,
+    // shaded with NEE and the cache, into the pixel estimate; after the cache's prepare frames.
+    bool needs_host_frame() const override {
+        return enabled() && params_.estimate == ADRRS_ESTIMATE_IC && estimate_frames_ < params_.estimate_spp;
+    }
+    void begin_host_frame(FrameParams& frame) const override;
+    void end_host_frame(TechniqueHost&, const FrameParams&, double) override { ++estimate_frames_; }
+    // ADRRS_ESTIMATE_IMAGE: after a frame the estimate becomes the blurred image once the
+    // samples reach estimate_spp, and again each time they double.
+    bool steps_after_frame() const override { return enabled(); }
+    void after_frame(TechniqueHost& host, const FrameEnd& frame) override;
+    // The adjoint grid follows the cache's entries (after its prepare frames and render frames).
+    void sync(TechniqueHost& host, const Technique* stepped) override;
+    void stats(StatList& out) const override;
+
     const AdrrsParams& params() const { return params_; }  // with slots filled in
-    bool enabled() const { return params_.enabled != 0; }
-    // Estimate frames still to run (ADRRS_ESTIMATE_IC), after the cache's prepare frames.
-    bool needs_estimate_frame() const { return enabled() && params_.estimate == ADRRS_ESTIMATE_IC && estimate_frames_ < params_.estimate_spp; }
-    uint32_t estimate_frames() const { return estimate_frames_; }
-    void estimate_frame_done() { ++estimate_frames_; }
-    // Before a camera dispatch: its queue starts empty.
-    void record_queue_clear(VkCommandBuffer cmd) const;
-    // ADRRS_ESTIMATE_IMAGE: after a frame, with `samples` per pixel in `film`, the estimate
-    // becomes the blurred image once the samples reach estimate_spp, and again each time they
-    // double.
-    void after_frame(const Buffer& film, uint64_t samples);
-    uint32_t image_refreshes() const { return image_refreshes_; }
-    uint32_t adjoint_builds() const { return adjoint_builds_; }
-    double adjoint_milliseconds() const { return adjoint_milliseconds_; }
-    // Remakes the adjoint grid from the cache's entries when they grew; returns
-    // true when it did (the settings, which hold the grid's shape, must be uploaded again and
-    // the buffer bound again).
-    bool update_adjoint(const IrradianceCache& cache);
 
 private:
+    // New settings or image size: the estimate is dropped and made again.
+    void setup(const AdrrsParams& params, uint32_t width, uint32_t height, uint32_t samples_per_frame);
+    void reset();  // the estimate is made again (the scene changed)
+    // Remakes the adjoint grid from the cache's entries when they grew; returns true when it
+    // did (the settings, which hold the grid's shape, must be uploaded again and the buffer
+    // bound again).
+    bool update_adjoint();
     Context& ctx_;
+    const IrradianceCache& cache_;
     AdrrsParams params_{};
     uint32_t width_ = 0, height_ = 0;
     Buffer estimate_, queue_, splits_, adjoint_;

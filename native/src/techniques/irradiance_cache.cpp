@@ -1,6 +1,7 @@
 #include "techniques/irradiance_cache.h"
 
-#include "techniques/validate.h"
+#include "shaders_embedded.h"
+
 
 #include <algorithm>
 #include <cassert>
@@ -8,6 +9,8 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <map>
+#include <mutex>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -38,27 +41,140 @@ double ms_since(std::chrono::steady_clock::time_point start) {
 
 }  // namespace
 
-void validate_ic_params(const IcParams& p) {
-    check_flag("ic", p.enabled);
-    check_flag("ic_gradients", p.gradients);
-    check_flag("ic_visibility_check", p.visibility_check);
-    check_flag("ic_highlight", p.highlight);
-    check_range("ic_accuracy", p.accuracy, 0.0, 2.0, true);
-    check_range("ic_min_radius", p.min_radius, 0.0, 1e6, true);
-    check_range("ic_create_prob", p.create_prob, 0.0, 1.0);
-    check_range("ic_update_prob", p.update_prob, 0.0, 1.0);
-    check_range("ic_nee_samples", p.nee_samples, 1, 64);
-    check_range("ic_gradient_max", p.gradient_max, 0.0, 1e6);
-    check_range("ic_prepare_frames", p.prepare_frames, 0, 10000);
-    check_range("ic_capacity", p.capacity, 1, 4000000);
-    check_range("ic_rebuild_interval", p.rebuild_interval, 1, 100000);
+// The cache's settings (thesis 4.4; Ward et al. 1988; Ward & Heckbert 1992) and passes.
+const SettingTable& ic_table() {
+    static const SettingTable table{"ic",
+        {
+            bool_setting("ic", PX_FIELD(IcParams, enabled), false, "Irradiance Cache",
+                         "Reuse indirect diffuse irradiance from sparse cache entries, each the mean of a hemisphere "
+                         "of paths, interpolated between nearby entries (Ward, Rubinstein & Clear 1988; thesis, sec. "
+                         "4.4). Biased but smooth", "ic"),
+            float_setting("ic_accuracy", PX_FIELD(IcParams, accuracy), 0.2, 0.001, 2.0, "Accuracy",
+                          "Ward's accuracy a: an entry is used where its error estimate is below a, i.e. within a "
+                          "times its radius and for normals close to its own. Smaller is more accurate and needs "
+                          "more entries (Ward et al. 1988)", "ic").in_group("Accuracy"),
+            float_setting("ic_min_radius", PX_FIELD(IcParams, min_radius), 0.1, 0.0001, 1e6, "Min Radius",
+                          "Lower limit of an entry's radius, the harmonic mean distance of its hemisphere paths, in "
+                          "scene units: keeps corners and contact regions from needing unbounded numbers of entries",
+                          "ic").in_group("Accuracy").with_unit("length"),
+            float_setting("ic_create_prob", PX_FIELD(IcParams, create_prob), 0.01, 0.0, 1.0, "Creation Probability",
+                          "Probability that a path vertex without a valid cache entry queues the creation of one "
+                          "(thesis, sec. 4.4)", "ic").in_group("Creation"),
+            float_setting("ic_update_prob", PX_FIELD(IcParams, update_prob), 1e-5, 0.0, 1.0, "Update Probability",
+                          "Probability per pixel and frame of refreshing a cache entry with new hemisphere paths, so "
+                          "early noisy entries improve over time", "ic").in_group("Creation"),
+            int_setting("ic_nee_samples", PX_FIELD(IcParams, nee_samples), 1, 1, 64, "Entry Light Samples",
+                        "Light samples per vertex of the hemisphere paths that compute a cache entry", "ic")
+                .in_group("Creation"),
+            bool_setting("ic_gradients", PX_FIELD(IcParams, gradients), false, "Gradients",
+                         "Extrapolate each entry with its rotational and translational irradiance gradients (Ward & "
+                         "Heckbert 1992) for smoother interpolation", "ic").in_group("Gradients"),
+            float_setting("ic_gradient_max", PX_FIELD(IcParams, gradient_max), 5.0, 0.0, 1e6, "Max Gradient Length",
+                          "Clamp of the gradients' length relative to the entry's irradiance, against extrapolating "
+                          "noisy gradients", "ic").in_group("Gradients"),
+            bool_setting("ic_visibility_check", PX_FIELD(IcParams, visibility_check), true, "Visibility Check",
+                         "Skip entries that lie in front of the shaded point (Ward et al. 1988's 'in front' test), "
+                         "so light does not leak across creases", "ic").in_group("Accuracy"),
+            int_setting("ic_prepare_frames", PX_FIELD(IcParams, prepare_frames), 50, 0, 10000, "Prepare Frames",
+                        "Frames that only fill the cache before the image starts to accumulate", "ic")
+                            .in_group("Creation"),
+            int_setting("ic_capacity", PX_FIELD(IcParams, capacity), 65536, 1, 4000000, "Capacity",
+                        "Maximum number of cache entries; creations beyond it are dropped (and counted in the "
+                        "render stats)", "ic").in_group("Creation"),
+            int_setting("ic_rebuild_interval", PX_FIELD(IcParams, rebuild_interval), 1, 1, 100000, "Rebuild Interval",
+                        "Rebuild the cache's acceleration structure from scratch, in Morton order, every this many "
+                        "frames (in between, frames that add entries only refit it; on lavapipe a refit tree traces "
+                        "several times slower, hence 1)", "ic").in_group("Creation"),
+            bool_setting("ic_highlight", PX_FIELD(IcParams, highlight), false, "Colour Highlight",
+                         "The IC Irradiance pass shows only the colour (the thesis' colour-highlight mode, fig. "
+                         "4.13)", "ic").in_group("Visualisation"),
+        },
+        {
+            {"ic_irradiance", "IC Irradiance", 3, "RGB",
+             "Irradiance cache: the cached indirect irradiance at the first diffuse hit, without the surface colour",
+             PASS_IC_IRRADIANCE, "ic"},
+            {"ic_gradients", "IC Gradients", 3, "RGB",
+             "Irradiance cache: R = length of the translational gradient, G = of the rotational gradient",
+             PASS_IC_GRADIENTS, "ic"},
+        }};
+    return table;
 }
 
 IrradianceCache::IrradianceCache(Context& ctx) : ctx_(ctx) {
-    configure(IcParams{}, SceneInfo{}, 0);
+    setup(IcParams{}, SceneInfo{}, 0);
 }
 
-void IrradianceCache::configure(const IcParams& params, const SceneInfo& scene, uint64_t paths_per_frame) {
+void IrradianceCache::configure(const RenderParams& params, const TechniqueSetup& config, bool needed) {
+    IcParams cache = params.ic;
+    cache.enabled = params.ic.enabled || needed;
+    cache.shade = params.ic.enabled;
+    pixels_ = uint64_t(config.width) * config.height;
+    setup(cache, config.scene.info, pixels_ * params.samples_per_frame);
+}
+
+const std::vector<uint32_t>* IrradianceCache::raygen(uint32_t program) const {
+    return program == PROGRAM_IC_HEMISPHERE ? &shader_ic_hemisphere() : nullptr;
+}
+
+// The cache query (zero-length rays against the entries' spheres): a miss shader and a
+// procedural hit group (intersection + any-hit).
+void IrradianceCache::add_shaders(uint32_t bits, PipelineShaders& s) const {
+    if (!(bits & TECH_IC)) return;
+    const uint32_t miss = s.add(VK_SHADER_STAGE_MISS_BIT_KHR, shader_ic_query_miss());
+    const uint32_t intersection = s.add(VK_SHADER_STAGE_INTERSECTION_BIT_KHR, shader_ic_query_intersection());
+    const uint32_t any_hit = s.add(VK_SHADER_STAGE_ANY_HIT_BIT_KHR, shader_ic_query_any_hit());
+    s.misses[MISS_IC_QUERY] = {VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, miss};
+    s.hits[HIT_GROUP_IC] = {VK_RAY_TRACING_SHADER_GROUP_TYPE_PROCEDURAL_HIT_GROUP_KHR, VK_SHADER_UNUSED_KHR,
+                            VK_SHADER_UNUSED_KHR, any_hit, intersection};
+}
+
+// ic_finish.comp's pipeline: one per device, shared by every session, kept for the process
+// (like the ray-tracing pipelines, session.cpp).
+static ComputePipeline& finish_pipeline(TechniqueHost& host) {
+    static std::mutex mutex;
+    static auto& pipelines = *new std::map<Context*, std::unique_ptr<ComputePipeline>>();
+    std::lock_guard<std::mutex> lock(mutex);
+    auto& p = pipelines[&host.context()];
+    if (!p)
+        p = std::make_unique<ComputePipeline>(host.context(), host.descriptors().layout(), uint32_t(sizeof(FrameParams)),
+                                              shader_ic_finish());
+    return *p;
+}
+
+void IrradianceCache::compile(TechniqueHost& host) {
+    if (!enabled()) return;
+    host.host_pipeline(PROGRAM_CAMERA);
+    host.host_pipeline(PROGRAM_IC_HEMISPHERE);
+    finish_pipeline(host);
+}
+
+// Prepare frames are numbered from 2^31 (FrameParams.frame): their random streams are apart
+// from the render frames'.
+void IrradianceCache::begin_host_frame(FrameParams& frame) const {
+    frame.frame = 0x80000000u + prepared_frames_;
+    frame.mode = FRAME_IC_PREPARE;
+}
+
+void IrradianceCache::end_host_frame(TechniqueHost& host, const FrameParams& frame, double) {
+    make_entries(host, frame, pixels_, true);
+}
+
+void IrradianceCache::after_frame(TechniqueHost& host, const FrameEnd& frame) {
+    make_entries(host, frame.frame, frame.paths, false);
+}
+
+void IrradianceCache::stats(StatList& out) const {
+    out.insert(out.end(), {{"ic_entries", uint64_t(stats_.entries)},
+                           {"ic_capacity", uint64_t(stats_.capacity)},
+                           {"ic_dropped", stats_.dropped},
+                           {"ic_deferred", stats_.deferred},
+                           {"ic_merged", stats_.merged},
+                           {"ic_jobs", stats_.jobs},
+                           {"ic_job_milliseconds", stats_.job_milliseconds},
+                           {"ic_build_milliseconds", stats_.build_milliseconds}});
+}
+
+void IrradianceCache::setup(const IcParams& params, const SceneInfo& scene, uint64_t paths_per_frame) {
     params_ = params;
     params_.queue_capacity = enabled() ? queue_capacity(params.create_prob, paths_per_frame) : 1;
     if (queue_.size() < 16 + size_t(params_.queue_capacity) * sizeof(IcRequest))
@@ -94,8 +210,8 @@ void IrradianceCache::allocate() {
     built_slots_ = 0;  // nothing built yet
 }
 
-void IrradianceCache::record_frame_start(VkCommandBuffer cmd) const {
-    queue_.record_fill_zero(cmd, 16);
+void IrradianceCache::record_frame_start(VkCommandBuffer cmd, const Technique* host_frame) const {
+    if (enabled() && (!host_frame || host_frame == this)) queue_.record_fill_zero(cmd, 16);
 }
 
 void IrradianceCache::reset() {
@@ -170,9 +286,11 @@ size_t IrradianceCache::bytes_per_entry() const {
     return sizeof(IcEntry) + sizeof(VkAabbPositionsKHR) + size_t(accel_->blas_bytes() / std::max(allocated_, 1u));
 }
 
-void IrradianceCache::after_frame(const RayTracingPipeline& hemisphere, const ComputePipeline& finish,
-                                  DescriptorSet& set, FrameParams frame, uint64_t paths, bool prepare) {
+void IrradianceCache::make_entries(TechniqueHost& host, FrameParams frame, uint64_t paths, bool prepare) {
     assert(enabled());
+    const RayTracingPipeline& hemisphere = host.host_pipeline(PROGRAM_IC_HEMISPHERE);
+    const ComputePipeline& finish = finish_pipeline(host);
+    DescriptorSet& set = host.descriptors();
     ++frame_counter_;
     ++frames_since_rebuild_;
     if (prepare) ++prepared_frames_;

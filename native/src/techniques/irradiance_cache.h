@@ -1,22 +1,23 @@
 // Irradiance cache, host side (thesis 3.2.3, 4.4; shaders/techniques/irradiance_cache.glsl).
 //
 // Owns the entries, their AABBs (the geometry of the cache's own BLAS/TLAS, queried by
-// zero-length rays), the creation queue and the job and sample buffers. After each frame the
-// session calls after_frame(): the queued creation requests (sorted, so a seed gives the same
+// zero-length rays), the creation queue and the job and sample buffers. After each frame
+// (after_frame, end_host_frame): the queued creation requests (sorted, so a seed gives the same
 // cache every run) and this frame's random refreshes become jobs for the hemisphere dispatch
 // (ic_hemisphere.rgen, IC_STRATA rays per job) and the finish dispatch (ic_finish.comp), which
 // write the entries; then the BLAS is refit, or every rebuild_interval frames rebuilt with the
 // entries in Morton order (lavapipe's builder splits in input order).
 #pragma once
 #include "scene/scene.h"
+#include "techniques/technique.h"
 #include "vk/pipeline.h"
 
 #include <memory>
 
 namespace px {
 
-// Throws std::invalid_argument naming the setting that is out of range.
-void validate_ic_params(const IcParams& p);
+// The cache's settings (the fields of IcParams) and passes.
+const SettingTable& ic_table();
 
 struct IcStats {
     uint32_t entries = 0;   // used slots
@@ -29,33 +30,51 @@ struct IcStats {
     double build_milliseconds = 0;  // BLAS refits and rebuilds, TLAS builds
 };
 
-class IrradianceCache {
+class IrradianceCache : public Technique {
 public:
     explicit IrradianceCache(Context& ctx);
-    // New settings or scene (bounds): every entry is dropped; buffers follow the capacity and
-    // the request queue the camera paths of one frame.
-    void configure(const IcParams& params, const SceneInfo& scene, uint64_t paths_per_frame);
-    // Drops every entry; prepare frames run again.
-    void reset();
-    void bind(DescriptorSet& set) const;
+    // Technique (technique.h). Built when ic is on or a technique needs it (ADRRS' adjoint);
+    // paths are shaded from it only with ic on.
+    const SettingTable& table() const override { return ic_table(); }
+    void configure(const RenderParams& params, const TechniqueSetup& setup, bool needed) override;
+    bool enabled() const override { return params_.enabled != 0; }
+    std::vector<uint32_t> tlas_bindings() const override { return {BINDING_IC_TLAS}; }
+    void bind(DescriptorSet& set) const override;
+    void write_params(TechniqueParams& params) const override { params.ic = params_; }
+    // Render frames query the cache only where it shades (ic on); host frames wherever it exists.
+    uint32_t spec_bit(bool render_frame) const override {
+        return enabled() && (!render_frame || params_.shade) ? TECH_IC : 0u;
+    }
+    const std::vector<uint32_t>* raygen(uint32_t program) const override;
+    void add_shaders(uint32_t bits, PipelineShaders& shaders) const override;
+    void compile(TechniqueHost& host) override;
+    // Clears the request queue: at the start of a render frame or of its own prepare frame.
+    void record_frame_start(VkCommandBuffer cmd, const Technique* host_frame) const override;
+    // Prepare frames (thesis 4.4): camera paths to their first diffuse vertex only queue
+    // entries, made after the frame; until prepare_frames ran or 98% of paths found an entry.
+    bool needs_host_frame() const override { return enabled() && prepared_frames_ < params_.prepare_frames; }
+    void begin_host_frame(FrameParams& frame) const override;
+    void end_host_frame(TechniqueHost& host, const FrameParams& frame, double milliseconds) override;
+    bool steps_after_frame() const override { return enabled(); }
+    void after_frame(TechniqueHost& host, const FrameEnd& frame) override;
+    void stats(StatList& out) const override;
+
     const IcParams& params() const { return params_; }  // with queue_capacity filled in
-    bool enabled() const { return params_.enabled != 0; }
-    bool needs_prepare() const { return enabled() && prepared_frames_ < params_.prepare_frames; }
-    uint32_t prepared_frames() const { return prepared_frames_; }
-    // Records the clearing of the request queue: at the start of each frame's first band.
-    void record_frame_start(VkCommandBuffer cmd) const;
-    // After a frame of `paths` camera paths (a prepare frame when `prepare`): turns the queue
-    // and the frame's refreshes into entries, then refits or rebuilds the acceleration
-    // structures (and binds the new TLAS into `set`). Preparation ends after prepare_frames,
-    // or earlier once fewer than 2% of a prepare frame's paths found no entry.
-    void after_frame(const RayTracingPipeline& hemisphere, const ComputePipeline& finish, DescriptorSet& set,
-                     FrameParams frame, uint64_t paths, bool prepare);
-    const IcStats& stats() const { return stats_; }
     uint32_t count() const { return count_; }  // used slots
     std::vector<IcEntry> download_entries() const;
     size_t bytes_per_entry() const;
 
 private:
+    // New settings or scene (bounds): every entry is dropped; buffers follow the capacity and
+    // the request queue the camera paths of one frame.
+    void setup(const IcParams& params, const SceneInfo& scene, uint64_t paths_per_frame);
+    // Drops every entry; prepare frames run again.
+    void reset();
+    // After a frame of `paths` camera paths (a prepare frame when `prepare`): turns the queue
+    // and the frame's refreshes into entries, then refits or rebuilds the acceleration
+    // structures (and binds the new TLAS into `set`). Preparation ends after prepare_frames,
+    // or earlier once fewer than 2% of a prepare frame's paths found no entry.
+    void make_entries(TechniqueHost& host, FrameParams frame, uint64_t paths, bool prepare);
     void allocate();
     void rebuild();    // entries in Morton order, new BLAS, new TLAS
     Context& ctx_;
@@ -72,6 +91,7 @@ private:
     uint32_t built_slots_ = 0;     // primitives of the BLAS: the used slots and room for refits
     uint64_t frame_counter_ = 0;   // frames processed since the last reset (refresh RNG)
     IcStats stats_;
+    uint64_t pixels_ = 0;          // of the image (a prepare frame's paths)
 };
 
 }  // namespace px

@@ -9,24 +9,14 @@
 
 namespace px {
 
+// The ranges are guiding_table()'s (guiding.cpp); what remains relates settings.
 void validate_guiding_params(const GuidingParams& p) {
-    auto fail = [](const std::string& what) { throw std::invalid_argument(what); };
-    if (p.enabled > 1) fail("guiding must be 0 or 1");
-    if (!(p.prob >= 0.0f && p.prob <= 1.0f)) fail("guiding_prob must be in [0, 1]");
-    if (p.parallax > 1) fail("guiding_parallax must be 0 or 1");
-    if (p.split_merge > 1) fail("guiding_split_merge must be 0 or 1");
-    if (p.min_samples < 1 || p.min_samples > (1u << 24)) fail("guiding_min_samples must be in [1, 2^24]");
-    if (p.max_components < 1 || p.max_components > GUIDING_MAX_COMPONENTS)
-        fail("guiding_max_components must be in [1, " + std::to_string(GUIDING_MAX_COMPONENTS) + "]");
-    if (p.region_splits > 20) fail("guiding_region_splits must be in [0, 20]");
+    check_settings(&p, guiding_table().settings);
     if (p.max_regions < (1u << p.region_splits))
-        fail("guiding_max_regions must be at least 2^guiding_region_splits (" + std::to_string(1u << p.region_splits) + ")");
-    if (p.max_regions > (1u << 22)) fail("guiding_max_regions must be at most 2^22");
-    if (p.fit != GUIDING_FIT_CPU && p.fit != GUIDING_FIT_DEVICE && p.fit != GUIDING_FIT_AUTO)
-        fail("guiding_fit must be 'cpu', 'device' or 'auto'");
-    if (p.probe_x < -1 || p.probe_y < -1) fail("guiding_probe_x/y must be >= -1 (-1: the image centre)");
+        throw std::invalid_argument("guiding_max_regions must be at least 2^guiding_region_splits (" +
+                                    std::to_string(1u << p.region_splits) + "), got " + std::to_string(p.max_regions));
     if (!(p.lobes_phase == -1.0f || (p.lobes_phase >= 0.0f && p.lobes_phase < 1.0f)))
-        fail("guiding_lobes_phase must be -1 (spheres at the regions' centres) or in [0, 1)");
+        throw std::invalid_argument("guiding_lobes_phase must be -1 (spheres at the regions' centres) or in [0, 1)");
 }
 
 namespace guiding {

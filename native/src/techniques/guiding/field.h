@@ -14,12 +14,16 @@
 #pragma once
 #include "techniques/guiding/parallax.h"
 #include "techniques/guiding/regions.h"
+#include "techniques/settings.h"
 
 #include <vector>
 
 namespace px {
 
-// Throws std::invalid_argument naming the setting (guiding_*) that is out of range.
+// Path guiding's settings (the fields of GuidingParams) and passes (defined in guiding.cpp).
+const SettingTable& guiding_table();
+// Throws std::invalid_argument naming the setting (guiding_*) that is out of range or that
+// contradicts another.
 void validate_guiding_params(const GuidingParams& p);
 
 namespace guiding {

@@ -1,5 +1,7 @@
 #include "techniques/guiding/guiding.h"
 
+#include "shaders_embedded.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -59,6 +61,78 @@ GuidingParams field_key(GuidingParams p) {
 
 }  // namespace
 
+// Path guiding's settings (thesis 4.6; Ruppert, Herholz & Lensch 2020) and passes.
+const SettingTable& guiding_table() {
+    static const SettingTable table{"guiding",
+        {
+            bool_setting("guiding", PX_FIELD(GuidingParams, enabled), false, "Path Guiding",
+                         "Sample directions from a von Mises-Fisher mixture of the incident light, learnt per region "
+                         "of the scene from the paths traced so far, mixed with BSDF sampling (Ruppert, Herholz & "
+                         "Lensch 2020; thesis, sec. 4.6). Unbiased", "guiding"),
+            float_setting("guiding_prob", PX_FIELD(GuidingParams, prob), 0.5, 0.0, 1.0, "Guiding Probability",
+                          "Probability of sampling the mixture rather than the BSDF at a guided vertex (one-sample "
+                          "MIS of the two)", "guiding"),
+            bool_setting("guiding_parallax", PX_FIELD(GuidingParams, parallax), true, "Parallax",
+                         "Each lobe aims at the point its light came from, so one region's mixture points the right "
+                         "way from anywhere in it (Ruppert et al. 2020)", "guiding"),
+            int_setting("guiding_training_spp", PX_FIELD(GuidingParams, training_spp), 32, 0, 65536,
+                        "Training Samples",
+                        "Samples per pixel (1 per training frame) spent training before the image accumulates; 0 = "
+                        "keep training while the image accumulates", "guiding"),
+            int_setting("guiding_min_samples", PX_FIELD(GuidingParams, min_samples), 64, 1, 1 << 24, "Min Samples",
+                        "A region fits its mixture once it has accumulated this many lit samples (across frames, so "
+                        "rarely lit regions train too)", "guiding").in_group("Fitting"),
+            int_setting("guiding_max_components", PX_FIELD(GuidingParams, max_components), 16, 1,
+                        GUIDING_MAX_COMPONENTS, "Max Components", "Most lobes per region's mixture", "guiding")
+                            .in_group("Fitting"),
+            bool_setting("guiding_split_merge", PX_FIELD(GuidingParams, split_merge), true, "Split and Merge",
+                         "Split lobes that fit their samples badly and merge lobes that say the same (Ruppert et al. "
+                         "2020)", "guiding").in_group("Fitting"),
+            int_setting("guiding_region_splits", PX_FIELD(GuidingParams, region_splits), 3, 0, 20, "Region Splits",
+                        "The scene box is halved this many times along its longest axis: 2^n regions to start "
+                        "with, split further as they gather light", "guiding").in_group("Regions"),
+            int_setting("guiding_region_threshold", PX_FIELD(GuidingParams, region_threshold), 10000, 0, INT32_MAX,
+                        "Region Threshold",
+                        "A region that received this many lit samples (paths that found light) splits in two, both "
+                        "halves keeping its mixture (0 = never)", "guiding").in_group("Regions"),
+            int_setting("guiding_max_regions", PX_FIELD(GuidingParams, max_regions), 4096, 1, 1 << 22, "Max Regions",
+                        "Adaptive refinement stops at this many regions (at least 2^Region Splits)", "guiding")
+                            .in_group("Regions"),
+            int_setting("guiding_probe_x", PX_FIELD(GuidingParams, probe_x), -1, -1, 16383, "Probe X",
+                        "Pixel column whose first hit's mixture the Guiding Lobes pass plots (-1 = the image "
+                        "centre)", "guiding").in_group("Visualisation"),
+            int_setting("guiding_probe_y", PX_FIELD(GuidingParams, probe_y), -1, -1, 16383, "Probe Y",
+                        "Pixel row (from the top) whose first hit's mixture the Guiding Lobes pass plots (-1 = the "
+                        "image centre)", "guiding").in_group("Visualisation"),
+            // The add-on's Animate Lobes derives it from the timeline: not a panel setting.
+            float_setting("guiding_lobes_phase", PX_FIELD(GuidingParams, lobes_phase), -1.0, -1.0, 1.0,
+                          "Lobes Phase",
+                          "Guiding Lobes pass: the spheres sit at their regions' centres (-1) or, in [0, 1), move "
+                          "through them (thesis fig. 4.20)", ""),
+            enum_setting("guiding_fit", PX_FIELD(GuidingParams, fit), GUIDING_FIT_AUTO,
+                         {{"auto", "Automatic", "Device on a GPU, CPU on lavapipe: where each was measured faster",
+                           GUIDING_FIT_AUTO},
+                          {"cpu", "CPU",
+                           "Fit the mixtures on the CPU: the samples are read back after each training frame, kept "
+                           "per region until there are enough, and regions refine", GUIDING_FIT_CPU},
+                          {"device", "Device",
+                           "Fit the mixtures in compute shaders where the samples are: no sample readback; regions "
+                           "refine as with the CPU fit (a few bytes per region read back)", GUIDING_FIT_DEVICE}},
+                         "Fit On", "Where the guiding mixtures are fitted", "guiding").in_group("Fitting"),
+        },
+        {
+            {"guiding_regions", "Guiding Regions", 3, "RGB",
+             "Path guiding: a colour per guiding region at the first hit", PASS_GUIDING_REGIONS, "guiding"},
+            {"guiding_components", "Guiding Components", 1, "X",
+             "Path guiding: active lobes of the first hit's region / Max Components", PASS_GUIDING_COMPONENTS,
+             "guiding"},
+            {"guiding_lobes", "Guiding Lobes", 3, "RGB",
+             "Path guiding: a lat-long plot of the probe pixel's mixture (inset, bottom left) and a sphere per "
+             "trained region coloured by its mixture's density", PASS_GUIDING_LOBES, "guiding"},
+        }};
+    return table;
+}
+
 Guiding::Guiding(Context& ctx) : ctx_(ctx), accel_(ctx, HIT_GROUP_GUIDING) {
     samples_ = Buffer(ctx_, sizeof(GuidingSample), kStorageUsage);
     build_placeholder();
@@ -78,9 +152,65 @@ void Guiding::build_placeholder() {
     upload_layout(guiding::RegionTree());
 }
 
-void Guiding::configure(const GuidingParams& params, const SceneHost& scene, uint64_t scene_version, uint32_t seed,
-                        uint32_t width, uint32_t height, uint32_t samples_per_frame) {
-    validate_guiding_params(params);
+void Guiding::configure(const RenderParams& params, const TechniqueSetup& config, bool) {
+    setup(params.guiding, config.scene, config.scene_version, params.seed, config.width, config.height,
+          params.samples_per_frame);
+}
+
+// The region query of the Guiding Lobes pass' spheres: a miss shader and a procedural hit
+// group (intersection + closest-hit).
+void Guiding::add_shaders(uint32_t bits, PipelineShaders& s) const {
+    if (!(bits & TECH_GUIDING)) return;
+    const uint32_t miss = s.add(VK_SHADER_STAGE_MISS_BIT_KHR, shader_guiding_query_miss());
+    const uint32_t intersection = s.add(VK_SHADER_STAGE_INTERSECTION_BIT_KHR, shader_guiding_query_intersection());
+    const uint32_t closest_hit = s.add(VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR, shader_guiding_query_closest_hit());
+    s.misses[MISS_GUIDING_QUERY] = {VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, miss};
+    s.hits[HIT_GROUP_GUIDING] = {VK_RAY_TRACING_SHADER_GROUP_TYPE_PROCEDURAL_HIT_GROUP_KHR, VK_SHADER_UNUSED_KHR,
+                                 closest_hit, VK_SHADER_UNUSED_KHR, intersection};
+}
+
+// Training frames are numbered from 2^29 (FrameParams.frame): their random streams are apart
+// from the render frames', the prepare and the estimate frames'.
+void Guiding::begin_host_frame(FrameParams& frame) const {
+    frame.frame = 0x20000000u + training_frames_;
+    frame.mode = FRAME_GUIDING_TRAIN;
+    frame.guiding_record = 1;
+}
+
+void Guiding::end_host_frame(TechniqueHost& host, const FrameParams&, double milliseconds) {
+    fit_frame(host.descriptors(), milliseconds);
+}
+
+void Guiding::after_frame(TechniqueHost& host, const FrameEnd& frame) {
+    fit_frame(host.descriptors(), frame.milliseconds);
+}
+
+const guiding::GuidingField* Guiding::host_field() const {
+    return enabled() && !device_fit_ ? field() : nullptr;
+}
+
+void Guiding::stats(StatList& out) const {
+    const GuidingStats g = current_stats();
+    out.insert(out.end(), {{"guiding_training_frames", uint64_t(g.training_frames)},
+                           {"guiding_regions", uint64_t(g.regions)},
+                           {"guiding_trained_regions", uint64_t(g.trained_regions)},
+                           {"guiding_lobes", uint64_t(g.lobes)},
+                           {"guiding_samples", g.samples_added},
+                           {"guiding_samples_dropped", g.samples_dropped},
+                           {"guiding_region_fits", g.region_fits},
+                           {"guiding_refinements", uint64_t(g.refinements)},
+                           {"guiding_fit_on", std::string(g.device_fit ? "device" : "cpu")},
+                           {"guiding_frame_milliseconds", g.frame_milliseconds},
+                           {"guiding_readback_milliseconds", g.readback_milliseconds},
+                           {"guiding_fit_milliseconds", g.fit_milliseconds},
+                           {"guiding_fit_wait_milliseconds", g.fit_wait_milliseconds},
+                           {"guiding_upload_milliseconds", g.upload_milliseconds},
+                           {"guiding_bytes_per_region", g.bytes_per_region},
+                           {"guiding_sample_buffer_bytes", g.sample_buffer_bytes}});
+}
+
+void Guiding::setup(const GuidingParams& params, const SceneHost& scene, uint64_t scene_version, uint32_t seed,
+                    uint32_t width, uint32_t height, uint32_t samples_per_frame) {
     params_ = params;
     const uint64_t pixels = uint64_t(width) * height;
     // Every path of a frame records while GUIDING_MAX_RECORD_PATHS allows (a GPU's frames
@@ -198,11 +328,11 @@ void Guiding::upload_layout(const guiding::RegionTree& tree) {
     });
 }
 
-void Guiding::record_frame_start(VkCommandBuffer cmd) const {
-    samples_.record_fill_zero(cmd, VK_WHOLE_SIZE);
+void Guiding::record_frame_start(VkCommandBuffer cmd, const Technique* host_frame) const {
+    if (host_frame == this || (!host_frame && records_render_frames())) samples_.record_fill_zero(cmd, VK_WHOLE_SIZE);
 }
 
-void Guiding::after_frame(DescriptorSet& set, double frame_milliseconds) {
+void Guiding::fit_frame(DescriptorSet& set, double frame_milliseconds) {
     if (!enabled() || !field_) return;
     auto start = std::chrono::steady_clock::now();
     if (device_fit_) {  // compute passes where the samples are; the frame loop waits for them
@@ -268,7 +398,7 @@ const guiding::GuidingField* Guiding::field() const {
     return field_.get();
 }
 
-GuidingStats Guiding::stats() const {
+GuidingStats Guiding::current_stats() const {
     finish_fit();
     GuidingStats s = stats_;
     s.training_frames = training_frames_;

@@ -4,9 +4,9 @@
 // BLAS/TLAS (the Guiding Lobes pass' spheres) and the training sample buffer — and drives the training between frames:
 //   training frames (FRAME_GUIDING_TRAIN, 1 spp, nothing reaches the film) until
 //   guiding_training_spp of them have run, or, with guiding_training_spp = 0, every rendered
-//   frame records too ("keep training"); after each recording frame after_frame() reads the
+//   frame records too ("keep training"); after each recording frame fit_frame() reads the
 //   samples back, adds them to the field and starts the fit (multithreaded) on a worker
-//   thread, which runs while the GPU traces the next frame; the after_frame() that follows
+//   thread, which runs while the GPU traces the next frame; the fit_frame() that follows
 //   waits for it and uploads its mixtures (rebuilding the region tree and TLAS when adaptive
 //   refinement changed the regions). The frames thus trace with the field one frame behind,
 //   the same for every run (deterministic); the last training frame waits for its own fit,
@@ -22,6 +22,7 @@
 #include "scene/scene.h"
 #include "techniques/guiding/device_fit.h"
 #include "techniques/guiding/field.h"
+#include "techniques/technique.h"
 #include "vk/accel.h"
 #include "vk/pipeline.h"
 
@@ -50,36 +51,57 @@ struct GuidingStats {
     uint64_t sample_buffer_bytes = 0;
 };
 
-class Guiding {
+class Guiding : public Technique {
 public:
     explicit Guiding(Context& ctx);
-    ~Guiding();
+    ~Guiding() override;
+    // Technique (technique.h).
+    const SettingTable& table() const override { return guiding_table(); }
     // Settings, scene and image size for the next frames. The field is kept when nothing it
-    // depends on changed: the guiding settings (the probe and on/off aside), the seed and
-    // `scene_version` (the session bumps it for every update but a camera-only one).
-    void configure(const GuidingParams& params, const SceneHost& scene, uint64_t scene_version, uint32_t seed,
-                   uint32_t width, uint32_t height, uint32_t samples_per_frame);
-    void bind(DescriptorSet& set) const;
-    const GuidingParams& params() const { return params_; }  // record_stride, record_samples filled in
-    bool enabled() const { return params_.enabled != 0; }
-    // Training frames still to run before the image accumulates.
-    bool needs_training_frame() const {
+    // depends on changed: the guiding settings (the probe and on/off aside), the seed and the
+    // scene version (bumped by every update but a camera-only one).
+    void configure(const RenderParams& params, const TechniqueSetup& setup, bool needed) override;
+    bool enabled() const override { return params_.enabled != 0; }
+    void bind(DescriptorSet& set) const override;
+    void write_params(TechniqueParams& params) const override { params.guiding = params_; }
+    uint32_t spec_bit(bool) const override { return enabled() ? TECH_GUIDING : 0u; }
+    void add_shaders(uint32_t bits, PipelineShaders& shaders) const override;
+    std::vector<uint32_t> tlas_bindings() const override { return {BINDING_GUIDING_TLAS}; }
+    // Frames record training samples (FrameParams.guiding_record) while it keeps training.
+    void fill_frame_params(FrameParams& frame) const override {
+        frame.guiding_record = records_render_frames() ? 1u : 0u;
+    }
+    // A sample's region and lobe queries (a region lookup is no ray: a tree walk).
+    uint64_t extra_rays_per_sample() const override { return enabled() ? 2 : 0; }
+    // Clears the sample buffer before a recording frame: its own training frame, or a render
+    // frame that records (keep training).
+    void record_frame_start(VkCommandBuffer cmd, const Technique* host_frame) const override;
+    // Training frames (thesis 4.6.2): 1 spp camera paths only record samples, then the fit.
+    bool needs_host_frame() const override {
         return enabled() && params_.training_spp != GUIDING_KEEP_TRAINING && training_frames_ < params_.training_spp;
     }
-    // Rendered frames record samples too (keep training).
-    bool records_render_frames() const { return enabled() && params_.training_spp == GUIDING_KEEP_TRAINING; }
-    uint32_t training_frames() const { return training_frames_; }
-    // Clears the sample buffer: before a recording frame's first dispatch.
-    void record_frame_start(VkCommandBuffer cmd) const;
-    // After a recording frame: readback, fit, upload; rebinds the TLAS into `set` when the
-    // regions changed. `frame_milliseconds`: the frame's GPU time, for the stats.
-    void after_frame(DescriptorSet& set, double frame_milliseconds);
-    GuidingStats stats() const;
-    // The field, its fit in flight finished (its mixtures reach the GPU at the next after_frame).
-    const guiding::GuidingField* field() const;
-    bool fits_on_device() const { return device_fit_ != nullptr; }
+    void begin_host_frame(FrameParams& frame) const override;
+    void end_host_frame(TechniqueHost& host, const FrameParams& frame, double milliseconds) override;
+    // Keep training: rendered frames record samples too, fitted after each frame.
+    bool steps_after_frame() const override { return records_render_frames(); }
+    void after_frame(TechniqueHost& host, const FrameEnd& frame) override;
+    void stats(StatList& out) const override;
+
+    const GuidingParams& params() const { return params_; }  // record_stride, record_samples filled in
+    // The field the host fits, its fit in flight finished; null without guiding or with the
+    // device fit (whose mixtures live on the GPU only).
+    const guiding::GuidingField* host_field() const;
 
 private:
+    bool records_render_frames() const { return enabled() && params_.training_spp == GUIDING_KEEP_TRAINING; }
+    void setup(const GuidingParams& params, const SceneHost& scene, uint64_t scene_version, uint32_t seed,
+               uint32_t width, uint32_t height, uint32_t samples_per_frame);
+    // After a recording frame: readback, fit, upload; rebinds the TLAS into `set` when the
+    // regions changed. `frame_milliseconds`: the frame's GPU time, for the stats.
+    void fit_frame(DescriptorSet& set, double frame_milliseconds);
+    GuidingStats current_stats() const;
+    // The field, its fit in flight finished (its mixtures reach the GPU at the next fit_frame).
+    const guiding::GuidingField* field() const;
     void finish_fit() const;  // waits for the fit in flight and adds its figures to stats_
     void upload(DescriptorSet* set);  // regions and lobes; AABBs, order and TLAS if the layout changed
     void upload_layout(const guiding::RegionTree& tree);  // AABBs, order, nodes, BLAS/TLAS

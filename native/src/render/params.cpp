@@ -1,0 +1,163 @@
+#include "render/params.h"
+
+#include "techniques/adrrs.h"
+#include "techniques/guiding/field.h"
+#include "techniques/irradiance_cache.h"
+
+#include <cstring>
+#include <stdexcept>
+
+namespace px {
+
+namespace {
+
+constexpr FieldRef kEngine{};  // an engine setting: no core field (the core is progressive)
+
+// The base path tracer's settings and the film's own passes.
+const SettingTable& base_table() {
+    static const SettingTable table{"base",
+        {
+            // Sampling
+            int_setting("samples", kEngine, 128, 1, 1 << 24, "Samples", "Samples per pixel to render", "sampling"),
+            float_setting("time_limit", kEngine, 0.0, 0.0, 1e7, "Time Limit",
+                          "Stop after this many seconds, even if fewer samples are done (0 = no limit)", "sampling").with_unit("time"),
+            int_setting("samples_per_frame", PX_FIELD(RenderParams, samples_per_frame), 1, 1, 4096,
+                        "Samples per Frame",
+                        "Samples per pixel in one GPU submission: more is faster overall, fewer updates the image "
+                        "more often", "sampling"),
+            int_setting("seed", PX_FIELD(RenderParams, seed), 0, 0, INT32_MAX, "Seed",
+                        "Random seed; the same seed gives the same image on the same device", "sampling"),
+            // Light paths
+            int_setting("max_depth", PX_FIELD(RenderParams, max_depth), 8, 0, 1024, "Max Bounces",
+                        "Maximum number of non-specular bounces (Cycles' Max Bounces)", "light_paths"),
+            int_setting("depth_leeway", PX_FIELD(RenderParams, depth_leeway), 4, 0, 1024, "Discrete Leeway",
+                        "Specular (delta) bounces that do not count towards Max Bounces, so light through glass "
+                        "and mirrors is not cut short (thesis, sec. 3.1)", "light_paths"),
+            int_setting("rr_start_depth", PX_FIELD(RenderParams, rr_start_depth), 3, 0, 1024, "Russian Roulette",
+                        "First bounce at which Russian roulette may end a low-throughput path (survival "
+                        "probability the square root of the throughput, as Cycles), reweighting the survivors; 0 = "
+                        "off", "light_paths"),
+            // Lights
+            enum_setting("method", PX_FIELD(RenderParams, method), METHOD_MIS,
+                         {{"mis", "MIS",
+                           "Next event estimation and BSDF sampling, combined with multiple importance sampling "
+                           "(Veach 1997): robust on every material and light size", METHOD_MIS},
+                          {"nee", "Next Event Estimation",
+                           "Sample a light at every vertex; emission hit by BSDF sampling is ignored except on delta "
+                           "bounces", METHOD_NEE},
+                          {"pt", "Path Tracing", "BSDF sampling only: lights are found by chance (the reference)",
+                           METHOD_PT}},
+                         "Method", "How paths find the lights", "lights"),
+            int_setting("light_samples", PX_FIELD(RenderParams, light_samples), 1, 1, 64, "Light Samples",
+                        "Light samples (shadow rays) per path vertex", "lights"),
+            bool_setting("light_tree", PX_FIELD(RenderParams, light_tree), true, "Light Tree",
+                         "Pick among the local lights (lamps, emissive meshes) by their estimated contribution at the "
+                         "shading point, through a tree over them (Conty Estevez & Kulla 2018), as Cycles' Light "
+                         "Tree; off: by emitted power alone", "lights"),
+            enum_setting("mis_heuristic", PX_FIELD(RenderParams, mis_heuristic), HEURISTIC_POWER,
+                         {{"power", "Power", "Power heuristic, exponent 2 (Veach 1997, eq. 9.13)", HEURISTIC_POWER},
+                          {"balance", "Balance", "Balance heuristic (Veach 1997, eq. 9.10)", HEURISTIC_BALANCE}},
+                         "MIS Heuristic", "How MIS weighs light and BSDF samples", "lights"),
+            // The viewport's first frame (not a user setting).
+            bool_setting("preview", PX_FIELD(RenderParams, preview), false, "Preview",
+                         "First-hit shading only (preview.rgen): compiles in a fraction of the path tracer's time; "
+                         "the viewport's first frame", ""),
+        },
+        {
+            {"combined", "Combined", 4, "RGBA", "The rendered image", PASS_COMBINED, ""},
+            {"depth", "Depth", 1, "Z", "Distance to the first hit along the camera axis", PASS_DEPTH, ""},
+            {"normal", "Normal", 3, "XYZ", "World shading normal of the first hit", PASS_NORMAL, ""},
+            {"albedo", "Denoising Albedo", 3, "RGB", "Albedo at the first non-specular hit (the denoising albedo)",
+             PASS_ALBEDO, ""},
+            {"ray_depth", "Ray Depth", 1, "X", "Mean number of path segments traced per pixel", PASS_RAY_DEPTH, ""},
+        }};
+    return table;
+}
+
+// The tables in order, each with the offset of its technique's Params struct in RenderParams.
+// The one place that lists the techniques' tables.
+struct Block {
+    const SettingTable& table;
+    size_t offset;
+};
+std::vector<Block> blocks() {
+    return {{base_table(), 0},
+            {ic_table(), offsetof(RenderParams, ic)},
+            {adrrs_table(), offsetof(RenderParams, adrrs)},
+            {guiding_table(), offsetof(RenderParams, guiding)}};
+}
+
+}  // namespace
+
+const std::vector<SettingInfo>& settings() {
+    static const std::vector<SettingInfo> all = [] {
+        std::vector<SettingInfo> rows;
+        for (const Block& b : blocks())
+            for (SettingInfo r : b.table.settings) {
+                r.technique = b.table.technique;
+                if (r.core()) r.field.offset += b.offset;
+                rows.push_back(r);
+            }
+        return rows;
+    }();
+    return all;
+}
+
+const std::vector<PassInfo>& passes() {
+    static const std::vector<PassInfo> all = [] {
+        std::vector<PassInfo> rows;
+        for (const Block& b : blocks())
+            for (PassInfo p : b.table.passes) {
+                p.technique = b.table.technique;
+                rows.push_back(p);
+            }
+        return rows;
+    }();
+    return all;
+}
+
+const SettingInfo& setting(const std::string& name) {
+    for (const SettingInfo& r : settings())
+        if (name == r.name) return r;
+    std::string names;
+    for (const SettingInfo& r : settings()) names += std::string(names.empty() ? "" : ", ") + r.name;
+    throw std::invalid_argument("unknown setting '" + name + "' (settings: " + names + ")");
+}
+
+const PassInfo& pass(const std::string& name) {
+    for (const PassInfo& p : passes())
+        if (name == p.name) return p;
+    std::string names;
+    for (const PassInfo& p : passes()) names += std::string(names.empty() ? "" : ", ") + p.name;
+    throw std::invalid_argument("unknown pass '" + name + "' (passes: " + names + ")");
+}
+
+RenderParams::RenderParams() {
+    write_defaults(this, settings());
+}
+
+bool RenderParams::operator==(const RenderParams& o) const {
+    return std::memcmp(this, &o, sizeof(RenderParams)) == 0;  // 4-byte fields only: no padding
+}
+
+void set_setting(RenderParams& p, const std::string& name, const SettingValue& value) {
+    const SettingInfo& row = setting(name);
+    if (!row.core()) throw std::invalid_argument(name + " is the engine's setting, not the core's");
+    write_setting(&p, row, value);
+}
+
+bool technique_on(const RenderParams& p, const std::string& name) {
+    return read_setting(&p, setting(name)) != 0;
+}
+
+void validate(const RenderParams& p) {
+    check_settings(&p, settings());
+    validate_guiding_params(p.guiding);  // the relations between guiding's settings
+    if (!p.preview) return;
+    std::string on;
+    for (const Block& b : blocks())
+        if (std::strcmp(b.table.technique, "base") != 0 && technique_on(p, b.table.technique)) on += std::string(on.empty() ? "" : ", ") + b.table.technique;
+    if (!on.empty()) throw std::invalid_argument("preview frames use no technique: turn " + on + " off");
+}
+
+}  // namespace px
