@@ -15,6 +15,9 @@ from . import core, passes
 
 INT32_MIN, INT32_MAX = -2**31, 2**31 - 1  # Blender's IntProperty is 32-bit
 LOBES_LOOP_FRAMES = 48  # Animate Lobes: frames per loop of the spheres through their regions (2 s at 24 fps)
+# A float row's unit as Blender shows it.
+UNITS = {"time": dict(subtype="TIME_ABSOLUTE", unit="TIME_ABSOLUTE"),
+         "length": dict(subtype="DISTANCE", unit="LENGTH")}
 DEVICE_ITEMS = (
     ("auto", "Automatic", "An NVIDIA or other ray-tracing GPU if present, else the CPU (lavapipe)"),
     ("cpu", "CPU", "Mesa lavapipe: Vulkan on the CPU"),
@@ -65,9 +68,11 @@ def setting_property(row, update=None):
         return IntProperty(min=max(int(row.min), INT32_MIN), max=min(int(row.max), INT32_MAX), **common)
     # Dragging stays usable on long ranges: the soft limit is 10 times the default (at least 10).
     soft_max = min(row.max, 10.0 * max(abs(row.default), 1.0))
-    factor = row.min >= 0.0 and row.max == 1.0  # a probability: a slider
-    return FloatProperty(min=row.min, max=row.max, soft_max=soft_max, precision=_precision(row),
-                         subtype="FACTOR" if factor else "NONE", **common)
+    if row.unit:
+        common.update(UNITS[row.unit])
+    elif row.min >= 0.0 and row.max == 1.0:  # a probability: a slider
+        common["subtype"] = "FACTOR"
+    return FloatProperty(min=row.min, max=row.max, soft_max=soft_max, precision=_precision(row), **common)
 
 
 def _update_scene_passes(settings, context):

@@ -3,8 +3,8 @@
 The render panels are made from the settings table when the add-on registers: one panel per
 ``panel`` of ``parallax_core.SETTINGS``, drawing its rows in table order. A technique's panel
 has the technique's switch (the row named as the technique) as its header checkbox and greys
-its other rows while that is off. Rows with a ``group`` (where the table gives one) go to a
-sub-panel of that name; a bool row labelled as its group is that sub-panel's header checkbox.
+its other rows while that is off. Rows with a ``group`` go to a sub-panel of that name, in
+table order; a bool row labelled as its group is that sub-panel's header checkbox.
 """
 import bpy
 
@@ -89,7 +89,7 @@ def settings_panels():
         switches = (switch,) if switch else ()
         groups = {}  # sub-panel label -> row names, in table order
         for row in rows:
-            groups.setdefault(getattr(row, "group", ""), []).append(row.name)
+            groups.setdefault(row.group, []).append(row.name)
         if panel in own:
             group, names = own[panel]
             groups.setdefault(group, []).extend(names)

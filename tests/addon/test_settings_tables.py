@@ -76,6 +76,7 @@ def test_every_row_is_a_blender_property_like_the_row(bpy):
         elif row.type == "float":
             assert prop.hard_min == pytest.approx(row.min, rel=1e-6), row.name
             assert prop.hard_max == pytest.approx(row.max, rel=1e-6), row.name
+            assert prop.unit == (properties.UNITS[row.unit]["unit"] if row.unit else "NONE"), row.name
 
 
 def test_every_row_reaches_the_core_and_survives_save_and_load(fresh, bpy, tmp_path):
@@ -161,18 +162,19 @@ def drawn(panel, context):
 def test_every_row_is_drawn_in_its_panel_in_table_order(fresh, bpy):
     context = types.SimpleNamespace(scene=fresh, view_layer=fresh.view_layers[0], engine="PARALLAX")
     table = [row.name for row in UI_ROWS]
-    where = {}  # setting -> the panel, or the parent of the sub-panel, it is drawn in
+    where = {}  # setting -> (panel, sub-panel label or "") it is drawn in
     for panel in ui.classes:
         if panel.bl_context != "render":
             continue
         shown = drawn(panel, context)
         for name in shown:
             assert name not in where, f"{name} drawn twice"
-            where[name] = getattr(panel, "bl_parent_id", panel.__name__)
+            parent = getattr(panel, "bl_parent_id", None)
+            where[name] = (parent, panel.bl_label) if parent else (panel.__name__, "")
         rows = [name for name in shown if name in table]
         assert rows == sorted(rows, key=table.index), panel.__name__
     for row in UI_ROWS:
-        assert where.get(row.name) == f"PARALLAX_PT_{row.panel}", row.name
+        assert where.get(row.name) == (f"PARALLAX_PT_{row.panel}", row.group), row.name
 
 
 def _all_passes_on(scene):
