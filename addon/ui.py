@@ -59,12 +59,6 @@ def _slug(text):
     return "".join(c if c.isalnum() else "_" for c in text.lower()).strip("_")
 
 
-def _panel_label(panel, rows):
-    """A technique's panel is named as its switch ("Irradiance Cache"); the base panels by id."""
-    switch = next((r for r in rows if r.name == r.technique == panel), None)
-    return switch.label if switch is not None else panel.replace("_", " ").title()
-
-
 def _make_panel(idname, label, rows, header, switches, parent=None, closed=False):
     namespace = dict(bl_label=label, rows=tuple(rows), header=header, switches=tuple(switches))
     if header is not None:
@@ -85,7 +79,10 @@ def settings_panels():
     made = []
     for panel, rows in by_panel.items():
         idname = f"PARALLAX_PT_{panel}"
-        switch = next((r.name for r in rows if r.name == r.technique == panel), None)
+        # A technique's panel: its switch is the header, and names the panel ("Irradiance Cache").
+        switch_row = next((r for r in rows if r.name == r.technique == panel), None)
+        switch = switch_row.name if switch_row else None
+        label = switch_row.label if switch_row else panel.replace("_", " ").title()
         switches = (switch,) if switch else ()
         groups = {}  # sub-panel label -> row names, in table order
         for row in rows:
@@ -94,7 +91,7 @@ def settings_panels():
             group, names = own[panel]
             groups.setdefault(group, []).extend(names)
         top = [name for name in groups.pop("", []) if name != switch]
-        made.append(_make_panel(idname, _panel_label(panel, rows), top, switch, switches, closed=bool(switch)))
+        made.append(_make_panel(idname, label, top, switch, switches, closed=bool(switch)))
         bool_labels = {row.name: row.label for row in rows if row.type == "bool"}
         for group, names in groups.items():
             header = next((n for n in names if bool_labels.get(n) == group), None)
