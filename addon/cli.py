@@ -38,19 +38,23 @@ def open_blend(path, engine="PARALLAX", width=None):
     return scene
 
 
-BOOL_WORDS = {"1": True, "true": True, "on": True, "yes": True,
-              "0": False, "false": False, "off": False, "no": False}
-
-
 def apply_settings(scene, assignments):
     """``PROP=VALUE`` pairs: PROP is a Parallax setting (``samples``) or a path from the
-    scene (``render.resolution_x``, ``cycles.samples``); VALUE is a Python literal or a word
-    (for a boolean: 1/0, true/false, on/off, yes/no)."""
+    scene (``render.resolution_x``, ``cycles.samples``). A setting of the core's table is
+    parsed by its row's type, as ``--set`` for .npz scenes parses it (parallax_core.cli);
+    any other VALUE is a Python literal or a word (for a boolean: 1/0, true/false, on/off,
+    yes/no)."""
+    from . import properties
+
+    table = {row.name for row in properties.table_rows()}  # (loads the core)
+    from parallax_core.cli import BOOL_WORDS, parse_params
+
     for item in assignments:
         name, sep, text = item.partition("=")
         if not sep:
             raise CommandError(f"--set {item!r}: expected PROP=VALUE")
-        path = name.strip() if "." in name else f"parallax.{name.strip()}"
+        name = name.strip()
+        path = name if "." in name else f"parallax.{name}"
         owner_path, _, attr = path.rpartition(".")
         try:
             owner = scene.path_resolve(owner_path)
@@ -59,7 +63,12 @@ def apply_settings(scene, assignments):
         if not hasattr(owner, attr):
             raise CommandError(f"--set {item!r}: '{owner_path}' has no property '{attr}'")
         prop = owner.bl_rna.properties.get(attr) if hasattr(owner, "bl_rna") else None
-        if prop is not None and prop.type == "BOOLEAN" and not prop.is_array:
+        if name in table:
+            try:
+                value = parse_params([f"{name}={text}"])[name]
+            except ValueError as e:
+                raise CommandError(str(e)) from e
+        elif prop is not None and prop.type == "BOOLEAN" and not prop.is_array:
             value = BOOL_WORDS.get(text.strip().lower())
             if value is None:
                 raise CommandError(f"--set {item!r}: expected one of {', '.join(BOOL_WORDS)}")

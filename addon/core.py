@@ -2,8 +2,8 @@
 
 Blender 4.2+ installs the wheel listed in blender_manifest.toml itself. Legacy installs
 (Blender 3.4 to 4.1) get the same wheel unpacked once into ``_site/`` next to this file.
-The import is lazy, so the add-on registers (and its settings load) even where the core
-is missing; rendering then reports why.
+The add-on's settings and passes come from the core's tables, so registering loads it;
+without it, registering fails with the ImportError below, which says what to install.
 """
 import glob
 import hashlib

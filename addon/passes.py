@@ -1,39 +1,73 @@
-"""Render passes: what Parallax registers with Blender and which core pass fills each."""
+"""Render passes: what Parallax registers with Blender, from the core's pass table.
+
+Each row of ``parallax_core.PASSES`` becomes a Blender pass named by its label, with its
+channel ids; a row with a ``setting`` is there only while that setting is on. The view layer
+chooses among them: Blender's own toggles for its own passes, Cycles' Denoising Data for the
+denoising passes, and one ``use_pass_<name>`` toggle (properties.py) for each of the others.
+"""
+import functools
 from collections import namedtuple
 
-# enabled(scene, view_layer): whether the pass is on for that view layer of that scene.
+from . import core
+
+# Blender's own passes: Combined is always there; Depth and Normal have the view layer's toggles.
+BLENDER_TOGGLES = {"Combined": None, "Depth": "use_pass_z", "Normal": "use_pass_normal"}
+# Cycles' Denoising Data: these core passes under Cycles' names, which the compositor's Denoise
+# node is linked to.
+DENOISING_DATA = {"normal": "Denoising Normal", "albedo": "Denoising Albedo"}
+DENOISING_TOGGLE = "use_pass_denoising_data"
+
+# A Blender pass: its name, channels, Blender's chan_id and type, the core pass that fills it,
+# and enabled(scene, view_layer).
 Pass = namedtuple("Pass", "name channels chan_id type core enabled")
 
-PASSES = (
-    Pass("Combined", 4, "RGBA", "COLOR", "combined", lambda scene, layer: True),
-    Pass("Depth", 1, "Z", "VALUE", "depth", lambda scene, layer: layer.use_pass_z),
-    Pass("Normal", 3, "XYZ", "VECTOR", "normal", lambda scene, layer: layer.use_pass_normal),
-    Pass("Denoising Normal", 3, "XYZ", "VECTOR", "normal",
-         lambda scene, layer: layer.parallax.use_pass_denoising_data),
-    Pass("Denoising Albedo", 3, "RGB", "COLOR", "albedo",
-         lambda scene, layer: layer.parallax.use_pass_denoising_data),
-    Pass("Ray Depth", 1, "X", "VALUE", "ray_depth",
-         lambda scene, layer: layer.parallax.use_pass_ray_depth),
-    Pass("IC Irradiance", 3, "RGB", "COLOR", "ic_irradiance",
-         lambda scene, layer: scene.parallax.ic and layer.parallax.use_pass_ic_irradiance),
-    Pass("IC Gradients", 3, "RGB", "COLOR", "ic_gradients",
-         lambda scene, layer: scene.parallax.ic and layer.parallax.use_pass_ic_gradients),
-    Pass("ADRRS Estimate", 3, "RGB", "COLOR", "adrrs_estimate",
-         lambda scene, layer: scene.parallax.adrrs and layer.parallax.use_pass_adrrs_estimate),
-    Pass("ADRRS Splits", 1, "X", "VALUE", "adrrs_splits",
-         lambda scene, layer: scene.parallax.adrrs and layer.parallax.use_pass_adrrs_splits),
-    Pass("Guiding Regions", 3, "RGB", "COLOR", "guiding_regions",
-         lambda scene, layer: scene.parallax.guiding and layer.parallax.use_pass_guiding_regions),
-    Pass("Guiding Components", 1, "X", "VALUE", "guiding_components",
-         lambda scene, layer: scene.parallax.guiding and layer.parallax.use_pass_guiding_components),
-    Pass("Guiding Lobes", 3, "RGB", "COLOR", "guiding_lobes",
-         lambda scene, layer: scene.parallax.guiding and layer.parallax.use_pass_guiding_lobes),
-)
-BY_NAME = {p.name: p for p in PASSES}
+
+def blender_type(channel_ids):
+    return {"RGBA": "COLOR", "RGB": "COLOR", "XYZ": "VECTOR"}.get(channel_ids, "VALUE")
+
+
+def toggle_name(row):
+    """The view-layer toggle (on ``view_layer.parallax``) of a pass row that has one."""
+    return f"use_pass_{row.name}"
+
+
+def has_own_toggle(row):
+    """A row that Blender's toggles and Denoising Data do not cover gets ``use_pass_<name>``."""
+    return row.label not in BLENDER_TOGGLES and DENOISING_DATA.get(row.name) != row.label
+
+
+def _enabled(row, layer_on):
+    def enabled(scene, view_layer):
+        return (not row.setting or bool(getattr(scene.parallax, row.setting))) and layer_on(view_layer)
+    return enabled
+
+
+@functools.lru_cache(maxsize=None)
+def blender_passes():
+    """Every pass Parallax can give Blender, in film order."""
+    found = []
+    for row in core.load().PASSES:
+        def add(name, layer_on):
+            found.append(Pass(name, row.channels, row.channel_ids, blender_type(row.channel_ids), row.name,
+                              _enabled(row, layer_on)))
+
+        if row.name in DENOISING_DATA:
+            add(DENOISING_DATA[row.name], lambda layer: getattr(layer.parallax, DENOISING_TOGGLE))
+        if row.label in BLENDER_TOGGLES:
+            toggle = BLENDER_TOGGLES[row.label]
+            add(row.label, (lambda layer: True) if toggle is None else
+                (lambda layer, toggle=toggle: getattr(layer, toggle)))
+        elif has_own_toggle(row):
+            add(row.label, lambda layer, name=toggle_name(row): getattr(layer.parallax, name))
+    return tuple(found)
+
+
+def by_name():
+    return {p.name: p for p in blender_passes()}
 
 
 def enabled(scene, view_layer):
-    return [p for p in PASSES if p.enabled(scene, view_layer)]
+    return [p for p in blender_passes() if p.enabled(scene, view_layer)]
 
 
 def register_passes(engine, scene, view_layer):

@@ -1,7 +1,20 @@
-"""Properties-editor panels, laid out like Cycles'."""
+"""Properties-editor panels, laid out like Cycles'.
+
+The render panels are made from the settings table when the add-on registers: one panel per
+``panel`` of ``parallax_core.SETTINGS``, drawing its rows in table order. A technique's panel
+has the technique's switch (the row named as the technique) as its header checkbox and greys
+its other rows while that is off. Rows with a ``group`` go to a sub-panel of that name, in
+table order; a bool row labelled as its group is that sub-panel's header checkbox.
+"""
 import bpy
 
-from . import core
+from . import core, passes, properties
+
+# The add-on's own settings (properties.py), placed as (panel, sub-panel) among the table's.
+OWN_SETTINGS = (
+    ("sampling", "Viewport", ("viewport_samples", "viewport_start_pixel_size", "viewport_pass")),
+    ("guiding", "Visualisation", ("guiding_animate_lobes",)),
+)
 
 
 class _ParallaxPanel:
@@ -14,188 +27,124 @@ class _ParallaxPanel:
         return context.engine in cls.COMPAT_ENGINES
 
 
-class _RenderPanel(_ParallaxPanel):
+def _split(layout):
+    layout.use_property_split = True
+    layout.use_property_decorate = False
+    return layout
+
+
+class _SettingsPanel(_ParallaxPanel):
+    """A panel of setting rows: ``rows`` drawn in order; ``header`` (a bool row) as the header
+    checkbox; greyed while any of ``switches`` is off."""
     bl_context = "render"
+    rows = ()
+    header = None
+    switches = ()
 
     def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
         settings = context.scene.parallax
-        for name in self.properties:
+        layout = _split(self.layout)
+        layout.active = all(getattr(settings, name) for name in self.switches)
+        for name in self.rows:
             layout.prop(settings, name)
 
 
-class PARALLAX_PT_sampling(_RenderPanel, bpy.types.Panel):
-    bl_label = "Sampling"
-    properties = ("samples", "time_limit", "viewport_samples", "viewport_start_pixel_size",
-                  "viewport_pass", "samples_per_frame", "seed")
+def _draw_header(self, context):
+    settings = context.scene.parallax
+    self.layout.active = all(getattr(settings, name) for name in self.switches[:-1])
+    self.layout.prop(settings, self.header, text="")
 
 
-class PARALLAX_PT_light_paths(_RenderPanel, bpy.types.Panel):
-    bl_label = "Light Paths"
-    properties = ("max_depth", "depth_leeway", "use_russian_roulette")
-
-    def draw(self, context):
-        super().draw(context)
-        row = self.layout.row()
-        row.active = context.scene.parallax.use_russian_roulette
-        row.prop(context.scene.parallax, "rr_start_depth")
+def _slug(text):
+    return "".join(c if c.isalnum() else "_" for c in text.lower()).strip("_")
 
 
-class PARALLAX_PT_lights(_RenderPanel, bpy.types.Panel):
-    bl_label = "Lights"
-    properties = ("method", "light_samples", "light_tree")
-
-    def draw(self, context):
-        super().draw(context)
-        row = self.layout.row()
-        row.active = context.scene.parallax.method == "mis"
-        row.prop(context.scene.parallax, "mis_heuristic")
-
-
-class PARALLAX_PT_irradiance_cache(_RenderPanel, bpy.types.Panel):
-    bl_label = "Irradiance Cache"
-    bl_options = {"DEFAULT_CLOSED"}
-    properties = ()
-
-    def draw_header(self, context):
-        self.layout.prop(context.scene.parallax, "ic", text="")
-
-    def draw(self, context):
-        pass  # the settings are in the sub-panels
+def _make_panel(idname, label, rows, header, switches, parent=None, closed=False):
+    namespace = dict(bl_label=label, rows=tuple(rows), header=header, switches=tuple(switches))
+    if header is not None:
+        namespace["draw_header"] = _draw_header
+    if parent is not None:
+        namespace["bl_parent_id"] = parent
+    if closed:
+        namespace["bl_options"] = {"DEFAULT_CLOSED"}
+    return type(bpy.types.Panel)(idname, (_SettingsPanel, bpy.types.Panel), namespace)
 
 
-class _IrradianceCacheSubPanel(_RenderPanel):
-    bl_parent_id = "PARALLAX_PT_irradiance_cache"
-
-    def draw(self, context):
-        self.layout.active = self.settings_active(context.scene.parallax)
-        super().draw(context)
-
-    def settings_active(self, settings):
-        """Greyed out (still editable) when this is False."""
-        return settings.ic
-
-
-class PARALLAX_PT_ic_accuracy(_IrradianceCacheSubPanel, bpy.types.Panel):
-    bl_label = "Accuracy"
-    properties = ("ic_accuracy", "ic_min_radius", "ic_visibility_check")
-
-
-class PARALLAX_PT_ic_creation(_IrradianceCacheSubPanel, bpy.types.Panel):
-    bl_label = "Creation"
-    properties = ("ic_create_prob", "ic_update_prob", "ic_nee_samples", "ic_prepare_frames",
-                  "ic_capacity", "ic_rebuild_interval")
-
-
-class PARALLAX_PT_ic_gradients(_IrradianceCacheSubPanel, bpy.types.Panel):
-    bl_label = "Gradients"
-    properties = ("ic_gradient_max",)
-
-    def draw_header(self, context):
-        settings = context.scene.parallax
-        self.layout.active = settings.ic
-        self.layout.prop(settings, "ic_gradients", text="")
-
-    def settings_active(self, settings):
-        return settings.ic and settings.ic_gradients
+def settings_panels():
+    """The render panels and sub-panels, in table order (parents before their children)."""
+    by_panel = {}
+    for row in properties.table_rows():
+        by_panel.setdefault(row.panel, []).append(row)
+    own = {panel: (group, names) for panel, group, names in OWN_SETTINGS}
+    made = []
+    for panel, rows in by_panel.items():
+        idname = f"PARALLAX_PT_{panel}"
+        # A technique's panel: its switch is the header, and names the panel ("Irradiance Cache").
+        switch_row = next((r for r in rows if r.name == r.technique == panel), None)
+        switch = switch_row.name if switch_row else None
+        label = switch_row.label if switch_row else panel.replace("_", " ").title()
+        switches = (switch,) if switch else ()
+        groups = {}  # sub-panel label -> row names, in table order
+        for row in rows:
+            groups.setdefault(row.group, []).append(row.name)
+        if panel in own:
+            group, names = own[panel]
+            groups.setdefault(group, []).extend(names)
+        top = [name for name in groups.pop("", []) if name != switch]
+        made.append(_make_panel(idname, label, top, switch, switches, closed=bool(switch)))
+        bool_labels = {row.name: row.label for row in rows if row.type == "bool"}
+        for group, names in groups.items():
+            header = next((n for n in names if bool_labels.get(n) == group), None)
+            made.append(_make_panel(
+                f"{idname}_{_slug(group)}", group, [n for n in names if n != header], header,
+                switches + ((header,) if header else ()), parent=idname))
+    return made
 
 
-class PARALLAX_PT_ic_visualisation(_IrradianceCacheSubPanel, bpy.types.Panel):
-    bl_label = "Visualisation"
-    properties = ("ic_highlight",)
-
-
-class PARALLAX_PT_adrrs(_RenderPanel, bpy.types.Panel):
-    bl_label = "ADRRS"
-    bl_options = {"DEFAULT_CLOSED"}
-    properties = ("adrrs_window", "adrrs_rr_min", "adrrs_splitting", "adrrs_max_splits",
-                  "adrrs_estimate", "adrrs_estimate_spp", "adrrs_ic_glossy")
-
-    def draw_header(self, context):
-        self.layout.prop(context.scene.parallax, "adrrs", text="")
-
-    def draw(self, context):
-        self.layout.active = context.scene.parallax.adrrs
-        super().draw(context)
-
-
-class PARALLAX_PT_guiding(_RenderPanel, bpy.types.Panel):
-    bl_label = "Path Guiding"
-    bl_options = {"DEFAULT_CLOSED"}
-    properties = ("guiding_prob", "guiding_parallax", "guiding_training_spp")
-
-    def draw_header(self, context):
-        self.layout.prop(context.scene.parallax, "guiding", text="")
-
-    def draw(self, context):
-        self.layout.active = context.scene.parallax.guiding
-        super().draw(context)
-
-
-class _GuidingSubPanel(_RenderPanel):
-    bl_parent_id = "PARALLAX_PT_guiding"
-    bl_options = {"DEFAULT_CLOSED"}
-
-    def draw(self, context):
-        self.layout.active = context.scene.parallax.guiding
-        super().draw(context)
-
-
-class PARALLAX_PT_guiding_fitting(_GuidingSubPanel, bpy.types.Panel):
-    bl_label = "Fitting"
-    properties = ("guiding_fit", "guiding_min_samples", "guiding_max_components", "guiding_split_merge")
-
-
-class PARALLAX_PT_guiding_regions(_GuidingSubPanel, bpy.types.Panel):
-    bl_label = "Regions"
-    properties = ("guiding_region_splits", "guiding_region_threshold", "guiding_max_regions")
-
-
-class PARALLAX_PT_guiding_visualisation(_GuidingSubPanel, bpy.types.Panel):
-    bl_label = "Visualisation"
-    properties = ("guiding_probe_x", "guiding_probe_y", "guiding_animate_lobes")
-
-
-class PARALLAX_PT_device(_RenderPanel, bpy.types.Panel):
+class PARALLAX_PT_device(_ParallaxPanel, bpy.types.Panel):
     bl_label = "Device"
-    properties = ("device",)
+    bl_context = "render"
 
     def draw(self, context):
-        super().draw(context)
-        col = self.layout.column(align=True)
+        layout = _split(self.layout)
+        layout.prop(context.scene.parallax, "device")
+        col = layout.column(align=True)
         for line in detected_devices():
             col.label(text=line)
 
 
 class PARALLAX_PT_passes(_ParallaxPanel, bpy.types.Panel):
+    """The view layer's pass toggles: Blender's own and the film's under Include, then each
+    technique's under its name, greyed while the technique is off."""
     bl_label = "Parallax Passes"
     bl_context = "view_layer"
 
     def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
-        view_layer = context.view_layer
-        col = layout.column(heading="Include")
-        col.prop(view_layer, "use_pass_z", text="Depth")
-        col.prop(view_layer, "use_pass_normal", text="Normal")
-        col.prop(view_layer.parallax, "use_pass_denoising_data")
-        col.prop(view_layer.parallax, "use_pass_ray_depth")
-        col = layout.column(heading="Irradiance Cache")
-        col.active = context.scene.parallax.ic
-        col.prop(view_layer.parallax, "use_pass_ic_irradiance", text="Irradiance")
-        col.prop(view_layer.parallax, "use_pass_ic_gradients", text="Gradients")
-        col = layout.column(heading="ADRRS")
-        col.active = context.scene.parallax.adrrs
-        col.prop(view_layer.parallax, "use_pass_adrrs_estimate", text="Estimate")
-        col.prop(view_layer.parallax, "use_pass_adrrs_splits", text="Splits")
-        col = layout.column(heading="Path Guiding")
-        col.active = context.scene.parallax.guiding
-        col.prop(view_layer.parallax, "use_pass_guiding_regions", text="Regions")
-        col.prop(view_layer.parallax, "use_pass_guiding_components", text="Components")
-        col.prop(view_layer.parallax, "use_pass_guiding_lobes", text="Lobes")
+        layout = _split(self.layout)
+        view_layer, settings = context.view_layer, context.scene.parallax
+        include = layout.column(heading="Include")
+        for label, toggle in passes.BLENDER_TOGGLES.items():
+            if toggle is not None:
+                include.prop(view_layer, toggle, text=label)
+        include.prop(view_layer.parallax, passes.DENOISING_TOGGLE)
+        by_setting = {}
+        for row in core.load().PASSES:
+            if passes.has_own_toggle(row):
+                by_setting.setdefault(row.setting, []).append(row)
+        for setting, rows in by_setting.items():
+            col = include
+            if setting:
+                col = layout.column(heading=core.load().setting(setting).label)
+                col.active = bool(getattr(settings, setting))
+            prefix = _common_first_word([row.label for row in rows]) if setting else ""
+            for row in rows:
+                col.prop(view_layer.parallax, passes.toggle_name(row), text=row.label[len(prefix):])
+
+
+def _common_first_word(labels):
+    """"IC " for "IC Irradiance" and "IC Gradients": the column's heading says it already."""
+    first = labels[0].split(" ", 1)[0] + " "
+    return first if all(label.startswith(first) and len(label) > len(first) for label in labels) else ""
 
 
 _device_lines = None
@@ -215,12 +164,7 @@ def detected_devices():
     return _device_lines
 
 
-classes = (PARALLAX_PT_sampling, PARALLAX_PT_light_paths, PARALLAX_PT_lights,
-           PARALLAX_PT_irradiance_cache, PARALLAX_PT_ic_accuracy, PARALLAX_PT_ic_creation,
-           PARALLAX_PT_ic_gradients, PARALLAX_PT_ic_visualisation, PARALLAX_PT_adrrs,
-           PARALLAX_PT_guiding, PARALLAX_PT_guiding_fitting, PARALLAX_PT_guiding_regions,
-           PARALLAX_PT_guiding_visualisation, PARALLAX_PT_device,
-           PARALLAX_PT_passes)
+classes = []
 
 # Built-in panels that make sense for Parallax: output, format, colour management, and
 # Cycles' material, world, light and object panels (we read the same node trees and lights).
@@ -241,6 +185,7 @@ def _shared_panels():
 
 
 def register():
+    classes[:] = settings_panels() + [PARALLAX_PT_device, PARALLAX_PT_passes]
     for cls in classes:
         bpy.utils.register_class(cls)
     for panel in _shared_panels():

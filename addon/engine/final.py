@@ -150,8 +150,9 @@ def guiding_status(stats):
 
 def _write_result(result, snapshot):
     images = snapshot[3]
+    specs = passes.by_name()
     for render_pass in result.layers[0].passes:
-        spec = passes.BY_NAME.get(render_pass.name)
+        spec = specs.get(render_pass.name)
         if spec is None or spec.core not in images:
             continue
         image = images[spec.core][::-1, :, :render_pass.channels]  # Blender's rows go bottom-up

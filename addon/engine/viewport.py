@@ -20,7 +20,7 @@ import weakref
 
 import numpy as np
 
-from .. import core, sync
+from .. import core, properties, sync
 from . import final
 
 PREVIEW_SECONDS = 0.03
@@ -192,7 +192,7 @@ class _Worker(threading.Thread):
                 # (training frames would leave the viewport empty), and its field survives
                 # camera moves (Session keeps it; edits to geometry or lights restart it).
                 session.set_params(**({**params, "guiding_training_spp": 0} if session is self._full
-                                      else {**params, "ic": False, "adrrs": False, "guiding": False}))
+                                      else _without_techniques(params)))
                 if edited:
                     session.update(scene, parts=None if session_parts is None else sorted(session_parts))
         with self._lock:  # a stop() before this returns here; one after it cancels these sessions
@@ -224,10 +224,10 @@ class _Worker(threading.Thread):
         """Publishes a frame of the preview program while the path tracer compiles (on the
         core's worker thread; a failed compile is raised by the render that needs it)."""
         self._full.warm()
-        self._preview.set_params(**{**params, "ic": False, "preview": True})
+        self._preview.set_params(**_without_techniques(params), preview=True)
         self._preview.render(1)
         self._publish(self._preview, self._preview_factor)
-        self._preview.set_params(**{**params, "ic": False, "preview": False})
+        self._preview.set_params(**_without_techniques(params), preview=False)
 
     def _render_frame(self):
         """One full-size frame in row bands of about BAND_SECONDS; its duration, or None if
@@ -272,6 +272,11 @@ class _Worker(threading.Thread):
                 parts, handed_over = self._submitted.pop(generation)
                 if generation == self._rendering:
                     self.latencies.append((parts, self._published - handed_over))
+
+
+def _without_techniques(params):
+    """``params`` with every technique switched off (the quick preview frames)."""
+    return {**params, **{row.name: False for row in properties.technique_switches()}}
 
 
 def _as_rgba(image):

@@ -122,3 +122,21 @@ def save_and_reopen(bpy, path):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     bpy.ops.wm.open_mainfile(filepath=str(path))
     return bpy.context.scene
+
+
+class FakeWorker:
+    """Stands in for the viewport's worker: records what ViewportRender.update hands over."""
+    device = "auto"
+    error = None  # a worker stopped by an error would be replaced
+    display = "combined"
+
+    def __init__(self):
+        self.submitted = []
+
+    def submit(self, scene=None, parts=(), **changes):
+        self.submitted.append(changes)
+
+
+class FakeDepsgraph:
+    def __init__(self, scene):
+        self.scene, self.updates = scene, []

@@ -1,69 +1,17 @@
-"""Path guiding in the add-on: settings (round trip, the core's ranges, --set for .blend and
-.npz), the Path Guiding panel, passes, stats line, the viewport's sessions, and an F12 render to
-a multilayer EXR with the three guiding layers."""
+"""Path guiding in the add-on beyond its settings (which test_settings_tables.py checks row by
+row): Animate Lobes, the viewport's pass switching and live guiding pass, the stats line, and
+an F12 render to a multilayer EXR with the three guiding layers."""
 import dataclasses
 import io
 import re
 
 import numpy as np
 import pytest
-from addon.cli import CommandError, apply_settings
+from addon.cli import apply_settings
 from addon.engine import final
-from addon.properties import GUIDING_SETTINGS
-from blender_helpers import assert_params, open_scene, render, save_and_reopen
+from blender_helpers import FakeDepsgraph, FakeWorker, open_scene, render
 
 import parallax_core
-
-DEFAULTS = dict(guiding=False, guiding_prob=0.5, guiding_parallax=True, guiding_training_spp=32,
-                guiding_min_samples=64, guiding_max_components=16, guiding_split_merge=True,
-                guiding_region_splits=3, guiding_region_threshold=10000, guiding_max_regions=4096,
-                guiding_probe_x=-1, guiding_probe_y=-1, guiding_fit="auto")
-CHANGED = dict(guiding=True, guiding_prob=0.7, guiding_parallax=False, guiding_training_spp=0,
-               guiding_min_samples=100, guiding_max_components=6, guiding_split_merge=False,
-               guiding_region_splits=5, guiding_region_threshold=0, guiding_max_regions=64,
-               guiding_probe_x=5, guiding_probe_y=7, guiding_fit="device")
-RANGES = dict(guiding_prob=(0.0, 1.0), guiding_training_spp=(0, None), guiding_min_samples=(1, 2**24),
-              guiding_max_components=(1, 16), guiding_region_splits=(0, 20), guiding_region_threshold=(0, None),
-              guiding_probe_x=(-1, None), guiding_probe_y=(-1, None))
-
-
-def test_guiding_settings_defaults_and_save_load(fresh, bpy, tmp_path):
-    assert set(GUIDING_SETTINGS) == set(DEFAULTS)
-    assert_params(fresh.parallax.render_params(), DEFAULTS)
-    for name, value in CHANGED.items():
-        setattr(fresh.parallax, name, value)
-    fresh.view_layers[0].parallax.use_pass_guiding_lobes = False
-    scene = save_and_reopen(bpy, tmp_path / "guiding.blend")
-    assert_params(scene.parallax.render_params(), CHANGED)
-    assert not scene.view_layers[0].parallax.use_pass_guiding_lobes
-    assert scene.view_layers[0].parallax.use_pass_guiding_regions
-
-
-def test_core_takes_the_guiding_settings_and_the_panel_limits(fresh):
-    assert_params(dataclasses.asdict(parallax_core.RenderParams()), DEFAULTS)
-    session = parallax_core.Session(8, 8, "cpu")
-    for name, value in CHANGED.items():
-        setattr(fresh.parallax, name, value)
-    session.set_params(**fresh.parallax.render_params())
-    assert_params(dataclasses.asdict(session.params), CHANGED)
-    props = type(fresh.parallax).bl_rna.properties
-    session.set_params(guiding_max_regions=2**22)  # room for every region split count
-    for name, (low, high) in RANGES.items():
-        assert props[name].hard_min == low, name
-        assert high is None or props[name].hard_max <= high, name
-        session.set_params(**{name: props[name].hard_min})
-        session.set_params(**{name: props[name].hard_max})
-        session.set_params(**{name: DEFAULTS[name]})
-
-
-def test_guiding_panel_shows_every_setting(bpy):
-    shown = ["guiding"] + list(bpy.types.PARALLAX_PT_guiding.properties)
-    for panel in (bpy.types.PARALLAX_PT_guiding_fitting, bpy.types.PARALLAX_PT_guiding_regions,
-                  bpy.types.PARALLAX_PT_guiding_visualisation):
-        assert panel.bl_parent_id == "PARALLAX_PT_guiding"
-        shown += panel.properties
-    assert sorted(shown) == sorted(GUIDING_SETTINGS + ("guiding_animate_lobes",))
-    assert bpy.types.PARALLAX_PT_guiding.bl_label == "Path Guiding"
 
 
 def test_animate_lobes_follows_the_timeline(fresh):
@@ -81,71 +29,14 @@ def test_animate_lobes_follows_the_timeline(fresh):
         session.set_params(**fresh.parallax.render_params())  # the core takes it
 
 
-def test_set_parses_guiding_settings_for_blend_files(fresh):
-    apply_settings(fresh, ["guiding=on", "guiding_parallax=off", "guiding_prob=0.25", "guiding_training_spp=0",
-                           "guiding_probe_x=-1", "guiding_probe_y=12", "guiding_fit=device"])
-    s = fresh.parallax
-    assert (s.guiding, s.guiding_parallax, s.guiding_training_spp, s.guiding_probe_x, s.guiding_probe_y,
-            s.guiding_fit) == (True, False, 0, -1, 12, "device")
-    assert s.guiding_prob == pytest.approx(0.25)
-    with pytest.raises(CommandError):
-        apply_settings(fresh, ["guiding=maybe"])
-    with pytest.raises(CommandError):
-        apply_settings(fresh, ["guiding_prob=high"])
-    with pytest.raises(CommandError):
-        apply_settings(fresh, ["guiding_fit=gpu"])
-    apply_settings(fresh, ["guiding_max_components=17"])  # Blender clamps to the core's range
-    assert s.guiding_max_components == 16
-
-
-def test_set_parses_guiding_settings_for_npz():
-    from parallax_core.cli import parse_params
-
-    assert parse_params(["guiding=1", "guiding_prob=0.3", "guiding_probe_x=-1", "guiding_parallax=off",
-                         "guiding_fit=device"]) == \
-        dict(guiding=True, guiding_prob=0.3, guiding_probe_x=-1, guiding_parallax=False, guiding_fit="device")
-
-
-def test_guiding_passes_only_with_guiding_on(fresh, bpy):
-    tree = bpy.data.node_groups.new("Compositor", "CompositorNodeTree")
-    fresh.compositing_node_group = tree
-    layers = tree.nodes.new("CompositorNodeRLayers")
-
-    def outputs():
-        return {o.name for o in layers.outputs if o.enabled and o.name.startswith("Guiding ")}
-
-    assert outputs() == set()
-    fresh.parallax.guiding = True
-    assert outputs() == {"Guiding Regions", "Guiding Components", "Guiding Lobes"}
-    fresh.view_layers[0].parallax.use_pass_guiding_components = False
-    assert outputs() == {"Guiding Regions", "Guiding Lobes"}
-    fresh.parallax.guiding = False
-    assert outputs() == set()
-
-
-def test_guiding_setting_change_restarts_the_viewport(fresh):
-    from test_ic_settings import _FakeDepsgraph, _FakeWorker
-    from addon.engine import viewport
-
-    view = viewport.ViewportRender()
-    view.worker = _FakeWorker()
-    view.worker.error = None  # a worker that has not failed
-    depsgraph = _FakeDepsgraph(fresh)
-    view.update(None, None, depsgraph)
-    fresh.parallax.guiding = True
-    view.update(None, None, depsgraph)
-    assert len(view.worker.submitted) == 2 and view.worker.submitted[-1]["params"]["guiding"] is True
-
-
 def test_viewport_pass_switches_without_a_restart(fresh):
     """Viewport Pass hands the worker another pass to show, not new settings (which would
     restart the image and the guiding field)."""
-    from test_ic_settings import _FakeDepsgraph, _FakeWorker
     from addon.engine import viewport
 
     view = viewport.ViewportRender()
-    view.worker = _FakeWorker()
-    depsgraph = _FakeDepsgraph(fresh)
+    view.worker = FakeWorker()
+    depsgraph = FakeDepsgraph(fresh)
     view.update(None, None, depsgraph)
     assert fresh.parallax.viewport_pass == "combined"
     fresh.parallax.viewport_pass = "guiding_lobes"

@@ -40,7 +40,7 @@ def test_every_setting_has_a_description(bpy):
 def test_settings_survive_save_and_load(fresh, bpy, tmp_path):
     settings = fresh.parallax
     settings.samples, settings.method, settings.mis_heuristic = 77, "pt", "balance"
-    settings.max_depth, settings.use_russian_roulette, settings.time_limit = 5, False, 12.5
+    settings.max_depth, settings.rr_start_depth, settings.time_limit = 5, 0, 12.5
     settings.device = "cpu"
     fresh.view_layers[0].parallax.use_pass_ray_depth = True
     path = str(tmp_path / "settings.blend")
@@ -52,7 +52,7 @@ def test_settings_survive_save_and_load(fresh, bpy, tmp_path):
     assert scene.render.engine == "PARALLAX"
     loaded = scene.parallax
     assert (loaded.samples, loaded.method, loaded.mis_heuristic) == (77, "pt", "balance")
-    assert (loaded.max_depth, loaded.use_russian_roulette, loaded.time_limit) == (5, False, 12.5)
+    assert (loaded.max_depth, loaded.rr_start_depth, loaded.time_limit) == (5, 0, 12.5)
     assert loaded.device == "cpu" and scene.view_layers[0].parallax.use_pass_ray_depth
     params = loaded.render_params()
     assert params["rr_start_depth"] == 0 and params["method"] == "pt" and params["max_depth"] == 5
