@@ -111,6 +111,8 @@ struct PathResult {
     vec3 albedo;        // at the first non-delta vertex, through delta vertices
     uint segments;      // ray segments traced (camera ray included)
     uint rays;          // all rays traced (shadow rays included)
+    uint shadow_rays;   // NEE shadow rays traced ...
+    uint shadow_lit;    // ... and those that reached their light (NEE Visibility pass)
 };
 
 // Path rays that leave a surface where it may touch another through which light passes start
@@ -168,7 +170,10 @@ void trace_pending_shadow(inout PathState ps, inout PathResult res, inout Techni
             return;
         }
     }
-    if (pending_ray) res.rays++;
+    if (pending_ray) {
+        res.rays++;
+        res.shadow_rays++;
+    }
     shadow_hit.t = 0.0;
     shadow_hit.instance = ps.pending.self_instance;
     shadow_hit.primitive = ps.pending.self_primitive;
@@ -176,7 +181,10 @@ void trace_pending_shadow(inout PathState ps, inout PathResult res, inout Techni
                 pending_ray ? 0xffu : 0u, 0, 0, MISS_SHADOW, ps.pending.origin, 0.0, ps.pending.dir,
                 pending_ray ? ps.pending.t_max : 0.0, 1);
     bool lit = pending_ray && shadow_hit.t < 0.0;
-    if (lit) res.radiance += ps.pending.contribution;
+    if (lit) {
+        res.radiance += ps.pending.contribution;
+        res.shadow_lit++;
+    }
     guiding_shadow_traced(tp.guiding, lit, ps.pending.contribution);
     ps.pending.contribution = vec3(0.0);
 }
@@ -211,7 +219,7 @@ float emission_weight(bool prev_delta, float prev_pdf, float light_pdf, uint lig
 }
 
 PathResult path_result() {
-    return PathResult(vec3(0.0), INFINITY_F, vec3(0.0), vec3(0.0), 0u, 0u);
+    return PathResult(vec3(0.0), INFINITY_F, vec3(0.0), vec3(0.0), 0u, 0u, 0u, 0u);
 }
 
 PathState path_state(vec3 origin, vec3 dir, float t_min, float t_max, PathOptions opt) {

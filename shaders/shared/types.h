@@ -85,7 +85,8 @@ PX_CONST uint PASS_ADRRS_SPLITS = 8;    // x = extra paths split off per pixel s
 PX_CONST uint PASS_GUIDING_REGIONS = 9;     // rgb = a colour per guiding region at the first hit
 PX_CONST uint PASS_GUIDING_COMPONENTS = 10; // x = active lobes / guiding_max_components at the first hit
 PX_CONST uint PASS_GUIDING_LOBES = 11;      // rgb = VMM pdf: probe inset (lat-long) + per-region spheres
-PX_CONST uint PASS_COUNT = 12;
+PX_CONST uint PASS_NEE_VISIBILITY = 12;     // x = shadow rays that reached their light, y = shadow rays traced
+PX_CONST uint PASS_COUNT = 13;
 
 // ---- enums ------------------------------------------------------------------------------
 PX_CONST uint METHOD_PT = 0;   // BSDF sampling only

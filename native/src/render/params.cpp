@@ -70,6 +70,10 @@ const SettingTable& base_table() {
             {"albedo", "Denoising Albedo", 3, "RGB", "Albedo at the first non-specular hit (the denoising albedo)",
              PASS_ALBEDO, ""},
             {"ray_depth", "Ray Depth", 1, "X", "Mean number of path segments traced per pixel", PASS_RAY_DEPTH, ""},
+            // Where NEE pays: near 1 its shadow rays find their lights, near 0 they are wasted.
+            {"nee_visibility", "NEE Visibility", 1, "X",
+             "Fraction of the pixel's NEE shadow rays that reached their light (0 where none was traced)",
+             PASS_NEE_VISIBILITY, "", "", true},
         }};
     return table;
 }

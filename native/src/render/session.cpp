@@ -589,7 +589,8 @@ std::vector<float> Session::read(const std::string& pass, uint32_t& channels) {
     std::vector<float> out(pixels * channels, 0.0f);
     for (size_t i = 0; i < pixels; ++i) {
         const float inv = counts[i].w > 0 ? 1.0f / counts[i].w : 0.0f;
-        const float v[4] = {sums[i].x * inv, sums[i].y * inv, sums[i].z * inv, sums[i].w * inv};
+        float v[4] = {sums[i].x * inv, sums[i].y * inv, sums[i].z * inv, sums[i].w * inv};
+        if (info->fraction) v[0] = sums[i].y > 0 ? sums[i].x / sums[i].y : 0.0f;
         for (uint32_t c = 0; c < channels; ++c) out[i * channels + c] = v[c];
         if (info->index == PASS_DEPTH && counts[i].w == 0) out[i] = 1e10f;
     }

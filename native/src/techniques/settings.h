@@ -86,6 +86,7 @@ struct PassInfo {
     uint32_t index;           // film slot (PASS_*)
     const char* setting;      // the setting that enables it ("": always)
     const char* technique = "";
+    bool fraction = false;    // read as x / y of the sums (a ratio of counts; 0 where y is 0)
 };
 
 // One technique's settings (fields relative to its Params struct) and passes.
