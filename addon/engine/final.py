@@ -99,7 +99,7 @@ class _Worker(threading.Thread):
     def run(self):
         try:
             last_snapshot = 0.0
-            while self.session.samples < self.samples:
+            while self.session.samples < self.samples or self.session.fallback_film:
                 if self._stop_event.is_set() or self.out_of_time():
                     break
                 if not self._render_frame():
@@ -211,8 +211,8 @@ def render(engine, depsgraph):
             engine.update_result(result)
             samples, seconds, rate, _, stats = snapshot
             line = f"Sample {samples}/{total} | {rate / 1e6:.1f} M rays/s | {seconds:.1f} s"
-            if stats.get("fallback_samples"):
-                line += f" | {stats['fallback_samples']} without the techniques (compiling)"
+            if stats.get("fallback_film"):  # the samples so far are the fallback's
+                line += " | without the techniques while they compile"
             if settings.ic or settings.adrrs:  # ADRRS builds the cache too
                 line += f" | {ic_status(stats)}"
             if settings.guiding:

@@ -204,7 +204,7 @@ class _Worker(threading.Thread):
             self._preview.render(1)
             self._publish(self._preview, self._preview_factor)
         samples = self._full.samples
-        if target and samples >= target:
+        if target and samples >= target and not self._full.fallback_film:
             shown = self.frame
             if self._display_changed or shown is None or shown[1] != samples or shown[2] != 1:
                 self._publish(self._full, 1)  # the last frame may have come too soon to publish

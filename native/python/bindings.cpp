@@ -298,6 +298,9 @@ NB_MODULE(_native, m) {
                      "pipelines compile on a worker thread, frames render with the techniques off; "
                      "stats()['fallback_samples'] counts them, and the film starts over with the "
                      "techniques' first frame (F12 and the viewport turn it on).")
+        .def_prop_ro("fallback_film", &px::Session::fallback_film,
+                     "Whether the film holds only samples rendered while the techniques compiled (cheap, "
+                     "unlike stats()); they do not count towards a sample target.")
         .def("warm", &px::Session::warm, nb::call_guard<nb::gil_scoped_release>(),
              "Start compiling the pipelines the current settings need (and their fallback with the "
              "techniques off) on a worker thread; returns at once.")

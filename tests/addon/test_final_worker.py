@@ -15,6 +15,10 @@ class ScriptedSession:
         self.samples, self.next_row, self.fallback_frames = 0, 0, fallback_frames
         self.fallback_samples = 0
 
+    @property
+    def fallback_film(self):
+        return self.fallback_frames > 0 and not self.fallback_samples
+
     def render_rows(self, rows):
         assert rows == 1  # a band of a second is far above BAND_SECONDS: one row at a time
         self.clock[0] += 1.0
@@ -65,8 +69,8 @@ def test_a_limit_shorter_than_the_first_frame_still_gives_a_whole_frame(final):
 
 def test_frames_rendered_while_a_technique_compiled_do_not_count(final):
     final, clock = final
-    session = ScriptedSession(clock, height=2, fallback_frames=3)
+    session = ScriptedSession(clock, height=2, fallback_frames=6)
     worker = final._Worker(session, samples=4, time_limit=0.0, core_passes={"combined"})
     worker.run()
-    assert session.fallback_samples == 3 and session.samples == 4
+    assert session.fallback_samples == 6 and session.samples == 4
     assert worker.snapshot[0] == 4

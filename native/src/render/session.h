@@ -94,6 +94,12 @@ public:
     // (stats().fallback_samples counts those samples; the film starts over at the techniques'
     // first frame); off (the default), render() waits for the compile.
     void set_background_compile(bool on) { background_compile_ = on; }
+    // Whether the film holds the fallback's samples alone (cheap, unlike stats()): a sample
+    // target counts the techniques' samples only.
+    bool fallback_film() {
+        std::lock_guard<std::mutex> lock(mutex_);
+        return fallback_frame_ || film_after_fallback_;
+    }
     bool background_compile() const { return background_compile_; }
     // Starts compiling, on a worker thread, the pipelines the current settings need and their
     // fallback; returns at once (the add-on warms them when the engine is picked or a file loads).
