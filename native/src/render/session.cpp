@@ -514,8 +514,7 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
             stop = frames == 0 || cancel_.exchange(false);
             continue;
         }
-        // Techniques that step after each frame: a submission holds at most one frame.
-        if (film_after_fallback_) {
+        if (film_after_fallback_) {  // the techniques' first render frame: the film starts over
             film_after_fallback_ = false;
             const SessionStats fallback_stats = stats_;
             stats_ = {};
@@ -525,6 +524,7 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
             ray_count_.fill_zero();
             start = std::chrono::steady_clock::now();
         }
+        // Techniques that step after each frame: a submission holds at most one frame.
         bool host_step = false;
         for (const auto& t : techniques_) host_step = host_step || (!fallback && t->steps_after_frame());
         bool frame_done = false, step = false;
