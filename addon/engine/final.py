@@ -182,6 +182,8 @@ def render(engine, depsgraph):
         session = parallax_core.Session(w, h, settings.device)
         session.background_compile = True  # a technique compiling: its fallback renders meanwhile
         session.set_params(**settings.render_params())
+        # The film holds the view layer's passes only (less memory, fewer writes per sample).
+        session.passes = sorted({p.core for p in passes.enabled(scene, view_layer)})
         warnings += [m for m in session.update(data) if m not in warnings]
     except (ImportError, ValueError, RuntimeError, TypeError, MemoryError) as e:
         # MemoryError: parallax_core.DeviceMemoryError, a scene past the device-memory budget.

@@ -183,6 +183,8 @@ class _Worker(threading.Thread):
             width, height = self._full.width, self._full.height
             self._preview = Session(max(1, width // factor), max(1, height // factor),
                                     self.device) if factor > 1 else None
+            if self._preview is not None:
+                self._preview.passes = ["combined"]  # it shows Combined alone (_publish)
             self._preview_factor, preview_parts = factor, None
         for session, session_parts in ((self._full, parts), (self._preview, preview_parts)):
             if session is not None:

@@ -287,6 +287,10 @@ NB_MODULE(_native, m) {
                  return to_numpy(std::move(data), {s.height(), s.width(), channels});
              },
              "name"_a, "Accumulated pass as float32 (height, width, channels), row 0 = top.")
+        .def_prop_rw("passes", &px::Session::passes, &px::Session::set_passes,
+                     "The passes the film holds, by name (combined always; default: every pass). Fewer "
+                     "passes, less film memory and fewer writes per sample; a pass whose technique is "
+                     "off reads as zeros and takes no memory. Setting it resets accumulation.")
         .def("render_rows", &px::Session::render_rows, "rows"_a, nb::call_guard<nb::gil_scoped_release>(),
              "Trace the next `rows` rows of the current frame (GIL released); True when that "
              "completed the frame. For short, interruptible dispatches.")

@@ -33,6 +33,14 @@ layout(push_constant, scalar) uniform PushConstants { FrameParams params; };
 // EMPTY_SHADOW_CALLS) and the HAS / USES conditions: code for what they leave out folds away.
 #include "../shared/specialization.h"
 
+// The film holds the enabled passes only (FrameParams.film_passes), in PASS_* order.
+uint film_slot(uint pass) { return bitCount(params.film_passes & ((1u << pass) - 1u)); }
+// Adds to pixel `pixel_index`'s sums of `pass`; nothing if the pass is not enabled.
+void film_add(uint pass, uint pixel_index, vec4 value) {
+    if ((params.film_passes & (1u << pass)) == 0u) return;
+    film[film_slot(pass) * (params.width * params.height) + pixel_index] += value;
+}
+
 float max3(vec3 v) { return max(v.x, max(v.y, v.z)); }
 float luminance(vec3 c) { return dot(c, vec3(0.2126, 0.7152, 0.0722)); }
 float sqr(float x) { return x * x; }

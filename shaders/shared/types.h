@@ -20,7 +20,7 @@ struct uvec3 { uint x, y, z; };
 
 // ---- descriptor set 0 bindings -------------------------------------------------------
 PX_CONST uint BINDING_TLAS = 0;
-PX_CONST uint BINDING_FILM = 1;            // vec4 film[PASS_COUNT][width*height] sums
+PX_CONST uint BINDING_FILM = 1;            // vec4 film[passes][width*height] sums (FrameParams.film_passes)
 PX_CONST uint BINDING_RAY_COUNT = 2;       // uint per pixel, rays traced (all frames)
 PX_CONST uint BINDING_POSITIONS = 3;       // vec3 per vertex (all meshes)
 PX_CONST uint BINDING_INDICES = 4;         // uvec3 per triangle, global vertex indices
@@ -297,6 +297,9 @@ struct FrameParams {
     uint sample_offset;
     uint sample_count;
     uint guiding_record;    // 1: camera paths record guiding training samples (GuidingSample)
+    // The film's passes, bit PASS_* (PASS_COMBINED always): the film holds only these, in PASS_*
+    // order (film_slot in lib/common.glsl, Session::film_offset).
+    uint film_passes;
 };
 
 // Sampling test routines (shaders/tests/sampling_test.comp).

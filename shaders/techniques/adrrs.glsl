@@ -145,8 +145,8 @@ bool adrrs_frame_output(vec3 sum_radiance, uint pixel_index) {
     return true;
 }
 
-void adrrs_write_passes(AdrrsPixel px, uint pixel_index, uint npix) {
-    if (USES(TECH_ADRRS)) film[PASS_ADRRS_ESTIMATE * npix + pixel_index] += vec4(px.estimate * float(params.sample_count), 0.0);
+void adrrs_write_passes(AdrrsPixel px, uint pixel_index) {
+    if (USES(TECH_ADRRS)) film_add(PASS_ADRRS_ESTIMATE, pixel_index, vec4(px.estimate * float(params.sample_count), 0.0));
 }
 
 // The vertex's cached indirect irradiance from the adjoint alone, where the cache itself was
@@ -227,9 +227,8 @@ AdrrsOptions adrrs_split_options(uint pixel_index, uint local, uint P) {
 }
 
 void adrrs_split_write(uint local, uint pixel_index, vec3 sum, uint rays) {
-    uint npix = params.width * params.height;
-    film[PASS_COMBINED * npix + pixel_index] += vec4(sum, 0.0);
-    film[PASS_ADRRS_SPLITS * npix + pixel_index].x += float(adrrs_copies_queued(local));
+    film_add(PASS_COMBINED, pixel_index, vec4(sum, 0.0));
+    film_add(PASS_ADRRS_SPLITS, pixel_index, vec4(float(adrrs_copies_queued(local)), 0.0, 0.0, 0.0));
     ray_count[pixel_index] += rays;
 }
 #endif

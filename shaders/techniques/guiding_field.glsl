@@ -318,11 +318,11 @@ void guiding_add_sample(inout GuidingPixel px, GuidingOptions o, uint s, uvec2 p
     px.lobes = n * guiding_lobes_pass(pixel, origin, dir, first_t);
 }
 
-void guiding_write_passes(GuidingPixel px, uint pixel_index, uint npix) {
+void guiding_write_passes(GuidingPixel px, uint pixel_index) {
     if (!USES(TECH_GUIDING)) return;
-    film[PASS_GUIDING_REGIONS * npix + pixel_index] += vec4(px.regions, 0.0);
-    film[PASS_GUIDING_COMPONENTS * npix + pixel_index] += vec4(px.components, 0.0, 0.0, 0.0);
-    film[PASS_GUIDING_LOBES * npix + pixel_index] += vec4(px.lobes, 0.0);
+    film_add(PASS_GUIDING_REGIONS, pixel_index, vec4(px.regions, 0.0));
+    film_add(PASS_GUIDING_COMPONENTS, pixel_index, vec4(px.components, 0.0, 0.0, 0.0));
+    film_add(PASS_GUIDING_LOBES, pixel_index, vec4(px.lobes, 0.0));
 }
 #endif
 #endif

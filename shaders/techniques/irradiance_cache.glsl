@@ -168,10 +168,10 @@ void ic_add_sample(inout IcPixel px, IcPath path) {
     px.gradients += path.gradients / max(tech.ic.gradient_max, 1e-6);
 }
 
-void ic_write_passes(IcPixel px, uint pixel_index, uint npix) {
+void ic_write_passes(IcPixel px, uint pixel_index) {
     if (!USES(TECH_IC)) return;
-    film[PASS_IC_IRRADIANCE * npix + pixel_index] += vec4(px.irradiance, 0.0);
-    film[PASS_IC_GRADIENTS * npix + pixel_index] += vec4(px.gradients, 0.0, 0.0);
+    film_add(PASS_IC_IRRADIANCE, pixel_index, vec4(px.irradiance, 0.0));
+    film_add(PASS_IC_GRADIENTS, pixel_index, vec4(px.gradients, 0.0, 0.0));
 }
 #endif
 #endif

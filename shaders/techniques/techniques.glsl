@@ -102,8 +102,8 @@ void techniques_add_sample(inout TechniquePixel px, TechniqueOptions o, Techniqu
     guiding_add_sample(px.guiding, o.guiding, s, pixel, origin, dir, first_t);
 }
 
-void techniques_write_passes(TechniquePixel px, uint pixel_index, uint npix) {
-    ic_write_passes(px.ic, pixel_index, npix);
-    guiding_write_passes(px.guiding, pixel_index, npix);
-    adrrs_write_passes(px.adrrs, pixel_index, npix);
+void techniques_write_passes(TechniquePixel px, uint pixel_index) {
+    ic_write_passes(px.ic, pixel_index);
+    guiding_write_passes(px.guiding, pixel_index);
+    adrrs_write_passes(px.adrrs, pixel_index);
 }

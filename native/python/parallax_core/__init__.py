@@ -143,8 +143,8 @@ class Session(_NativeSession):
         return warnings
 
     def read_all(self) -> dict:
-        """Every pass, by name."""
-        return {p.name: self.read(p.name) for p in PASSES}
+        """Every pass the film holds (``passes``), by name."""
+        return {name: self.read(name) for name in self.passes}
 
     def test_sampling(self, routine: int, params, count: int, seed: int = 0, directions=None, constants=None):
         """Run shaders/tests/sampling_test.comp; returns float32 (count, 2, 4). Test use only.

@@ -32,10 +32,9 @@ Session::Session(uint32_t width, uint32_t height, const std::string& device) : w
         for (uint32_t b : t->tlas_bindings()) tlas_bindings.push_back(b);
     set_ = std::make_unique<DescriptorSet>(*ctx_, BINDING_COUNT, tlas_bindings);
     const size_t pixels = size_t(width) * height;
-    film_ = Buffer(*ctx_, pixels * PASS_COUNT * sizeof(vec4), kStorageUsage);
+    for (const PassInfo& p : px::passes()) listed_passes_ |= 1u << p.index;
     ray_count_ = Buffer(*ctx_, pixels * sizeof(uint32_t), kStorageUsage);
     test_io_ = Buffer(*ctx_, 16, kStorageUsage);
-    set_->bind_buffer(BINDING_FILM, film_);
     set_->bind_buffer(BINDING_RAY_COUNT, ray_count_);
     set_->bind_buffer(BINDING_TEST_IO, test_io_);
     technique_params_ = Buffer(*ctx_, sizeof(TechniqueParams), kStorageUsage);
@@ -58,6 +57,7 @@ void Session::reset_accumulation(bool view_only) {
     stats_ = {};
     cursor_ = {};
     fallback_frame_ = film_after_fallback_ = false;
+    allocate_film();
     film_.fill_zero();
     ray_count_.fill_zero();
     if (!scene_) return;
@@ -79,6 +79,45 @@ void Session::reset_accumulation(bool view_only) {
 }
 
 Session::~Session() = default;
+
+uint32_t Session::film_passes() const {
+    uint32_t mask = 1u << PASS_COMBINED;  // holds every pixel's sample count
+    for (const PassInfo& p : px::passes())
+        if ((listed_passes_ >> p.index & 1u) && (!*p.setting || read_setting(&params_, setting(p.setting))))
+            mask |= 1u << p.index;
+    return mask;
+}
+
+size_t Session::film_offset(uint32_t pass) const {
+    const uint32_t below = allocated_passes_ & ((1u << pass) - 1u);
+    return size_t(__builtin_popcount(below)) * width_ * height_ * sizeof(vec4);  // film_slot in common.glsl
+}
+
+void Session::allocate_film() {
+    const uint32_t mask = film_passes();
+    if (mask == allocated_passes_ && film_.size()) return;
+    film_ = Buffer(*ctx_, size_t(__builtin_popcount(mask)) * width_ * height_ * sizeof(vec4), kStorageUsage);
+    set_->bind_buffer(BINDING_FILM, film_);
+    allocated_passes_ = mask;
+}
+
+void Session::set_passes(const std::vector<std::string>& names) {
+    uint32_t mask = 1u << PASS_COMBINED;
+    for (const std::string& name : names) mask |= 1u << pass(name).index;  // unknown: invalid_argument
+    std::lock_guard<std::mutex> updating(update_mutex_);
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (mask == listed_passes_) return;
+    listed_passes_ = mask;
+    reset_accumulation();
+}
+
+std::vector<std::string> Session::passes() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    std::vector<std::string> names;
+    for (const PassInfo& p : px::passes())
+        if (listed_passes_ >> p.index & 1u) names.push_back(p.name);
+    return names;
+}
 
 std::vector<std::string> Session::update(const SceneArrays& arrays, bool spatial_order, uint32_t parts) {
     std::lock_guard<std::mutex> updating(update_mutex_);
@@ -388,6 +427,7 @@ FrameParams Session::frame_params(uint32_t frame) const {
     fp.rr_start_depth = params_.rr_start_depth;
     fp.light_samples = params_.light_samples;
     fp.mode = FRAME_RENDER;
+    fp.film_passes = allocated_passes_;
     for (const auto& t : techniques_) t->fill_frame_params(fp);
     return fp;
 }
@@ -581,19 +621,24 @@ bool Session::render_rows(uint32_t rows) {
 std::vector<float> Session::read(const std::string& pass, uint32_t& channels) {
     const PassInfo* info = &px::pass(pass);
     std::lock_guard<std::mutex> lock(mutex_);
+    if (!(listed_passes_ >> info->index & 1u))
+        throw std::invalid_argument("pass '" + pass + "' is not rendered: add it to Session.passes");
     const size_t pixels = size_t(width_) * height_;
-    std::vector<vec4> sums(pixels), counts(pixels);  // counts: the combined pass, w = samples
-    film_.download(sums.data(), pixels * sizeof(vec4), size_t(info->index) * pixels * sizeof(vec4));
-    film_.download(counts.data(), pixels * sizeof(vec4), size_t(PASS_COMBINED) * pixels * sizeof(vec4));
     channels = info->channels;
     std::vector<float> out(pixels * channels, 0.0f);
-    for (size_t i = 0; i < pixels; ++i) {
+    const bool held = allocated_passes_ >> info->index & 1u;  // else its technique is off: zeros
+    std::vector<vec4> sums(held ? pixels : 0), counts(pixels);  // counts: the combined pass, w = samples
+    if (held) film_.download(sums.data(), pixels * sizeof(vec4), film_offset(info->index));
+    film_.download(counts.data(), pixels * sizeof(vec4), film_offset(PASS_COMBINED));
+    for (size_t i = 0; i < pixels && held; ++i) {
         const float inv = counts[i].w > 0 ? 1.0f / counts[i].w : 0.0f;
         float v[4] = {sums[i].x * inv, sums[i].y * inv, sums[i].z * inv, sums[i].w * inv};
         if (info->fraction) v[0] = sums[i].y > 0 ? sums[i].x / sums[i].y : 0.0f;
         for (uint32_t c = 0; c < channels; ++c) out[i * channels + c] = v[c];
-        if (info->index == PASS_DEPTH && counts[i].w == 0) out[i] = 1e10f;
     }
+    if (info->index == PASS_DEPTH)
+        for (size_t i = 0; i < pixels; ++i)
+            if (counts[i].w == 0) out[i] = 1e10f;
     return out;
 }
 

@@ -72,6 +72,11 @@ public:
     // (height, width, channels) float32, row 0 = top; each pixel's sums divided by its own
     // sample count (exact after a partial or cancelled frame too).
     std::vector<float> read(const std::string& pass, uint32_t& channels);
+    // The passes the film holds (names of the passes table; combined always). A pass whose
+    // technique is off takes no film memory and reads as zeros; read() of a pass not listed
+    // throws. Default: every pass. Resets accumulation when the list changes.
+    void set_passes(const std::vector<std::string>& names);
+    std::vector<std::string> passes();
     void reset();
     SessionStats stats();
     // The technique called `name` (its table's technique name); null if there is none.
@@ -163,6 +168,12 @@ private:
     RayTracingPipeline& host_pipeline(uint32_t program) override { return pipeline(program, false); }
     void upload_technique_params() override;
     const Buffer& film() const override { return film_; }
+    // The film's passes (FrameParams.film_passes): the listed ones whose technique is on.
+    uint32_t film_passes() const;
+    // Byte offset of `pass` in the film (it must be one of film_passes()).
+    size_t film_offset(uint32_t pass) const;
+    // Reallocates the film for film_passes() if they changed (caller holds mutex_).
+    void allocate_film();
     std::shared_ptr<Context> ctx_;  // first member: destroyed after everything using it
     uint32_t width_, height_;
     std::unique_ptr<DescriptorSet> set_;
@@ -170,6 +181,8 @@ private:
     std::unique_ptr<Scene> scene_;
     std::map<std::string, std::shared_ptr<const OwnedArray>> arrays_;  // the last arrays of every part
     uint64_t blas_builds_ = 0;
+    uint32_t listed_passes_ = 0;     // set_passes, bit PASS_*
+    uint32_t allocated_passes_ = 0;  // the passes film_ holds
     Buffer film_, ray_count_, test_io_, technique_params_, ggx_tables_;  // ggx: constant, multiscatter albedos
     // The techniques, in the order their hooks run (built by the constructor).
     std::vector<std::unique_ptr<Technique>> techniques_;
