@@ -180,6 +180,8 @@ def jobs_of(args) -> list[tuple[str, list[str], callable]]:
                     "--method", method, "--seconds", str(args.seconds), "--device", args.device]
             if args.resolution:
                 argv += ["--resolution", str(args.resolution)]
+            if args.passes:
+                argv += ["--passes", args.passes]
             jobs.append((f"throughput {method}", argv + ["--json"], throughput_figures))
     if "frame_cost" in benches:
         if not args.npz:
@@ -248,6 +250,7 @@ def main(argv=None) -> int:
     p.add_argument("--methods", help="throughput: default nee; frame_cost: default pt,nee,mis")
     p.add_argument("--seconds", type=float, default=2.0, help="render time per row or method (default 2)")
     p.add_argument("--resolution", type=int, help="throughput: square image size (default 512 CPU, 1024 GPU)")
+    p.add_argument("--passes", help="throughput: the film's passes where a build has Session.passes (default: every pass)")
     p.add_argument("--npz", help="frame_cost: folder of exported scenes")
     p.add_argument("--scenes", default="clocks,light_behind_glass", help="frame_cost: scenes of --npz")
     p.add_argument("--spp", type=int, default=64, help="frame_cost: samples per frame (default 64)")

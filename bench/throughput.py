@@ -185,13 +185,14 @@ def _measure(session, scene, spatial_order: bool, seconds: float) -> dict:
 
 def run(sizes=(1_000, 100_000, 1_000_000), resolution=None, seconds=10.0, method="nee",
         max_depth=4, device="auto", unordered=True, unordered_resolution=64,
-        samples_per_frame=None, seed=0, progress=_log, info=None, orders=None) -> list[dict]:
+        samples_per_frame=None, seed=0, progress=_log, info=None, orders=None, passes=None) -> list[dict]:
     """Measure every (size, order); returns one dict per row (see _measure for the raw
     fields, plus scene/order/resolution/target fields). ``resolution`` None: 512 on CPU
     devices, 1024 on GPUs. ``samples_per_frame`` None: 8 on CPU devices, 16 on GPUs (more
     work per dispatch; the thesis' figure 5.2). ``info``, if a dict, receives device and
     pipeline details. ``orders``: the ORDERS labels to measure (default all; ``unordered``
-    False drops "shuffled")."""
+    False drops "shuffled"). ``passes``: the film's passes (Session.passes; None: every pass;
+    a build older than Session.passes writes every pass regardless)."""
     import parallax_core
     from parallax_core import Session, scenes
 
@@ -211,6 +212,8 @@ def run(sizes=(1_000, 100_000, 1_000_000), resolution=None, seconds=10.0, method
     params = dict(method=method, max_depth=max_depth, rr_start_depth=0,
                   samples_per_frame=samples_per_frame, seed=seed)
     main = Session(res, res, device)
+    if passes is not None and hasattr(main, "passes"):
+        main.passes = list(passes)
     compile_s = _warm_up(main, params)
     progress(f"device: {main.device} ({main.device_type}), {res}x{res}, {method} "
              f"max_depth={max_depth}, pipeline compile {compile_s:.2f} s")
@@ -244,6 +247,8 @@ def run(sizes=(1_000, 100_000, 1_000_000), resolution=None, seconds=10.0, method
                 # full frame is predicted to take at most half the time budget.
                 if small is None:
                     small = Session(small_res, small_res, device)
+                    if passes is not None and hasattr(small, "passes"):
+                        small.passes = list(passes)
                     c = _warm_up(small, params)
                     progress(f"  ({small_res}x{small_res} session for the unordered case: "
                              f"pipeline compile {c:.2f} s)")
@@ -358,6 +363,7 @@ def main(argv=None) -> int:
                    help="resolution for the unordered case when full resolution is too slow (default 64)")
     p.add_argument("--spp-per-frame", type=int, default=None,
                    help="samples_per_frame (default 8 on CPU devices, 16 on GPUs)")
+    p.add_argument("--passes", help="the film's passes, e.g. combined,depth (default: every pass)")
     p.add_argument("--json", metavar="OUT.json", help="also write the raw numbers as JSON")
     args = p.parse_args(argv)
 
@@ -367,7 +373,8 @@ def main(argv=None) -> int:
         rows = run(sizes=args.sizes.split(","), resolution=args.resolution, seconds=args.seconds,
                    method=args.method, max_depth=args.max_depth, device=args.device,
                    unordered=not args.no_unordered, unordered_resolution=args.unordered_resolution,
-                   samples_per_frame=args.spp_per_frame, info=info, orders=args.orders.split(","))
+                   samples_per_frame=args.spp_per_frame, info=info, orders=args.orders.split(","),
+                   passes=args.passes.split(",") if args.passes else None)
     except (ValueError, RuntimeError) as e:
         print(f"throughput: error: {e}", file=sys.stderr)
         return 2
