@@ -554,6 +554,8 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
                 }
                 ++completed;
                 if (frames == 0) break;  // render_rows: at most the rest of one frame
+                // Adaptive sampling's check comes between submissions (it reads the film back).
+                if (adaptive_->check_due(stats_.samples + uint64_t(completed) * params_.samples_per_frame)) break;
             }
         });
         frame_milliseconds += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - submit_start).count();
