@@ -48,8 +48,9 @@ THESIS_SUITE = ("atrium", "thesis_veach_mis", "cornell_dielectric", "clocks", "t
 # ic: MIS + the irradiance cache; adrrs: MIS + ADRRS; guiding: MIS + path guiding (defaults);
 # guiding_pt: guiding without NEE; guiding_noparallax: guiding with parallax off; guiding_device:
 # guiding fitted by compute passes on the device (guiding_fit = device); guiding_pt_device: both.
+# mis_adaptive: MIS with adaptive sampling at its defaults (Cycles'; every other method: off).
 METHODS = ("pt", "nee", "mis", "ic", "ic_noupdate", "adrrs", "guiding", "guiding_pt", "guiding_noparallax",
-           "guiding_device", "guiding_pt_device")
+           "guiding_device", "guiding_pt_device", "mis_adaptive")
 # Every method row of the thesis' tables 5.1-5.4 (ic_noupdate: the cache never refreshes an entry).
 THESIS_METHODS = ("pt", "nee", "mis", "ic_noupdate", "ic", "adrrs", "guiding_pt", "guiding", "guiding_device",
                   "guiding_pt_device")
@@ -142,7 +143,14 @@ def method_params(method):
     measured time; the throughput roulette stays where ADRRS has no adjoint)."""
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r} (methods: {', '.join(METHODS)})")
-    off = dict(ic=False, adrrs=False, guiding=False, guiding_parallax=True, guiding_training_spp=32)
+    off = dict(ic=False, adrrs=False, guiding=False, guiding_parallax=True, guiding_training_spp=32,
+               use_adaptive_sampling=False)
+    if method == "mis_adaptive":
+        import parallax_core as pc
+
+        defaults = pc.RenderParams()
+        return dict(off, method="mis", use_adaptive_sampling=True, adaptive_threshold=defaults.adaptive_threshold,
+                    adaptive_min_samples=defaults.adaptive_min_samples)
     if method == "adrrs":
         return dict(off, method="mis", adrrs=True)
     if method.startswith("guiding"):

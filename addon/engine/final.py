@@ -100,8 +100,8 @@ class _Worker(threading.Thread):
         try:
             last_snapshot = 0.0
             while self.session.samples < self.samples or self.session.fallback_film:
-                if self._stop_event.is_set() or self.out_of_time():
-                    break
+                if self._stop_event.is_set() or self.out_of_time() or self.session.converged:
+                    break  # converged: adaptive sampling found every pixel done
                 if not self._render_frame():
                     break
                 now = time.perf_counter()
@@ -122,7 +122,7 @@ class _Worker(threading.Thread):
             done = self.session.render_rows(rows)
             rows = band_rows(rows, time.perf_counter() - start, self.session.height)
             self.rows_per_band = rows
-            if done:
+            if done or self.session.converged:  # converged: no pixel left to sample
                 return True
             if self._stop_event.is_set() or self.out_of_time():
                 return False
@@ -181,7 +181,9 @@ def render(engine, depsgraph):
             return
         session = parallax_core.Session(w, h, settings.device)
         session.background_compile = True  # a technique compiling: its fallback renders meanwhile
-        session.set_params(**settings.render_params())
+        params = settings.render_params()
+        params["adaptive_threshold"] = parallax_core.adaptive_threshold(params["adaptive_threshold"], settings.samples)
+        session.set_params(**params)
         # The film holds the view layer's passes only (less memory, fewer writes per sample).
         session.passes = sorted({p.core for p in passes.enabled(scene, view_layer)})
         warnings += [m for m in session.update(data) if m not in warnings]

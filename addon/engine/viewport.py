@@ -206,7 +206,8 @@ class _Worker(threading.Thread):
             self._preview.render(1)
             self._publish(self._preview, self._preview_factor)
         samples = self._full.samples
-        if target and samples >= target and not self._full.fallback_film:
+        # Done at the sample target, or once adaptive sampling found every pixel converged.
+        if (target and samples >= target or self._full.converged) and not self._full.fallback_film:
             shown = self.frame
             if self._display_changed or shown is None or shown[1] != samples or shown[2] != 1:
                 self._publish(self._full, 1)  # the last frame may have come too soon to publish
@@ -241,7 +242,7 @@ class _Worker(threading.Thread):
             seconds = time.perf_counter() - start
             total += seconds
             self._band_rows = final.band_rows(self._band_rows, seconds, full.height)
-            if done:
+            if done or full.converged:  # converged: adaptive sampling has no pixel left to sample
                 return total
             with self._lock:
                 if self._stopped or self._parts or self._size is not None:
@@ -305,6 +306,10 @@ class ViewportRender:
     def _settings_of(self, scene):
         s = scene.parallax
         params = s.render_params()
+        # The viewport's adaptive sampling (Cycles' preview settings) in the core's fields.
+        params["use_adaptive_sampling"] = s.use_preview_adaptive_sampling
+        params["adaptive_threshold"] = core.load().adaptive_threshold(s.preview_adaptive_threshold,
+                                                                      s.viewport_samples)
         pixel_size = 0 if s.viewport_start_pixel_size == "AUTO" else int(s.viewport_start_pixel_size)
         return params, s.viewport_samples, pixel_size, s.device, s.viewport_pass
 

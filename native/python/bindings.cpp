@@ -313,6 +313,9 @@ NB_MODULE(_native, m) {
                      "first: seconds on lavapipe with a cold Mesa shader cache).")
         .def_prop_ro("samples", &px::Session::samples, "Samples per pixel accumulated (cheap: no "
                      "download, unlike stats()).")
+        .def_prop_ro("converged", &px::Session::converged,
+                     "Adaptive sampling found every pixel converged: render() adds nothing more (cheap). "
+                     "stats()['adaptive_active_pixels'] counts the pixels still sampled.")
         .def("reset", &px::Session::reset, nb::call_guard<nb::gil_scoped_release>())
         .def("guiding_mixture",
              [](px::Session& s, nb::ndarray<const double, nb::c_contig, nb::device::cpu> point) {
@@ -341,6 +344,7 @@ NB_MODULE(_native, m) {
                  d["blas_builds"] = st.blas_builds;
                  d["light_tree_nodes"] = st.light_tree_nodes;
                  d["contact_boxes"] = st.contact_boxes;
+                 d["adaptive_active_pixels"] = st.adaptive_active_pixels;
                  for (const auto& [name, value] : st.techniques)
                      std::visit([&, &name = name](const auto& v) { d[name.c_str()] = v; }, value);
                  d["device"] = s.device().name;

@@ -6,6 +6,7 @@
 #include "guiding_query_closest_hit.spv.h"
 #include "guiding_query_intersection.spv.h"
 #include "guiding_query_miss.spv.h"
+#include "adaptive.spv.h"
 #include "ic_finish.spv.h"
 #include "ic_hemisphere.spv.h"
 #include "ic_query_any_hit.spv.h"
@@ -35,6 +36,7 @@ PX_SHADER(ic_query_miss)
 PX_SHADER(ic_query_intersection)
 PX_SHADER(ic_query_any_hit)
 PX_SHADER(ic_finish)
+PX_SHADER(adaptive)
 PX_SHADER(guiding_query_miss)
 PX_SHADER(guiding_query_intersection)
 PX_SHADER(guiding_query_closest_hit)

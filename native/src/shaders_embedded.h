@@ -16,6 +16,7 @@ const std::vector<uint32_t>& shader_ic_query_miss();
 const std::vector<uint32_t>& shader_ic_query_intersection();
 const std::vector<uint32_t>& shader_ic_query_any_hit();
 const std::vector<uint32_t>& shader_ic_finish();
+const std::vector<uint32_t>& shader_adaptive();
 const std::vector<uint32_t>& shader_guiding_query_miss();
 const std::vector<uint32_t>& shader_guiding_query_intersection();
 const std::vector<uint32_t>& shader_guiding_query_closest_hit();

@@ -8,6 +8,8 @@ const float INFINITY_F = 1.0e30;
 
 layout(set = 0, binding = BINDING_FILM, scalar) buffer FilmBuffer { vec4 film[]; };
 layout(set = 0, binding = BINDING_RAY_COUNT, scalar) buffer RayCountBuffer { uint ray_count[]; };
+layout(set = 0, binding = BINDING_ADAPTIVE_AUX, scalar) buffer AdaptiveAuxBuffer { vec4 adaptive_aux[]; };
+layout(set = 0, binding = BINDING_ADAPTIVE_PIXELS, scalar) buffer AdaptivePixelBuffer { uint adaptive_pixels[]; };
 layout(set = 0, binding = BINDING_POSITIONS, scalar) readonly buffer PositionBuffer { vec3 positions[]; };
 layout(set = 0, binding = BINDING_INDICES, scalar) readonly buffer IndexBuffer { uvec3 indices[]; };
 layout(set = 0, binding = BINDING_CORNER_NORMALS, scalar) readonly buffer NormalBuffer { vec3 corner_normals[]; };
@@ -39,6 +41,21 @@ uint film_slot(uint pass) { return bitCount(params.film_passes & ((1u << pass) -
 void film_add(uint pass, uint pixel_index, vec4 value) {
     if ((params.film_passes & (1u << pass)) == 0u) return;
     film[film_slot(pass) * (params.width * params.height) + pixel_index] += value;
+}
+
+// The image pixel of a dispatch's launch position `launch` (gl_LaunchIDEXT.xy): its place in
+// the dispatch's image rectangle (col_offset, row_offset), or with adaptive sampling's active
+// list (ADAPTIVE_LIST) the pixel that entry of the list names, the list read as a virtual image
+// of `width` columns (the session's row bands and cursor run over it as over the image). false:
+// a lane past the list's end, which traces nothing.
+bool dispatch_pixel(uvec2 launch, out uvec2 pixel) {
+    pixel = launch + uvec2(params.col_offset, params.row_offset);
+    if (params.adaptive != ADAPTIVE_LIST) return true;
+    uint entry = pixel.y * params.width + pixel.x;
+    if (entry >= params.active_pixels) return false;
+    uint index = adaptive_pixels[entry];
+    pixel = uvec2(index % params.width, index / params.width);
+    return true;
 }
 
 float max3(vec3 v) { return max(v.x, max(v.y, v.z)); }

@@ -59,7 +59,13 @@ PX_CONST uint BINDING_ADRRS_ADJOINT = 35;  // vec4 per grid cell and axis direct
 PX_CONST uint BINDING_GGX_TABLES = 36;     // uint unorm16 pairs: multiscatter GGX albedos (ggx_tables.h)
 PX_CONST uint BINDING_LIGHT_TREE = 37;     // LightTreeNode[], root first (SceneInfo.light_tree_nodes)
 PX_CONST uint BINDING_GUIDING_NODES = 38;  // GuidingNode[]: the region tree, walked by guiding_region_at
-PX_CONST uint BINDING_COUNT = 39;
+// Adaptive sampling (Cycles' adaptive_aux_buffer): per pixel, rgb = twice the radiance sums of
+// every second sample (the half buffer A), w = 1 once the pixel converged (adaptive.comp).
+PX_CONST uint BINDING_ADAPTIVE_AUX = 39;
+// uint[2 * pixels]: the active pixels' indices in image order (FrameParams.active_pixels of
+// them, dispatch_pixel), then per pixel 1 while it is still sampled (the filtered mask).
+PX_CONST uint BINDING_ADAPTIVE_PIXELS = 40;
+PX_CONST uint BINDING_COUNT = 41;
 
 // ---- shader binding table: miss shaders and hit groups (RayTracingPipeline group order) -
 PX_CONST uint MISS_SCENE = 0;         // miss.rmiss: the world
@@ -86,7 +92,9 @@ PX_CONST uint PASS_GUIDING_REGIONS = 9;     // rgb = a colour per guiding region
 PX_CONST uint PASS_GUIDING_COMPONENTS = 10; // x = active lobes / guiding_max_components at the first hit
 PX_CONST uint PASS_GUIDING_LOBES = 11;      // rgb = VMM pdf: probe inset (lat-long) + per-region spheres
 PX_CONST uint PASS_NEE_VISIBILITY = 12;     // x = shadow rays that reached their light, y = shadow rays traced
-PX_CONST uint PASS_COUNT = 13;
+PX_CONST uint PASS_COUNT = 13;     // film slots
+// Samples per pixel: no film slot of its own, Session::read takes Combined's w (the count).
+PX_CONST uint PASS_SAMPLE_COUNT = PASS_COUNT;
 
 // ---- enums ------------------------------------------------------------------------------
 PX_CONST uint METHOD_PT = 0;   // BSDF sampling only
@@ -300,7 +308,20 @@ struct FrameParams {
     // The film's passes, bit PASS_* (PASS_COMBINED always): the film holds only these, in PASS_*
     // order (film_slot in lib/common.glsl, Session::film_offset).
     uint film_passes;
+    // Adaptive sampling: ADAPTIVE_OFF, ADAPTIVE_IMAGE (the dispatch covers its image rectangle
+    // and fills the half buffer) or ADAPTIVE_LIST (it covers a virtual image of `width` columns
+    // over the first active_pixels entries of BINDING_ADAPTIVE_PIXELS). Render frames only.
+    uint adaptive;
+    uint active_pixels;
+    float adaptive_threshold;  // adaptive.comp: Cycles' threshold (x5, as Cycles scales it)
 };
+
+PX_CONST uint ADAPTIVE_OFF = 0;
+PX_CONST uint ADAPTIVE_IMAGE = 1;
+PX_CONST uint ADAPTIVE_LIST = 2;
+// adaptive.comp's two dispatches (FrameParams.mode): the convergence check, then the filter.
+PX_CONST uint ADAPTIVE_CHECK = 0;
+PX_CONST uint ADAPTIVE_FILTER = 1;
 
 // Sampling test routines (shaders/tests/sampling_test.comp).
 PX_CONST uint TEST_DIFFUSE = 0;

@@ -106,9 +106,10 @@ struct AdrrsOptions {
     uint local;             // the pixel's slot in this dispatch's split queue
     uint pixels;            // pixels of this dispatch
     uint samples;           // samples per pixel of this dispatch (the split budget's multiple)
+    bool half_sample;       // the sample belongs to adaptive sampling's half buffer: so do its copies
 };
 
-AdrrsOptions adrrs_no_options() { return AdrrsOptions(false, false, 0.0, 0u, 0u, 1u); }
+AdrrsOptions adrrs_no_options() { return AdrrsOptions(false, false, 0.0, 0u, 0u, 1u, false); }
 
 // FRAME_ADRRS_ESTIMATE: camera paths to the first non-delta vertex build the pixel estimate.
 bool adrrs_estimate_frame() { return USES(TECH_ADRRS) && params.mode == FRAME_ADRRS_ESTIMATE; }
@@ -182,7 +183,7 @@ bool adrrs_continuation(AdrrsOptions o, IcVertex ic, Vertex v, inout PathState p
         ps.throughput /= q;
         ps.roulette_throughput /= q;
         if (copies > 1u) {
-            uint flags = camera_segment ? ADRRS_SPLIT_CAMERA_RAY : 0u;
+            uint flags = (camera_segment ? ADRRS_SPLIT_CAMERA_RAY : 0u) | (o.half_sample ? ADRRS_SPLIT_HALF : 0u);
             uint seed = uint(rnd(rng) * 4294967040.0) ^ (segments << 24);
             adrrs_queue(o.local, o.pixels,
                         AdrrsSplit(ps.origin, ps.t_min, ps.dir, ps.t_max, ps.throughput, seed,
@@ -206,7 +207,10 @@ bool adrrs_split_pixel(uint P, out uint local, out uint pixel_index) {
     pixel_index = 0u;
     if (i >= adrrs_active_count) return false;
     local = adrrs_words[2u * P + i];
-    uvec2 pixel = uvec2(local % gl_LaunchSizeEXT.x, local / gl_LaunchSizeEXT.x) + uvec2(params.col_offset, params.row_offset);
+    // The pixel the camera dispatch traced at launch index `local` (through adaptive sampling's
+    // active list where it has one).
+    uvec2 pixel;
+    if (!dispatch_pixel(uvec2(local % gl_LaunchSizeEXT.x, local / gl_LaunchSizeEXT.x), pixel)) return false;
     pixel_index = pixel.y * params.width + pixel.x;
     return true;
 }

@@ -43,15 +43,18 @@ TechniqueOptions camera_techniques(uint pixel_index, uint local, uint P, out Tec
 }
 
 // Sample s of the pixel (npix: the film's pixels).
-void techniques_sample(inout TechniqueOptions o, uint s, uint pixel_index, uint npix) {
+// half_sample: the sample goes to adaptive sampling's half buffer (so do its split copies).
+void techniques_sample(inout TechniqueOptions o, uint s, uint pixel_index, uint npix, bool half_sample) {
     guiding_sample_options(o.guiding, s, pixel_index, npix);
+    o.adrrs.half_sample = half_sample;
 }
 
 // A split copy's (adrrs.glsl's split queue).
-TechniqueOptions split_techniques(uint pixel_index, uint local, uint P) {
+TechniqueOptions split_techniques(uint pixel_index, uint local, uint P, bool half_sample) {
     TechniqueOptions o = no_techniques();
     o.ic = ic_split_options(pixel_index);
     o.adrrs = adrrs_split_options(pixel_index, local, P);
+    o.adrrs.half_sample = half_sample;
     o.guiding = guiding_split_options();
     return o;
 }

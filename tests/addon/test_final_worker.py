@@ -10,10 +10,16 @@ class ScriptedSession:
     film starts over (samples back to 0) after `fallback_frames` frames, as Session does when a
     technique's pipelines are compiled."""
 
-    def __init__(self, clock, height=10, fallback_frames=0):
+    def __init__(self, clock, height=10, fallback_frames=0, converged_after=None):
         self.clock, self.height, self.width = clock, height, 4
         self.samples, self.next_row, self.fallback_frames = 0, 0, fallback_frames
         self.fallback_samples = 0
+        self.converged_after = converged_after  # adaptive sampling: every pixel converged after these frames
+        self.calls_after_converged = 0
+
+    @property
+    def converged(self):
+        return self.converged_after is not None and self.samples >= self.converged_after
 
     @property
     def fallback_film(self):
@@ -21,6 +27,9 @@ class ScriptedSession:
 
     def render_rows(self, rows):
         assert rows == 1  # a band of a second is far above BAND_SECONDS: one row at a time
+        if self.converged:  # as Session: nothing left to trace
+            self.calls_after_converged += 1
+            return False
         self.clock[0] += 1.0
         self.next_row += 1
         if self.next_row < self.height:
@@ -74,3 +83,12 @@ def test_frames_rendered_while_a_technique_compiled_do_not_count(final):
     worker.run()
     assert session.fallback_samples == 6 and session.samples == 4
     assert worker.snapshot[0] == 4
+
+
+def test_adaptive_sampling_converged_ends_the_render_before_the_target(final):
+    final, clock = final
+    session = ScriptedSession(clock, height=2, converged_after=3)
+    worker = final._Worker(session, samples=100, time_limit=0.0, core_passes={"combined"})
+    worker.run()
+    assert worker.error is None and session.samples == 3 and worker.snapshot[0] == 3
+    assert session.calls_after_converged == 0  # stopped without asking for more

@@ -119,14 +119,20 @@ def test_a_change_of_any_row_reaches_the_viewport(fresh):
     view.worker = FakeWorker()
     depsgraph = FakeDepsgraph(fresh)
     view.update(None, None, depsgraph)
+    # The viewport's own adaptive sampling rows take the core fields of F12's (Cycles' preview_*).
+    viewport_rows = {"use_preview_adaptive_sampling": "use_adaptive_sampling",
+                     "preview_adaptive_threshold": "adaptive_threshold"}
     for row in UI_ROWS:
         handed_over = len(view.worker.submitted)
         setattr(fresh.parallax, row.name, changed(row))
         view.update(None, None, depsgraph)
-        if row.core:
+        if row.name in viewport_rows:
+            assert len(view.worker.submitted) == handed_over + 1, row.name
+            assert same(view.worker.submitted[-1]["params"][viewport_rows[row.name]], changed(row)), row.name
+        elif row.core and row.name not in viewport_rows.values():
             assert len(view.worker.submitted) == handed_over + 1, row.name
             assert same(view.worker.submitted[-1]["params"][row.name], changed(row)), row.name
-        else:  # F12's samples and time limit: the viewport has its own
+        else:  # F12's samples, time limit and adaptive sampling: the viewport has its own
             assert len(view.worker.submitted) == handed_over, row.name
 
 

@@ -32,7 +32,8 @@ def test_rows_are_well_formed():
     # Each technique's switch is the bool setting named as the technique.
     for t in ("ic", "adrrs", "guiding"):
         assert pc.setting(t).type == "bool" and pc.setting(t).technique == t
-    assert [s.name for s in pc.SETTINGS if not s.core] == ["samples", "time_limit"]
+    assert [s.name for s in pc.SETTINGS if not s.core] == [
+        "samples", "time_limit", "use_preview_adaptive_sampling", "preview_adaptive_threshold"]
 
 
 def test_render_params_come_from_the_core_rows():

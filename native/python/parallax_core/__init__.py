@@ -26,7 +26,7 @@ from .scene import PART_KEYS, PARTS, parts_set
 __all__ = ["Session", "RenderParams", "SETTINGS", "PASSES", "setting", "devices", "METHODS", "PARTS", "LIMITS",
            "DeviceMemoryError", "memory", "set_memory_budget", "validation_enabled", "validation_messages",
            "light_tree_min_lights", "set_light_tree_min_lights", "primitive_order", "background_compiles",
-           "wait_for_background_compiles"]
+           "wait_for_background_compiles", "adaptive_threshold"]
 
 # A pipeline still compiling on a worker thread when the process tears down crashed it: wait.
 atexit.register(wait_for_background_compiles)
@@ -52,6 +52,15 @@ def setting(name: str) -> Setting:
 
 
 METHODS = tuple(item[0] for item in setting("method").items)
+
+
+def adaptive_threshold(threshold: float, samples: int) -> float:
+    """The noise threshold to give the core: ``threshold``, or for 0 (automatic) Cycles' choice
+    from the sample target, max(0.001, 1 / samples) (the core alone, without a target, takes
+    0.001). F12, the viewport and the CLI pass theirs through this."""
+    if threshold > 0 or samples <= 0:
+        return threshold
+    return max(0.001, 1.0 / samples)
 _TYPES = {"bool": bool, "int": int, "float": float, "enum": str}
 
 

@@ -180,6 +180,9 @@ def cmd_render(args):
     if "samples" in overrides:
         args.samples = overrides.pop("samples")
     time_limit = overrides.pop("time_limit", 0.0)
+    from . import setting
+    for name in [n for n in overrides if not setting(n).core]:  # the viewport's: no viewport here
+        overrides.pop(name)
     from .exr import write_exr, write_png
     from .scene import SceneData
 
@@ -202,7 +205,7 @@ def cmd_render(args):
         print(f"parallax: note: {spp} spp is not a multiple of --spp-per-frame {per_frame}; "
               f"rendering {frames * per_frame}", file=sys.stderr)
 
-    from . import PASSES, Session
+    from . import PASSES, Session, adaptive_threshold
 
     session = Session(width, height, device=_device_arg(args.device or "auto"))
     params = dict(samples_per_frame=per_frame)
@@ -212,6 +215,8 @@ def cmd_render(args):
         if getattr(args, key) is not None:
             params[key] = getattr(args, key)
     params.update(overrides, samples_per_frame=per_frame)
+    if "adaptive_threshold" in params:  # 0: automatic, from the sample target (Cycles)
+        params["adaptive_threshold"] = adaptive_threshold(params["adaptive_threshold"], frames * per_frame)
     session.set_params(**params)
     for w in session.update(scene):  # SceneData's warnings and the core's
         print(f"parallax: warning: {w}", file=sys.stderr)
@@ -220,6 +225,8 @@ def cmd_render(args):
     try:
         for frame in range(frames):
             if time_limit > 0 and frame > 0 and time.perf_counter() - start >= time_limit:
+                break
+            if session.converged:  # adaptive sampling: every pixel converged
                 break
             session.render(1)  # the first call runs the irradiance cache's prepare frames too
             stats = session.stats()

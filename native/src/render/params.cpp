@@ -27,6 +27,26 @@ const SettingTable& base_table() {
                         "more often", "sampling"),
             int_setting("seed", PX_FIELD(RenderParams, seed), 0, 0, INT32_MAX, "Seed",
                         "Random seed; the same seed gives the same image on the same device", "sampling"),
+            // Adaptive sampling (Cycles' names, defaults and ranges; render/adaptive.h)
+            bool_setting("use_adaptive_sampling", PX_FIELD(RenderParams, use_adaptive_sampling), true,
+                         "Adaptive Sampling",
+                         "Stop sampling pixels whose estimated noise fell below the threshold (Cycles' adaptive "
+                         "sampling): fewer samples where the image is flat", "sampling").in_group("Adaptive Sampling"),
+            float_setting("adaptive_threshold", PX_FIELD(RenderParams, adaptive_threshold), 0.01, 0.0, 1.0,
+                          "Noise Threshold",
+                          "Noise level at which a pixel stops sampling; lower values reduce noise at the cost of "
+                          "render time (0: automatic, from the sample count, as Cycles)", "sampling")
+                .in_group("Adaptive Sampling"),
+            int_setting("adaptive_min_samples", PX_FIELD(RenderParams, adaptive_min_samples), 0, 0, 4096,
+                        "Min Samples",
+                        "Samples every pixel takes before it may stop, to find noisy features first (0: automatic, "
+                        "from the threshold, as Cycles)", "sampling").in_group("Adaptive Sampling"),
+            // The viewport's (the engine maps them onto the fields above: addon/engine/viewport.py)
+            bool_setting("use_preview_adaptive_sampling", kEngine, true, "Adaptive Sampling",
+                         "Adaptive sampling in the viewport", "sampling").in_group("Viewport"),
+            float_setting("preview_adaptive_threshold", kEngine, 0.1, 0.0, 1.0, "Noise Threshold",
+                          "The viewport's noise threshold (0: automatic, from the viewport's sample count)",
+                          "sampling").in_group("Viewport"),
             // Light paths
             int_setting("max_depth", PX_FIELD(RenderParams, max_depth), 8, 0, 1024, "Max Bounces",
                         "Maximum number of non-specular bounces (Cycles' Max Bounces)", "light_paths"),
@@ -74,6 +94,9 @@ const SettingTable& base_table() {
             {"nee_visibility", "NEE Visibility", 1, "X",
              "Fraction of the pixel's NEE shadow rays that reached their light (0 where none was traced)",
              PASS_NEE_VISIBILITY, "", "", true},
+            // Adaptive sampling at work: low where the image is flat (Cycles' Sample Count).
+            {"sample_count", "Sample Count", 1, "X", "Samples the pixel took (fewer where adaptive sampling stopped it)",
+             PASS_SAMPLE_COUNT, ""},
         }};
     return table;
 }

@@ -23,6 +23,11 @@ struct RenderParams {
     uint32_t preview{};
     // Local lights picked through the light tree (Cycles' Light Tree); 0: by power.
     uint32_t light_tree{};
+    // Adaptive sampling (Cycles' settings): pixels whose noise estimate fell below the threshold
+    // stop sampling (render/adaptive.h).
+    uint32_t use_adaptive_sampling{};
+    float adaptive_threshold{};
+    uint32_t adaptive_min_samples{};  // 0: automatic, from the threshold
     IcParams ic{};          // irradiance cache (techniques/irradiance_cache.h)
     AdrrsParams adrrs{};    // adjoint-driven Russian roulette and splitting (techniques/adrrs.h)
     GuidingParams guiding{};  // path guiding (techniques/guiding/guiding.h)

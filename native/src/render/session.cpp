@@ -41,6 +41,8 @@ Session::Session(uint32_t width, uint32_t height, const std::string& device) : w
     set_->bind_buffer(BINDING_TECH_PARAMS, technique_params_);
     ggx_tables_ = Buffer::with_data(*ctx_, GGX_TABLE_WORDS, sizeof(GGX_TABLE_WORDS), kStorageUsage);
     set_->bind_buffer(BINDING_GGX_TABLES, ggx_tables_);
+    adaptive_ = std::make_unique<AdaptiveSampling>(*ctx_, width, height);
+    adaptive_->bind(*set_);
     for (const auto& t : techniques_) t->bind(*set_);
     upload_technique_params();
     reset();
@@ -60,6 +62,7 @@ void Session::reset_accumulation(bool view_only) {
     allocate_film();
     film_.fill_zero();
     ray_count_.fill_zero();
+    adaptive_->configure(params_);  // every pixel sampled again
     if (!scene_) return;
     if (view_only) {  // what the techniques hold in world space stays
         for (const auto& t : techniques_) t->view_changed();
@@ -83,7 +86,8 @@ Session::~Session() = default;
 uint32_t Session::film_passes() const {
     uint32_t mask = 1u << PASS_COMBINED;  // holds every pixel's sample count
     for (const PassInfo& p : px::passes())
-        if ((listed_passes_ >> p.index & 1u) && (!*p.setting || read_setting(&params_, setting(p.setting))))
+        if (p.index < PASS_COUNT && (listed_passes_ >> p.index & 1u) &&
+            (!*p.setting || read_setting(&params_, setting(p.setting))))
             mask |= 1u << p.index;
     return mask;
 }
@@ -456,7 +460,8 @@ Session::DispatchPlan Session::dispatch_plan() const {
 uint64_t Session::record_dispatch(VkCommandBuffer cmd, RayTracingPipeline& pipe, const DispatchPlan& plan,
                                   uint32_t frame, uint32_t& rows, bool& frame_done) {
     Cursor& c = cursor_;
-    const uint32_t h = std::min({plan.rows, height_ - c.row, rows});
+    const uint32_t frame_rows = adaptive_->rows();  // fixed within a frame (checks come between frames)
+    const uint32_t h = std::min({plan.rows, frame_rows - c.row, rows});
     const uint32_t w = std::min(plan.cols, width_ - c.col);
     const uint32_t n = std::min(plan.samples, params_.samples_per_frame - c.sample);
     FrameParams fp = frame_params(frame);
@@ -464,6 +469,7 @@ uint64_t Session::record_dispatch(VkCommandBuffer cmd, RayTracingPipeline& pipe,
     fp.col_offset = c.col;
     fp.sample_offset = c.sample;
     fp.sample_count = n;
+    adaptive_->fill(fp);  // rows: of the active list's virtual image once adaptive sampling has one
     VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
     b.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
     b.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_READ_BIT |
@@ -492,7 +498,7 @@ uint64_t Session::record_dispatch(VkCommandBuffer cmd, RayTracingPipeline& pipe,
     c.sample = 0;
     c.row += h;
     if (rows != UINT32_MAX) rows -= h;
-    if (c.row == height_) {
+    if (c.row == frame_rows) {
         c.row = 0;
         frame_done = true;
     }
@@ -527,7 +533,6 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
     if (cancel_.exchange(false)) return 0;
     auto start = std::chrono::steady_clock::now();
     const DispatchPlan plan = dispatch_plan();
-    const uint64_t paths = uint64_t(width_) * height_ * params_.samples_per_frame;
     // With background compiles, a frame that starts while the techniques' pipelines compile
     // renders with the techniques off (the fallback), and so does the rest of that frame.
     // Once they are compiled, the film starts over with the techniques' first render frame
@@ -546,6 +551,13 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
     bool stop = false;
     double frame_milliseconds = 0;  // the submissions of the frame in progress (FrameEnd)
     while (!stop && (frames ? completed < frames : rows_left > 0)) {
+        // Adaptive sampling between frames: the convergence check when due, and no frame once
+        // every pixel converged.
+        if (cursor_.at_frame_start() && !film_after_fallback_) {
+            const uint64_t samples = stats_.samples + uint64_t(completed) * params_.samples_per_frame;
+            if (adaptive_->check_due(samples)) adaptive_->check(samples, set_->layout(), set_->set());
+            if (adaptive_->converged()) break;
+        }
         Technique* host = nullptr;  // the first technique that needs a host frame now
         for (const auto& t : techniques_)
             if (!fallback && !host && cursor_.at_frame_start() && t->needs_host_frame()) host = t.get();
@@ -562,6 +574,7 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
             stats_.fallback_milliseconds = fallback_stats.fallback_milliseconds;
             film_.fill_zero();
             ray_count_.fill_zero();
+            adaptive_->reset();
             start = std::chrono::steady_clock::now();
         }
         // Techniques that step after each frame: a submission holds at most one frame.
@@ -582,11 +595,14 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
                 }
                 ++completed;
                 if (frames == 0) break;  // render_rows: at most the rest of one frame
+                // Adaptive sampling's check comes between submissions (it reads the film back).
+                if (adaptive_->check_due(stats_.samples + uint64_t(completed) * params_.samples_per_frame)) break;
             }
         });
         frame_milliseconds += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - submit_start).count();
         if (step) {
             const uint64_t samples = stats_.samples + uint64_t(completed + 1) * params_.samples_per_frame;
+            const uint64_t paths = uint64_t(adaptive_->active_pixels()) * params_.samples_per_frame;
             const FrameEnd end{frame_params(stats_.frames + completed), paths, samples, frame_milliseconds};
             for (const auto& t : techniques_)
                 if (t->steps_after_frame()) t->after_frame(*this, end);
@@ -626,14 +642,18 @@ std::vector<float> Session::read(const std::string& pass, uint32_t& channels) {
     const size_t pixels = size_t(width_) * height_;
     channels = info->channels;
     std::vector<float> out(pixels * channels, 0.0f);
-    const bool held = allocated_passes_ >> info->index & 1u;  // else its technique is off: zeros
+    // Sample Count has no film slot of its own: it is Combined's w. A pass whose technique is
+    // off is not held: zeros.
+    const uint32_t slot = info->index == PASS_SAMPLE_COUNT ? PASS_COMBINED : info->index;
+    const bool held = allocated_passes_ >> slot & 1u;
     std::vector<vec4> sums(held ? pixels : 0), counts(pixels);  // counts: the combined pass, w = samples
-    if (held) film_.download(sums.data(), pixels * sizeof(vec4), film_offset(info->index));
+    if (held) film_.download(sums.data(), pixels * sizeof(vec4), film_offset(slot));
     film_.download(counts.data(), pixels * sizeof(vec4), film_offset(PASS_COMBINED));
     for (size_t i = 0; i < pixels && held; ++i) {
         const float inv = counts[i].w > 0 ? 1.0f / counts[i].w : 0.0f;
         float v[4] = {sums[i].x * inv, sums[i].y * inv, sums[i].z * inv, sums[i].w * inv};
         if (info->fraction) v[0] = sums[i].y > 0 ? sums[i].x / sums[i].y : 0.0f;
+        if (info->index == PASS_SAMPLE_COUNT) v[0] = counts[i].w;  // no film slot: the count itself
         for (uint32_t c = 0; c < channels; ++c) out[i * channels + c] = v[c];
     }
     if (info->index == PASS_DEPTH)
@@ -661,6 +681,7 @@ SessionStats Session::stats() {
     out.fallback_film = fallback_frame_ || film_after_fallback_;
     out.light_tree_nodes = scene_ ? scene_->host().info.light_tree_nodes : 0;
     out.contact_boxes = scene_ ? scene_->host().info.contact_box_count : 0;
+    out.adaptive_active_pixels = adaptive_->active_pixels();
     for (const auto& t : techniques_) t->stats(out.techniques);
     return out;
 }

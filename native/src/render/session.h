@@ -1,6 +1,7 @@
 // Session: one device, one scene, one film. Progressive: every render() call adds
 // samples_per_frame samples per pixel to the running sums; read() divides by the count.
 #pragma once
+#include "render/adaptive.h"
 #include "render/params.h"
 #include "scene/scene.h"
 #include "techniques/technique.h"
@@ -27,6 +28,8 @@ struct SessionStats {
     uint64_t blas_builds = 0;  // BLASes built by this session's updates (never reset; debugging)
     uint32_t light_tree_nodes = 0;  // nodes of the scene's light tree (0: lights picked by power)
     uint32_t contact_boxes = 0;     // boxes round transmissive instances (SceneInfo.contact_lo/hi)
+    // Pixels the next frame samples (adaptive sampling stops the converged ones; all without it).
+    uint64_t adaptive_active_pixels = 0;
     StatList techniques;  // each technique's own (Technique::stats)
 };
 
@@ -65,9 +68,16 @@ public:
     void cancel() { cancel_ = true; }
     uint32_t next_row() const { return cursor_.row; }
     // Samples per pixel accumulated (completed frames); cheap, unlike stats().
+    // With adaptive sampling, those of the pixels still sampled (the most any pixel has).
     uint64_t samples() {
         std::lock_guard<std::mutex> lock(mutex_);
         return stats_.samples;
+    }
+    // Adaptive sampling found every pixel converged: render() and render_rows() add nothing
+    // until a reset (cheap).
+    bool converged() {
+        std::lock_guard<std::mutex> lock(mutex_);
+        return adaptive_->converged();
     }
     // (height, width, channels) float32, row 0 = top; each pixel's sums divided by its own
     // sample count (exact after a partial or cancelled frame too).
@@ -184,6 +194,7 @@ private:
     uint32_t listed_passes_ = 0;     // set_passes, bit PASS_*
     uint32_t allocated_passes_ = 0;  // the passes film_ holds
     Buffer film_, ray_count_, test_io_, technique_params_, ggx_tables_;  // ggx: constant, multiscatter albedos
+    std::unique_ptr<AdaptiveSampling> adaptive_;  // Cycles' adaptive sampling (render/adaptive.h)
     // The techniques, in the order their hooks run (built by the constructor).
     std::vector<std::unique_ptr<Technique>> techniques_;
     uint64_t scene_version_ = 0;  // bumped by every update but a camera-only one (guiding keeps its field)

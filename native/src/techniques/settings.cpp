@@ -90,7 +90,7 @@ const EnumItem* SettingInfo::item(uint32_t value) const {
 
 SettingInfo bool_setting(const char* name, FieldRef field, bool def, const char* label, const char* tooltip,
                          const char* panel) {
-    assert(field.storage == Storage::U32);
+    assert(field.storage == Storage::U32 || field.storage == Storage::None);  // None: an engine setting
     return row(name, SettingType::Bool, field, def ? 1 : 0, 0, 1, label, tooltip, panel);
 }
 
