@@ -41,8 +41,9 @@ Setting = collections.namedtuple(
     "Setting", "name technique type default min max items label tooltip panel group unit core")
 SETTINGS = tuple(Setting(**row) for row in _SETTINGS)
 # Passes in film order; label: the Blender pass and EXR layer name; setting: the setting
-# that enables the pass ("" = always).
-Pass = collections.namedtuple("Pass", "name label channels channel_ids description technique setting")
+# that enables the pass ("" = always); core: read from the film by Session.read (False: made by
+# the engine in Python, as the denoiser's Noisy Image, parallax_core.denoise).
+Pass = collections.namedtuple("Pass", "name label channels channel_ids description technique setting core")
 PASSES = tuple(Pass(**row) for row in _PASSES)
 
 
@@ -143,8 +144,8 @@ class Session(_NativeSession):
         return warnings
 
     def read_all(self) -> dict:
-        """Every pass, by name."""
-        return {p.name: self.read(p.name) for p in PASSES}
+        """Every pass of the film, by name (not the engine's: Noisy Image)."""
+        return {p.name: self.read(p.name) for p in PASSES if p.core}
 
     def test_sampling(self, routine: int, params, count: int, seed: int = 0, directions=None, constants=None):
         """Run shaders/tests/sampling_test.comp; returns float32 (count, 2, 4). Test use only.

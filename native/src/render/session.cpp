@@ -580,6 +580,8 @@ bool Session::render_rows(uint32_t rows) {
 
 std::vector<float> Session::read(const std::string& pass, uint32_t& channels) {
     const PassInfo* info = &px::pass(pass);
+    if (info->engine)
+        throw std::invalid_argument("pass '" + pass + "' is made by the engine (parallax_core.denoise), not the film");
     std::lock_guard<std::mutex> lock(mutex_);
     const size_t pixels = size_t(width_) * height_;
     std::vector<vec4> sums(pixels), counts(pixels);  // counts: the combined pass, w = samples
