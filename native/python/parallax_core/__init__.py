@@ -21,6 +21,7 @@ from ._native import (LIMITS, DeviceMemoryError, background_compiles, devices, l
                       wait_for_background_compiles)
 from ._native import Session as _NativeSession
 from ._native import _PASSES, _SETTINGS, _make_params, _setting_index
+from . import denoise  # noqa: F401  (OIDN: parallax_core.denoise)
 from .scene import PART_KEYS, PARTS, parts_set
 
 __all__ = ["Session", "RenderParams", "SETTINGS", "PASSES", "setting", "devices", "METHODS", "PARTS", "LIMITS",

@@ -183,6 +183,8 @@ class Denoiser:
                 self.device_kind = "cpu"
         if self._device is None:
             self._device = self._new_device(_DEVICE_CPU)
+        v = lib.oidnGetDeviceInt(self._device, b"version")
+        self.version = f"{v // 10000}.{v // 100 % 100}.{v % 100}"  # OIDN's, as major.minor.patch
 
     def _new_device(self, kind):
         device = self._lib.oidnNewDevice(kind)
@@ -195,12 +197,6 @@ class Denoiser:
             self._lib.oidnReleaseDevice(device)
             raise
         return device
-
-    @property
-    def version(self):
-        """OIDN's version as "major.minor.patch"."""
-        v = self._lib.oidnGetDeviceInt(self._device, b"version")
-        return f"{v // 10000}.{v // 100 % 100}.{v % 100}"
 
     def _check(self, device=None):
         message = ctypes.c_char_p()
