@@ -94,10 +94,20 @@ def parse_params(assignments):
         if row is None:
             raise ValueError(f"--set {item!r}: for .npz scenes NAME is a setting: {', '.join(rows)}")
         try:
-            params[name] = _PARSERS[row.type](text)
+            params[name] = value = _PARSERS[row.type](text)
+            if not row.core:  # the core checks its own rows; the engine's are checked here
+                check_engine_value(row, value)
         except ValueError as e:
             raise ValueError(f"--set {item!r}: {e}") from None
     return params
+
+
+def check_engine_value(row, value):
+    """ValueError unless ``value`` is within an engine row's range or among its items."""
+    if row.type == "enum" and value not in [i[0] for i in row.items]:
+        raise ValueError(f"{row.name} must be one of {', '.join(i[0] for i in row.items)}")
+    if row.type in ("int", "float") and not row.min <= value <= row.max:
+        raise ValueError(f"{row.name} must be in [{row.min}, {row.max}]")
 
 
 def ic_status(stats):
