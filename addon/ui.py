@@ -44,7 +44,7 @@ class _SettingsPanel(_ParallaxPanel):
     def draw(self, context):
         settings = context.scene.parallax
         layout = _split(self.layout)
-        note = PANEL_NOTES.get(self.bl_idname)
+        note = PANEL_NOTES.get(getattr(self, "bl_idname", ""))
         if note is not None:
             for line, icon in note():
                 layout.label(text=line, icon=icon)

@@ -418,7 +418,10 @@ class ViewportRender:
         s = scene.parallax
         params = s.render_params()
         pixel_size = 0 if s.viewport_start_pixel_size == "AUTO" else int(s.viewport_start_pixel_size)
-        denoise = s.engine_values() if s.use_preview_denoising else None
+        # The viewport's denoising rows (use_preview_denoising, preview_denoising_*), not F12's.
+        denoise = {name: value for name, value in s.engine_values().items()
+                   if name.startswith("preview_denois") or name == "use_preview_denoising"} \
+            if s.use_preview_denoising else None
         return params, s.viewport_samples, pixel_size, s.device, s.viewport_pass, denoise
 
     def update(self, engine, context, depsgraph):
