@@ -140,6 +140,9 @@ class FakeOidn:
         self.error = 5 if kind == 3 and not self.cuda_works else 0  # OIDN_ERROR_UNSUPPORTED_HARDWARE
         return len(self.new_devices)
 
+    def oidnSetDeviceBool(self, device, name, value):
+        assert (name, value) == (b"setAffinity", False) and self.new_devices[-1] == 1  # CPU only
+
     def oidnCommitDevice(self, device):
         pass
 

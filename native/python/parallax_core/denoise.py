@@ -97,6 +97,7 @@ def _bind(lib):
         "oidnReleaseDevice": (None, [p]),
         "oidnGetDeviceError": (i, [p, ctypes.POINTER(ctypes.c_char_p)]),
         "oidnGetDeviceInt": (i, [p, c]),
+        "oidnSetDeviceBool": (None, [p, c, b]),
         "oidnIsCUDADeviceSupported": (b, [i]),
         "oidnNewBuffer": (p, [p, s]),
         "oidnWriteBuffer": (None, [p, s, s, p]),
@@ -190,6 +191,11 @@ class Denoiser:
         device = self._lib.oidnNewDevice(kind)
         if not device:
             raise DenoiseError("OIDN could not create a device")
+        if kind == _DEVICE_CPU:
+            # No thread pinning: the renderer shares these cores, and asking TBB for the core
+            # types (OIDN's CPUEngine does, for pinning) loads tbbbind and hwloc, which abort
+            # Debian's Blender 3.4 (jemalloc; "free(): invalid pointer" in hwloc).
+            self._lib.oidnSetDeviceBool(device, b"setAffinity", False)
         self._lib.oidnCommitDevice(device)
         try:
             self._check(device)
