@@ -283,6 +283,8 @@ def render(engine, depsgraph):
     engine.end_result(result)
     if progress_stream is not None:
         progress_stream.write("\n")
+        if worker.denoise_message:  # how it was denoised, or why not
+            progress_stream.write(f"Parallax: {worker.denoise_message}\n")
     report.samples, report.cancelled = (shown[0] if shown else 0), cancelled
     report.worker_running = worker.is_alive()
     report.denoised, report.denoise_message = worker.denoised, worker.denoise_message
