@@ -21,6 +21,7 @@ edit came in meanwhile. Until the first denoised frame of a scene state the nois
 show; after it, the denoised ones (as Cycles' viewport). An edit shows its new noisy frames at
 once and never waits for the denoiser.
 """
+import os
 import threading
 import time
 import weakref
@@ -159,6 +160,10 @@ class _Worker(threading.Thread):
             self._denoiser.stop()
         if self.is_alive() and threading.current_thread() is not self:
             self.join(wait)
+
+    def edited_since(self, generation):
+        """Something was handed over after ``generation`` (its frames are outdated)."""
+        return self.generation != generation or self._stopped
 
     def denoise_pending(self):
         """A frame is with the denoiser (view_draw keeps redrawing until it is shown)."""
@@ -331,7 +336,10 @@ class _Worker(threading.Thread):
 
 class _DenoiseThread(threading.Thread):
     """Denoises the newest frame handed to it (older ones are dropped) with one OIDN device
-    of its own, and hands the result to the worker. OIDN's call releases the GIL (ctypes)."""
+    of its own, and hands the result to the worker. OIDN's call releases the GIL (ctypes).
+    It runs at a lower CPU priority than the render (nice +10, inherited by the threads OIDN
+    starts from it), and an edit cancels the denoise in progress (OIDN's progress monitor),
+    so the edit's frames get the cores at once."""
 
     def __init__(self, worker, device_type):
         super().__init__(name="parallax-viewport-denoise", daemon=True)
@@ -358,6 +366,10 @@ class _DenoiseThread(threading.Thread):
         denoise = core.load().denoise
         denoiser = None
         try:
+            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), 10)  # this thread (Linux)
+        except (AttributeError, OSError):
+            pass
+        try:
             while True:
                 with self._cond:
                     while self._job is None and not self._stopped:
@@ -372,8 +384,12 @@ class _DenoiseThread(threading.Thread):
                 try:
                     if generation == worker.generation:  # not already edited away
                         denoiser = denoiser or denoise.Denoiser(self._device_type)
-                        out = denoise.denoise_images(images, values, denoiser, preview=True)
+                        out = denoise.denoise_images(
+                            images, values, denoiser, preview=True,
+                            cancel=lambda: self._stopped or worker.edited_since(generation))
                         worker._show_denoised(generation, samples, out["combined"])
+                except denoise.DenoiseCancelled:
+                    pass  # an edit came in: its frames come next
                 except (denoise.DenoiserUnavailable, denoise.DenoiseError) as e:
                     worker.denoise_message = f"{e}; the viewport is not denoised"
                     return

@@ -187,3 +187,19 @@ def test_ctypes_releases_the_gil_while_oidn_runs():
     """The viewport's denoise thread relies on it: CDLL calls drop the GIL (PyDLL would not)."""
     lib, _, _ = denoise.load_library()
     assert isinstance(lib, ctypes.CDLL) and not isinstance(lib, ctypes.PyDLL)
+
+
+def test_cancel_stops_oidn_and_the_filter_still_works(denoiser):
+    """The viewport cancels a denoise when an edit comes in (OIDN's progress monitor)."""
+    clean, noisy, albedo, normal = synthetic()
+    asked = []
+
+    def cancel():
+        asked.append(1)
+        return True
+
+    with pytest.raises(denoise.DenoiseCancelled):
+        denoiser.denoise(noisy, albedo, normal, "RGB_ALBEDO", "FAST", "BALANCED", cancel=cancel)
+    assert asked
+    out = denoiser.denoise(noisy, albedo, normal, "RGB_ALBEDO", "FAST", "BALANCED", cancel=lambda: False)
+    assert relmse(out, clean) < 0.1 * relmse(noisy, clean)

@@ -51,6 +51,14 @@ class DenoiseError(RuntimeError):
     """OIDN reported an error (its message)."""
 
 
+class DenoiseCancelled(DenoiseError):
+    """``cancel()`` returned True while the filter ran (the viewport: an edit came in)."""
+
+
+# bool (*OIDNProgressMonitorFunction)(void* userPtr, double n): false cancels the filter.
+_PROGRESS = ctypes.CFUNCTYPE(ctypes.c_bool, ctypes.c_void_p, ctypes.c_double)
+
+
 def _library_name():
     if sys.platform == "darwin":
         return "libOpenImageDenoise.2.dylib"
@@ -107,6 +115,7 @@ def _bind(lib):
         "oidnSetFilterImage": (None, [p, c, p, i, s, s, s, s, s]),
         "oidnSetFilterBool": (None, [p, c, b]),
         "oidnSetFilterInt": (None, [p, c, i]),
+        "oidnSetFilterProgressMonitorFunction": (None, [p, _PROGRESS, p]),
         "oidnCommitFilter": (None, [p]),
         "oidnExecuteFilter": (None, [p]),
         "oidnReleaseFilter": (None, [p]),
@@ -176,6 +185,8 @@ class Denoiser:
         self.device_kind = choose_device(device_type, lambda: bool(lib.oidnIsCUDADeviceSupported(0)))
         self._device = None
         self._filters = {}  # (kind, width, height, options) -> filter
+        self._cancel = None  # denoise()'s cancel, asked by OIDN's progress monitor
+        self._monitor = _PROGRESS(lambda user, progress: not (self._cancel is not None and self._cancel()))
         self._buffers = {}  # (name, width, height) -> buffer
         if self.device_kind == "cuda":
             try:
@@ -207,6 +218,8 @@ class Denoiser:
     def _check(self, device=None):
         message = ctypes.c_char_p()
         code = self._lib.oidnGetDeviceError(device or self._device, ctypes.byref(message))
+        if code == 6:  # OIDN_ERROR_CANCELLED
+            raise DenoiseCancelled("OIDN: cancelled")
         if code:
             text = message.value.decode(errors="replace") if message.value else _ERRORS.get(code, str(code))
             raise DenoiseError(f"OIDN: {text}")
@@ -235,6 +248,7 @@ class Denoiser:
             lib.oidnSetFilterBool(f, b"hdr", True)
         lib.oidnSetFilterBool(f, b"cleanAux", clean_aux)
         lib.oidnSetFilterInt(f, b"quality", quality)
+        lib.oidnSetFilterProgressMonitorFunction(f, self._monitor, None)
         lib.oidnCommitFilter(f)
         try:
             self._check()
@@ -249,9 +263,18 @@ class Denoiser:
         self._lib.oidnWriteBuffer(buffer, 0, data.nbytes, data.ctypes.data)
 
     def denoise(self, color, albedo=None, normal=None, input_passes="RGB_ALBEDO_NORMAL",
-                prefilter="ACCURATE", quality="HIGH"):
+                prefilter="ACCURATE", quality="HIGH", cancel=None):
         """The denoised ``color`` ((H, W, 3|4) float, linear HDR; an alpha channel is kept as
-        it is). ``albedo`` and ``normal`` ((H, W, 3)) are needed as ``input_passes`` says."""
+        it is). ``albedo`` and ``normal`` ((H, W, 3)) are needed as ``input_passes`` says.
+        ``cancel``: asked while OIDN runs (its progress monitor); True stops it, and this
+        raises DenoiseCancelled."""
+        self._cancel = cancel
+        try:
+            return self._denoise(color, albedo, normal, input_passes, prefilter, quality)
+        finally:
+            self._cancel = None
+
+    def _denoise(self, color, albedo, normal, input_passes, prefilter, quality):
         if input_passes not in INPUT_PASSES:
             raise ValueError(f"denoising_input_passes must be one of {', '.join(INPUT_PASSES)}, got {input_passes!r}")
         if prefilter not in PREFILTERS:
@@ -338,10 +361,11 @@ def film_passes(values, preview=False):
     return ("combined",) + aux_passes(input_passes) if enabled else ()
 
 
-def denoise_images(images, values, denoiser, preview=False):
+def denoise_images(images, values, denoiser, preview=False, cancel=None):
     """{"combined": denoised, "noisy_image": noisy} from film passes ``images`` ({name: array}
     with Combined and the inputs ``film_passes`` names) and the setting values."""
     _, input_passes, prefilter, quality = settings_of(values, preview)
     noisy = images["combined"]
-    denoised = denoiser.denoise(noisy, images.get("albedo"), images.get("normal"), input_passes, prefilter, quality)
+    denoised = denoiser.denoise(noisy, images.get("albedo"), images.get("normal"), input_passes, prefilter, quality,
+                                cancel)
     return {"combined": denoised, "noisy_image": noisy}
