@@ -249,7 +249,8 @@ class _Worker(threading.Thread):
         if target and samples >= target and not self._full.fallback_film:
             shown = self.frame
             if self._display_changed or shown is None or shown[1] != samples or shown[2] != 1:
-                self._publish(self._full, 1)  # the last frame may have come too soon to publish
+                # The last frame may have come too soon to publish, or to go to the busy denoiser.
+                self._publish(self._full, 1, last=True)
             self.done = True
             return True
         seconds = self._render_frame()
@@ -297,7 +298,10 @@ class _Worker(threading.Thread):
                 return factor
         return 8
 
-    def _publish(self, session, pixel_size):
+    def _publish(self, session, pixel_size, last=False):
+        """Shows ``session``'s image; with denoising, hands it to the denoise thread when that
+        is idle (reading the auxiliary passes for a frame it would drop costs frame time), or
+        when it is the ``last`` frame before the sample target."""
         display = self._display
         if display != "combined" and session is not self._full:
             return  # the quick preview renders without the techniques whose passes these are
@@ -309,7 +313,7 @@ class _Worker(threading.Thread):
         denoise = self._denoise
         if (denoise and display == "combined" and session is self._full and not session.fallback_film
                 and samples >= max(1, denoise["preview_denoising_start_sample"])
-                and self.denoise_message is None):
+                and self.denoise_message is None and (last or not self.denoise_pending())):
             denoise_module = core.load().denoise
             images = {"combined": image}
             for name in denoise_module.film_passes(denoise, preview=True)[1:]:
