@@ -32,6 +32,9 @@ from .. import core, properties, sync
 from . import final
 
 PREVIEW_SECONDS = 0.03
+# OIDN's CPU threads in the viewport: a quarter of the cores (one on this 2-core machine), on
+# the denoise thread at nice +10, so the render keeps the cores edits need (issue 36).
+VIEWPORT_DENOISE_THREADS = max(1, (os.cpu_count() or 1) // 4)
 PUBLISH_SECONDS = 0.05  # at most this often a new image for the viewport
 
 _workers = weakref.WeakSet()  # live workers, stopped on unregister
@@ -341,9 +344,9 @@ class _Worker(threading.Thread):
 class _DenoiseThread(threading.Thread):
     """Denoises the newest frame handed to it (older ones are dropped) with one OIDN device
     of its own, and hands the result to the worker. OIDN's call releases the GIL (ctypes).
-    It runs at a lower CPU priority than the render (nice +10, inherited by the threads OIDN
-    starts from it), and an edit cancels the denoise in progress (OIDN's progress monitor),
-    so the edit's frames get the cores at once."""
+    It runs at a lower CPU priority than the render (nice +10) on VIEWPORT_DENOISE_THREADS
+    threads, and an edit cancels the denoise in progress (OIDN's progress monitor), so the
+    edit's frames get the cores at once."""
 
     def __init__(self, worker, device_type):
         super().__init__(name="parallax-viewport-denoise", daemon=True)
@@ -387,7 +390,7 @@ class _DenoiseThread(threading.Thread):
                 generation, samples, images, values = job
                 try:
                     if generation == worker.generation:  # not already edited away
-                        denoiser = denoiser or denoise.Denoiser(self._device_type)
+                        denoiser = denoiser or denoise.Denoiser(self._device_type, threads=VIEWPORT_DENOISE_THREADS)
                         out = denoise.denoise_images(
                             images, values, denoiser, preview=True,
                             cancel=lambda: self._stopped or worker.edited_since(generation))

@@ -143,6 +143,9 @@ class FakeOidn:
     def oidnSetDeviceBool(self, device, name, value):
         assert (name, value) == (b"setAffinity", False) and self.new_devices[-1] == 1  # CPU only
 
+    def oidnSetDeviceInt(self, device, name, value):
+        assert name == b"numThreads" and value == 2 and self.new_devices[-1] == 1
+
     def oidnCommitDevice(self, device):
         pass
 
@@ -167,7 +170,7 @@ def test_device_selection(render_device, cuda_supported, cuda_works, expected):
     assert denoise.choose_device(render_device, lambda: cuda_supported) == (
         "cuda" if render_device != "cpu" and cuda_supported else "cpu")
     lib = FakeOidn(cuda_supported, cuda_works)
-    d = denoise.Denoiser(render_device, library=lib)
+    d = denoise.Denoiser(render_device, library=lib, threads=2)
     assert d.device_kind == expected and d.version == "2.5.1"
     assert lib.new_devices[-1] == {"cpu": 1, "cuda": 3}[expected]  # OIDN_DEVICE_TYPE_CPU / _CUDA
     assert lib.new_devices[0] == (3 if render_device != "cpu" and cuda_supported else 1)

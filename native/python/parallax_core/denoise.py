@@ -106,6 +106,7 @@ def _bind(lib):
         "oidnGetDeviceError": (i, [p, ctypes.POINTER(ctypes.c_char_p)]),
         "oidnGetDeviceInt": (i, [p, c]),
         "oidnSetDeviceBool": (None, [p, c, b]),
+        "oidnSetDeviceInt": (None, [p, c, i]),
         "oidnIsCUDADeviceSupported": (b, [i]),
         "oidnNewBuffer": (p, [p, s]),
         "oidnWriteBuffer": (None, [p, s, s, p]),
@@ -174,9 +175,11 @@ def choose_device(render_device_type, cuda_supported):
 
 class Denoiser:
     """One OIDN device and its filters, for one thread at a time (the F12 worker, the
-    viewport's denoise thread). ``device_type``: the render's ``Session.device_type``."""
+    viewport's denoise thread). ``device_type``: the render's ``Session.device_type``;
+    ``threads``: the CPU device's thread count (None: all cores)."""
 
-    def __init__(self, device_type="cpu", library=None):
+    def __init__(self, device_type="cpu", library=None, threads=None):
+        self._threads = threads
         if library is None:
             library, self.source, self.path = load_library()
         else:
@@ -207,6 +210,8 @@ class Denoiser:
             # types (OIDN's CPUEngine does, for pinning) loads tbbbind and hwloc, which abort
             # Debian's Blender 3.4 (jemalloc; "free(): invalid pointer" in hwloc).
             self._lib.oidnSetDeviceBool(device, b"setAffinity", False)
+            if self._threads:
+                self._lib.oidnSetDeviceInt(device, b"numThreads", int(self._threads))
         self._lib.oidnCommitDevice(device)
         try:
             self._check(device)
