@@ -20,7 +20,7 @@ def open_scene(bpy, name, width, height, engine="PARALLAX"):
 
 def pin_denoising_off(scene):
     """Denoising off on both engines (both default to on): the tests compare F12 images
-    numerically, as rendered; tests/addon/test_denoise.py turns it on."""
+    numerically, as rendered; tests/addon/test_denoising.py turns it on."""
     scene.cycles.use_denoising = False
     if hasattr(scene, "parallax"):
         scene.parallax.use_denoising = False
