@@ -84,7 +84,7 @@ class _Worker(threading.Thread):
         self.samples = samples  # the target (frames rendered while a technique compiled do not count)
         self.time_limit = time_limit
         self.denoise = denoise
-        self.core_passes = set(core_passes) - {"noisy_image"}
+        self.core_passes = self.wanted_passes = set(core_passes) - {"noisy_image"}
         if denoise:
             self.core_passes |= set(core.load().denoise.film_passes(denoise))
         self.denoising = False  # the denoiser runs now (the status line says so)
@@ -120,7 +120,8 @@ class _Worker(threading.Thread):
                     self._take_snapshot()
                     last_snapshot = now
             if self.snapshot is None or self.snapshot[0] != self.session.samples:
-                self._take_snapshot()
+                # Cancelled: not denoised, so not the denoiser's passes (Esc stays quick).
+                self._take_snapshot(self.wanted_passes if self._stop_event.is_set() else None)
             if self.denoise and not self._stop_event.is_set():
                 self._denoise()
         except Exception as e:  # reported by the Blender thread
@@ -162,9 +163,9 @@ class _Worker(threading.Thread):
             if self._stop_event.is_set() or self.out_of_time():
                 return False
 
-    def _take_snapshot(self):
+    def _take_snapshot(self, passes=None):
         stats = self.session.stats()
-        images = {name: self.session.read(name) for name in self.core_passes}
+        images = {name: self.session.read(name) for name in (passes or self.core_passes)}
         if self.denoise:  # until the denoiser runs, Noisy Image is Combined
             images["noisy_image"] = images["combined"]
         render_seconds = stats.get("milliseconds", 0.0) / 1e3  # device time, without compiling
