@@ -45,11 +45,13 @@ demo: setup
 scenes: setup
 	@$(PY) blender_scenes/build.py
 
-# The installable Blender extension: the add-on plus the native core as a cp311 wheel.
+# The installable Blender extension: the add-on plus the native core as a cp311 wheel, and
+# pyoidn's wheel (the OIDN library for Blenders without one), packed from the venv's install.
 BLENDER_EXT = $(wildcard $(VENV)/lib/python3.11/site-packages/bpy/*/scripts/addons_core/bl_pkg/cli/blender_ext.py)
 extension: setup
 	@rm -rf addon/wheels dist/parallax-*.zip && mkdir -p dist
 	@$(PIP) wheel -q --no-build-isolation --no-deps -w addon/wheels .
+	@$(PY) scripts/wheel_from_installed.py pyoidn addon/wheels >/dev/null
 	@$(PY) $(BLENDER_EXT) build --source-dir addon --output-dir dist
 	@ls dist/parallax-*.zip
 

@@ -1,7 +1,8 @@
 """Render passes: what Parallax registers with Blender, from the core's pass table.
 
 Each row of ``parallax_core.PASSES`` becomes a Blender pass named by its label, with its
-channel ids; a row with a ``setting`` is there only while that setting is on. The view layer
+channel ids; a row with a ``setting`` is there only while that setting is on. The engine's
+passes (``core`` False: Noisy Image) are filled by engine/final.py, not read from the film. The view layer
 chooses among them: Blender's own toggles for its own passes, Cycles' Denoising Data for the
 denoising passes, and one ``use_pass_<name>`` toggle (properties.py) for each of the others.
 """
@@ -32,8 +33,10 @@ def toggle_name(row):
 
 
 def has_own_toggle(row):
-    """A row that Blender's toggles and Denoising Data do not cover gets ``use_pass_<name>``."""
-    return row.label not in BLENDER_TOGGLES and DENOISING_DATA.get(row.name) != row.label
+    """A row that Blender's toggles and Denoising Data do not cover gets ``use_pass_<name>``;
+    the engine's passes (Noisy Image) have none: they are there while their setting is on, as
+    Cycles' Noisy Image is while Use Denoising is."""
+    return row.core and row.label not in BLENDER_TOGGLES and DENOISING_DATA.get(row.name) != row.label
 
 
 def _enabled(row, layer_on):
@@ -59,6 +62,8 @@ def blender_passes():
                 (lambda layer, toggle=toggle: getattr(layer, toggle)))
         elif has_own_toggle(row):
             add(row.label, lambda layer, name=toggle_name(row): getattr(layer.parallax, name))
+        elif not row.core:
+            add(row.label, lambda layer: True)
     return tuple(found)
 
 

@@ -113,6 +113,10 @@ class ParallaxRenderSettings(bpy.types.PropertyGroup):
         params["guiding_lobes_phase"] = self.guiding_lobes_phase()
         return params
 
+    def engine_values(self):
+        """The engine's rows (no core field: samples, time limit, denoising) by name."""
+        return {row.name: getattr(self, row.name) for row in table_rows() if not row.core}
+
     def guiding_lobes_phase(self):
         """Where the Guiding Lobes spheres are: -1 at their regions' centres, or with Animate
         Lobes the scene's frame along their loop, in [0, 1)."""

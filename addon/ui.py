@@ -44,9 +44,35 @@ class _SettingsPanel(_ParallaxPanel):
     def draw(self, context):
         settings = context.scene.parallax
         layout = _split(self.layout)
+        note = PANEL_NOTES.get(getattr(self, "bl_idname", ""))
+        if note is not None:
+            for line, icon in note():
+                layout.label(text=line, icon=icon)
         layout.active = all(getattr(settings, name) for name in self.switches)
         for name in self.rows:
             layout.prop(settings, name)
+
+
+_denoiser_line = None
+
+
+def denoiser_status():
+    """The Denoising panel's first line: which OpenImageDenoise denoises, or that none was
+    found and renders stay noisy (checked once per Blender session)."""
+    global _denoiser_line
+    if _denoiser_line is None:
+        try:
+            found, text = core.load().denoise.availability()
+        except ImportError as e:
+            found, text = False, f"Native core unavailable: {e}"
+        _denoiser_line = [(text, "INFO")] if found else \
+            [("OpenImageDenoise not found: renders are not denoised", "ERROR")] + \
+            [(part.strip(), "NONE") for part in text.split(":", 1)[-1].split(";")]
+    return _denoiser_line
+
+
+# Lines drawn at the top of a panel (by its bl_idname).
+PANEL_NOTES = {"PARALLAX_PT_denoising": denoiser_status}
 
 
 def _draw_header(self, context):

@@ -274,6 +274,7 @@ def render_cycles(name, width, seconds, guiding, reference, label):
         cycles = scene.cycles
         cycles.samples, cycles.time_limit, cycles.use_adaptive_sampling = 1 << 20, limit, False
         cycles.device = "CPU"
+        cycles.use_denoising = False  # pinned, as the Parallax methods' sessions (a later mis_clean turns it on)
         cycles.use_guiding = guiding
         if guiding:
             cycles.use_surface_guiding = cycles.use_volume_guiding = True

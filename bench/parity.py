@@ -49,7 +49,10 @@ def open_scene(bpy, cli, name, engine, size):
 
 def render(bpy, cli, name, engine, size, samples, out_dir, tag=""):
     scene = open_scene(bpy, cli, name, engine, size)
+    # Denoising off on both engines: parity compares the estimators (both default to on).
+    scene.cycles.use_denoising = False
     if engine == "PARALLAX":
+        scene.parallax.use_denoising = False
         scene.parallax.samples, scene.parallax.samples_per_frame = samples, 8
         scene.parallax.max_depth, scene.parallax.depth_leeway = scene.cycles.max_bounces, 0
         scene.parallax.method = "mis"

@@ -25,6 +25,7 @@ def cycles_image(name, width, samples, depth, seed):
     c = scene.cycles
     c.samples, c.use_adaptive_sampling, c.seed, c.device, c.time_limit = samples, False, seed, "CPU", 0
     c.max_bounces = c.diffuse_bounces = c.glossy_bounces = c.transmission_bounces = depth
+    c.use_denoising = False  # the variance of the estimator, not of a denoiser
     bpy.ops.render.render()
     return render_result_rgb(scene, name)
 

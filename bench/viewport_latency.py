@@ -4,6 +4,10 @@ lavapipe): time from an edit to the first new frame, and samples/s while refinin
 
     .venv/bin/python bench/viewport_latency.py [--scenes cornell_box atrium] [--size 1280x720]
     .venv/bin/python bench/viewport_latency.py --startup [--runs 2] [--scenes cornell_box]
+    .venv/bin/python bench/viewport_latency.py --denoise     # with Use Viewport Denoising on
+
+--denoise (issue 36): the same edits with the viewport's denoiser on (its own thread); written
+to bench/results/viewport_latency_denoise.json. The edit latency must not grow with it.
 
 --startup (issue 9): each run is a new Blender process (mode "startup" of gui_driver.py);
 "cold" runs get an empty Mesa shader cache (MESA_SHADER_CACHE_DIR), "warm" runs the cache the
@@ -40,7 +44,10 @@ def main(argv=None):
     parser.add_argument("--out", default=os.path.join(HERE, "results", "viewport_latency.json"))
     parser.add_argument("--startup", action="store_true", help="measure start-up instead of edits")
     parser.add_argument("--runs", type=int, default=2, help="--startup: cold/warm pairs per variant")
+    parser.add_argument("--denoise", action="store_true", help="with Use Viewport Denoising on")
     args = parser.parse_args(argv)
+    if args.denoise and args.out == parser.get_default("out"):
+        args.out = os.path.join(HERE, "results", "viewport_latency_denoise.json")
     size = tuple(int(v) for v in args.size.split("x"))
     if args.startup:
         return startup(args, size)
@@ -49,6 +56,7 @@ def main(argv=None):
                         "-w", tmp, REPO], check=True)
         (wheel,) = glob.glob(os.path.join(tmp, "parallax_core-*-cp311-*.whl"))
         session = gui.BlenderGui(os.path.join(tmp, "gui"), wheel, size, scenes=args.scenes)
+        session.env["PX_DENOISE"] = "1" if args.denoise else "0"
         rows = {}
         try:
             for scene in args.scenes:
@@ -70,7 +78,7 @@ def main(argv=None):
         h, w = result["size"]
         print(f"{scene:14s} refining at {w}x{h}: {result['samples_per_second']:.1f} samples/s")
     os.makedirs(os.path.dirname(args.out), exist_ok=True)
-    if os.path.exists(args.out):  # keep the start-up figures of --startup
+    if os.path.exists(args.out) and not args.denoise:  # keep the start-up figures of --startup
         with open(args.out) as f:
             rows.setdefault("startup", json.load(f).get("startup", []))
     with open(args.out, "w") as f:

@@ -3,9 +3,11 @@ installing the add-on like a user."""
 from __future__ import annotations
 
 import dataclasses
+import glob
 import hashlib
 import os
 import shutil
+import sys
 from typing import NamedTuple
 
 import numpy as np
@@ -125,12 +127,27 @@ def rel_mse(img, ref, drop=0.001):
     return float(np.sort(e)[:keep].mean())
 
 
+def oidn_wheel(out_dir):
+    """pyoidn's wheel, packed from this venv's install as `make extension` packs it."""
+    repo = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    sys.path.insert(0, os.path.join(repo, "scripts"))
+    try:
+        from wheel_from_installed import wheel_from_installed
+    finally:
+        sys.path.pop(0)
+    return wheel_from_installed("pyoidn", out_dir)
+
+
 def install_addon_copy(folder, wheel):
-    """addon/ copied to folder/parallax with the core wheel bundled, as a user installs it."""
+    """addon/ copied to folder/parallax with the core wheel and pyoidn's bundled (as
+    blender_manifest.toml lists them), as a user installs it."""
     addon = os.path.join(folder, "parallax")
     repo = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     shutil.copytree(os.path.join(repo, "addon"), addon,
                     ignore=shutil.ignore_patterns("__pycache__", "wheels", "_site"))
     os.makedirs(os.path.join(addon, "wheels"))
     shutil.copy(wheel, os.path.join(addon, "wheels"))
+    oidn = os.path.join(os.path.dirname(wheel), "oidn")  # packed once per wheel folder
+    found = glob.glob(os.path.join(oidn, "pyoidn-*.whl")) or [oidn_wheel(oidn)]
+    shutil.copy(found[0], os.path.join(addon, "wheels"))
     return addon

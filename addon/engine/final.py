@@ -27,6 +27,7 @@ class RenderReport:
     def __init__(self):
         self.errors, self.warnings = [], []
         self.samples, self.cancelled = 0, False
+        self.denoised, self.denoise_message = False, None  # Combined denoised; how, or why not
         self.finished_at = None  # time.time() when render() returned to Blender
         self.worker_running = False  # the worker thread still ran when render() returned
 
@@ -71,14 +72,24 @@ def band_rows(rows, seconds, height):
 
 
 class _Worker(threading.Thread):
-    """Renders frames until the sample count, the time limit or ``stop()``; keeps snapshots."""
+    """Renders frames until the sample count, the time limit or ``stop()``; keeps snapshots.
+    With ``denoise`` (the denoising settings {name: value}, use_denoising on) the last
+    snapshot is denoised here, on this thread, as Cycles denoises F12 at the end: Combined gets
+    the denoised image and Noisy Image the film's; the progressive ones show the noisy image in
+    both. A cancelled render is not denoised."""
 
-    def __init__(self, session, samples, time_limit, core_passes):
+    def __init__(self, session, samples, time_limit, core_passes, denoise=None):
         super().__init__(name="parallax-render", daemon=True)
         self.session = session
         self.samples = samples  # the target (frames rendered while a technique compiled do not count)
         self.time_limit = time_limit
-        self.core_passes = core_passes
+        self.denoise = denoise
+        self.core_passes = self.wanted_passes = set(core_passes) - {"noisy_image"}
+        if denoise:
+            self.core_passes |= set(core.load().denoise.film_passes(denoise))
+        self.denoising = False  # the denoiser runs now (the status line says so)
+        self.denoised = False   # the last snapshot's Combined is denoised
+        self.denoise_message = None  # why it is not (no OIDN, an OIDN error), or the denoiser used
         self.rows_per_band = max(1, session.height // 16)  # adapted to the measured band time
         self.snapshot = None  # (samples, seconds, rays per second, {core pass: image}, stats)
         self.error = None
@@ -109,9 +120,34 @@ class _Worker(threading.Thread):
                     self._take_snapshot()
                     last_snapshot = now
             if self.snapshot is None or self.snapshot[0] != self.session.samples:
-                self._take_snapshot()
+                # Cancelled: not denoised, so not the denoiser's passes (Esc stays quick).
+                self._take_snapshot(self.wanted_passes if self._stop_event.is_set() else None)
+            if self.denoise and not self._stop_event.is_set():
+                self._denoise()
         except Exception as e:  # reported by the Blender thread
             self.error = e
+
+    def _denoise(self):
+        """Replaces the last snapshot by its denoised version (a new tuple: Blender's thread
+        shows it); with no OIDN the render stays as it is and ``denoise_message`` says why."""
+        denoise = core.load().denoise
+        samples, seconds, rate, images, stats = self.snapshot
+        self.denoising = True
+        try:
+            start = time.perf_counter()
+            denoiser = denoise.Denoiser(self.session.device_type)
+            try:
+                out = denoise.denoise_images(images, self.denoise, denoiser)
+            finally:
+                denoiser.close()
+            self.denoised = True
+            self.denoise_message = (f"Denoised ({denoiser.device_kind}, {time.perf_counter() - start:.1f} s, "
+                                    f"OpenImageDenoise {denoiser.version} from {denoiser.source})")
+        except (denoise.DenoiserUnavailable, denoise.DenoiseError) as e:
+            out, self.denoise_message = {}, f"{e}; the image is not denoised"
+        finally:
+            self.denoising = False
+        self.snapshot = (samples, seconds, rate, {**images, **out}, stats)
 
     def _render_frame(self):
         """One frame in row bands of about BAND_SECONDS; False if stopped or out of time in
@@ -127,9 +163,11 @@ class _Worker(threading.Thread):
             if self._stop_event.is_set() or self.out_of_time():
                 return False
 
-    def _take_snapshot(self):
+    def _take_snapshot(self, passes=None):
         stats = self.session.stats()
-        images = {name: self.session.read(name) for name in self.core_passes}
+        images = {name: self.session.read(name) for name in (passes or self.core_passes)}
+        if self.denoise:  # until the denoiser runs, Noisy Image is Combined
+            images["noisy_image"] = images["combined"]
         render_seconds = stats.get("milliseconds", 0.0) / 1e3  # device time, without compiling
         rate = stats.get("rays", 0) / render_seconds if render_seconds > 0 else 0.0
         self.snapshot = (int(stats.get("samples", 0)), time.perf_counter() - self.start_time,
@@ -184,8 +222,6 @@ def render(engine, depsgraph):
         params = settings.render_params()
         params["adaptive_threshold"] = parallax_core.adaptive_threshold(params["adaptive_threshold"], settings.samples)
         session.set_params(**params)
-        # The film holds the view layer's passes only (less memory, fewer writes per sample).
-        session.passes = sorted({p.core for p in passes.enabled(scene, view_layer)})
         warnings += [m for m in session.update(data) if m not in warnings]
     except (ImportError, ValueError, RuntimeError, TypeError, MemoryError) as e:
         # MemoryError: parallax_core.DeviceMemoryError, a scene past the device-memory budget.
@@ -200,12 +236,15 @@ def render(engine, depsgraph):
     per_frame = settings.samples_per_frame
     frames = -(-settings.samples // per_frame)
     total = frames * per_frame
-    worker = _Worker(session, total, settings.time_limit, {p.core for p in wanted})
+    denoise = settings.engine_values() if settings.use_denoising else None
+    worker = _Worker(session, total, settings.time_limit, {p.core for p in wanted}, denoise)
+    # The film holds the passes this render reads only (less memory, fewer writes per sample).
+    session.passes = sorted(worker.core_passes)
     # With a border, Blender's result covers just the border: its pixel (0, 0) is (x, y).
     result = engine.begin_result(0, 0, w, h, layer=view_layer.name)
     worker.start()
     shown = None
-    cancelled = False
+    cancelled = denoising_shown = False
     while True:
         finished = not worker.is_alive()
         snapshot = worker.snapshot
@@ -221,6 +260,8 @@ def render(engine, depsgraph):
                 line += f" | {ic_status(stats)}"
             if settings.guiding:
                 line += f" | {guiding_status(stats)}"
+            if worker.denoised:
+                line += " | Denoised"
             engine.update_stats("", line)
             if progress_stream is not None:
                 progress_stream.write(f"\rParallax: {line}  ")
@@ -231,6 +272,9 @@ def render(engine, depsgraph):
             engine.update_progress(progress)
         if finished:
             break
+        if worker.denoising and shown is not None and not denoising_shown:
+            denoising_shown = True
+            engine.update_stats("", f"Sample {shown[0]}/{total} | Denoising")
         if stop_requested(engine):
             worker.stop()
             cancelled = True
@@ -244,8 +288,14 @@ def render(engine, depsgraph):
     engine.end_result(result)
     if progress_stream is not None:
         progress_stream.write("\n")
+        if worker.denoise_message:  # how it was denoised, or why not
+            progress_stream.write(f"Parallax: {worker.denoise_message}\n")
     report.samples, report.cancelled = (shown[0] if shown else 0), cancelled
     report.worker_running = worker.is_alive()
+    report.denoised, report.denoise_message = worker.denoised, worker.denoise_message
+    if denoise and not worker.denoised and worker.denoise_message:
+        report.warnings.append(worker.denoise_message)
+        engine.report({"WARNING"}, f"Parallax: {worker.denoise_message}")
     if worker.error is not None:
         report.errors.append(str(worker.error))
         engine.report({"ERROR"}, f"Parallax: {worker.error}")

@@ -13,7 +13,15 @@ Start-up: before the path tracer's pipeline exists (compiling it takes seconds o
 with a cold shader cache), the first frame comes from the preview program (first-hit
 shading, ``RenderParams.preview``, quick to compile) at the preview's pixel size, while the
 path tracer compiles on a thread of its own (issue 9).
+
+Denoising (Use Viewport Denoising): full-size frames from Start Denoising on go to a
+denoise thread of their own (``_DenoiseThread``), never Blender's or the render worker's:
+it denoises the newest frame handed to it, dropping older ones, and shows the result if no
+edit came in meanwhile. Until the first denoised frame of a scene state the noisy frames
+show; after it, the denoised ones (as Cycles' viewport). An edit shows its new noisy frames at
+once and never waits for the denoiser.
 """
+import os
 import threading
 import time
 import weakref
@@ -24,6 +32,9 @@ from .. import core, properties, sync
 from . import final
 
 PREVIEW_SECONDS = 0.03
+# OIDN's CPU threads in the viewport: a quarter of the cores (one on this 2-core machine), on
+# the denoise thread at nice +10, so the render keeps the cores edits need (issue 36).
+VIEWPORT_DENOISE_THREADS = max(1, (os.cpu_count() or 1) // 4)
 PUBLISH_SECONDS = 0.05  # at most this often a new image for the viewport
 
 _workers = weakref.WeakSet()  # live workers, stopped on unregister
@@ -74,10 +85,16 @@ def changed_parts(depsgraph):
 class _Worker(threading.Thread):
     """Renders the viewport image; takes scene, camera, size and settings changes at any time."""
 
-    def __init__(self, device, params, target_samples, pixel_size, display="combined"):
+    def __init__(self, device, params, target_samples, pixel_size, display="combined", denoise=None):
         super().__init__(name="parallax-viewport", daemon=True)
         self.device = device
-        self.frame = None      # latest (image (H, W, 4), samples, pixel size, generation)
+        # latest (image (H, W, 4), samples, pixel size, generation, denoised)
+        self.frame = None
+        self._denoise = denoise  # the denoising settings {name: value} with use_preview_denoising on, or None
+        self._denoiser = None    # _DenoiseThread, made with the first frame to denoise
+        self.denoised_frames = 0  # frames the denoiser showed (tests, bench/)
+        self.first_denoised_at = None  # perf_counter() of the first (bench/)
+        self.denoise_message = None  # why frames are not denoised (no OIDN), or None
         self.error = None
         self.done = False      # the sample target is reached and nothing is pending
         self._lock = threading.Condition()
@@ -104,8 +121,11 @@ class _Worker(threading.Thread):
         return self._display
 
     def submit(self, scene=None, parts=(), size=None, params=None, target=None, pixel_size=None,
-               display=None):
+               display=None, denoise=False):
+        """``denoise``: new denoising settings (a dict, or None for off); False: unchanged."""
         with self._lock:
+            if denoise is not False:
+                self._denoise = denoise
             if display is not None and display != self._display:
                 # Another pass of the same session: shown from the next frame on, samples kept.
                 self._display, self._display_changed = display, True
@@ -139,8 +159,33 @@ class _Worker(threading.Thread):
             self._stopped = True
             self._cancel()
             self._lock.notify()
+        if self._denoiser is not None:
+            self._denoiser.stop()
         if self.is_alive() and threading.current_thread() is not self:
             self.join(wait)
+
+    def edited_since(self, generation):
+        """Something was handed over after ``generation`` (its frames are outdated)."""
+        return self.generation != generation or self._stopped
+
+    def denoise_pending(self):
+        """A frame is with the denoiser (view_draw keeps redrawing until it is shown)."""
+        return self._denoiser is not None and self._denoiser.pending()
+
+    def _show_denoised(self, generation, samples, image):
+        """The denoise thread's result: shown if no edit came in since its frame and nothing
+        newer of the same scene state is shown denoised."""
+        with self._lock:
+            if self._stopped or generation != self._rendering or generation != self.generation:
+                return
+            shown = self.frame
+            if shown is not None and shown[3] == generation and shown[4] and shown[1] >= samples:
+                return
+            if self._display != "combined":
+                return
+            self.frame = (image, samples, 1, generation, True)
+            self.denoised_frames += 1
+            self.first_denoised_at = self.first_denoised_at or time.perf_counter()
 
     # -- worker thread --
 
@@ -210,7 +255,8 @@ class _Worker(threading.Thread):
         if (target and samples >= target or self._full.converged) and not self._full.fallback_film:
             shown = self.frame
             if self._display_changed or shown is None or shown[1] != samples or shown[2] != 1:
-                self._publish(self._full, 1)  # the last frame may have come too soon to publish
+                # The last frame may have come too soon to publish, or to go to the busy denoiser.
+                self._publish(self._full, 1, last=True)
             self.done = True
             return True
         seconds = self._render_frame()
@@ -258,14 +304,35 @@ class _Worker(threading.Thread):
                 return factor
         return 8
 
-    def _publish(self, session, pixel_size):
+    def _publish(self, session, pixel_size, last=False):
+        """Shows ``session``'s image; with denoising, hands it to the denoise thread when that
+        is idle (reading the auxiliary passes for a frame it would drop costs frame time), or
+        when it is the ``last`` frame before the sample target."""
         display = self._display
         if display != "combined" and session is not self._full:
             return  # the quick preview renders without the techniques whose passes these are
         self._display_changed = False
-        image = _as_rgba(session.read(display))
+        # Noisy Image: Combined as the film has it, never denoised.
+        image = _as_rgba(session.read("combined" if display == "noisy_image" else display))
         samples = session.samples
-        self.frame = (image, samples, pixel_size, self._rendering)
+        frame = (image, samples, pixel_size, self._rendering, False)
+        denoise = self._denoise
+        if (denoise and display == "combined" and session is self._full and not session.fallback_film
+                and samples >= max(1, denoise["preview_denoising_start_sample"])
+                and self.denoise_message is None and (last or not self.denoise_pending())):
+            denoise_module = core.load().denoise
+            images = {"combined": image}
+            for name in denoise_module.film_passes(denoise, preview=True)[1:]:
+                images[name] = session.read(name)
+            if self._denoiser is None:
+                self._denoiser = _DenoiseThread(self, session.device_type)
+                self._denoiser.start()
+            self._denoiser.submit((self._rendering, samples, images, denoise))
+            shown = self.frame
+            if shown is not None and shown[3] == self._rendering and shown[4]:
+                frame = None  # this scene state shows denoised frames now: the next comes from the denoiser
+        if frame is not None:
+            self.frame = frame
         self._published = time.perf_counter()
         self.first_frame_at = self.first_frame_at or self._published
         if pixel_size == 1:
@@ -275,6 +342,76 @@ class _Worker(threading.Thread):
                 parts, handed_over = self._submitted.pop(generation)
                 if generation == self._rendering:
                     self.latencies.append((parts, self._published - handed_over))
+
+
+class _DenoiseThread(threading.Thread):
+    """Denoises the newest frame handed to it (older ones are dropped) with one OIDN device
+    of its own, and hands the result to the worker. OIDN's call releases the GIL (ctypes).
+    It runs at a lower CPU priority than the render (nice +10) on VIEWPORT_DENOISE_THREADS
+    threads, and an edit cancels the denoise in progress (OIDN's progress monitor), so the
+    edit's frames get the cores at once."""
+
+    def __init__(self, worker, device_type):
+        super().__init__(name="parallax-viewport-denoise", daemon=True)
+        self._worker = weakref.ref(worker)
+        self._device_type = device_type
+        self._cond = threading.Condition()
+        self._job, self._busy, self._stopped = None, False, False
+
+    def submit(self, job):
+        with self._cond:
+            self._job = job
+            self._cond.notify()
+
+    def pending(self):
+        with self._cond:
+            return self._busy or self._job is not None
+
+    def stop(self):
+        with self._cond:
+            self._stopped = True
+            self._cond.notify()
+
+    def run(self):
+        denoise = core.load().denoise
+        denoiser = None
+        try:
+            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), 10)  # this thread (Linux)
+        except (AttributeError, OSError):
+            pass
+        try:
+            while True:
+                with self._cond:
+                    while self._job is None and not self._stopped:
+                        self._cond.wait()
+                    if self._stopped:
+                        return
+                    job, self._job, self._busy = self._job, None, True
+                worker = self._worker()
+                if worker is None:
+                    return
+                generation, samples, images, values = job
+                try:
+                    if generation == worker.generation:  # not already edited away
+                        denoiser = denoiser or denoise.Denoiser(self._device_type, threads=VIEWPORT_DENOISE_THREADS)
+                        out = denoise.denoise_images(
+                            images, values, denoiser, preview=True,
+                            cancel=lambda: self._stopped or worker.edited_since(generation))
+                        worker._show_denoised(generation, samples, out["combined"])
+                except denoise.DenoiseCancelled:
+                    pass  # an edit came in: its frames come next
+                except (denoise.DenoiserUnavailable, denoise.DenoiseError) as e:
+                    worker.denoise_message = f"{e}; the viewport is not denoised"
+                    return
+                finally:
+                    del worker
+                    with self._cond:
+                        self._busy = False
+        finally:
+            with self._cond:
+                self._busy, self._job = False, None
+            if denoiser is not None:
+                denoiser.close()
 
 
 def _without_techniques(params):
@@ -311,12 +448,16 @@ class ViewportRender:
         params["adaptive_threshold"] = core.load().adaptive_threshold(s.preview_adaptive_threshold,
                                                                       s.viewport_samples)
         pixel_size = 0 if s.viewport_start_pixel_size == "AUTO" else int(s.viewport_start_pixel_size)
-        return params, s.viewport_samples, pixel_size, s.device, s.viewport_pass
+        # The viewport's denoising rows (use_preview_denoising, preview_denoising_*), not F12's.
+        denoise = {name: value for name, value in s.engine_values().items()
+                   if name.startswith("preview_denois") or name == "use_preview_denoising"} \
+            if s.use_preview_denoising else None
+        return params, s.viewport_samples, pixel_size, s.device, s.viewport_pass, denoise
 
     def update(self, engine, context, depsgraph):
         """view_update: the scene changed (or this is the first call)."""
         scene = depsgraph.scene
-        params, target, pixel_size, device, display = self._settings_of(scene)
+        params, target, pixel_size, device, display, denoise = self._settings_of(scene)
         try:
             # A worker stopped by an error (a scene past the memory budget) starts over on
             # the next edit, which may have fixed it.
@@ -325,7 +466,7 @@ class ViewportRender:
                 width, height = _region_size(context)
                 camera = _context_camera(context)
                 data, warnings = self.exporter.full(depsgraph, width, height, view_camera=camera)
-                self.worker = _Worker(device, params, target, pixel_size, display)
+                self.worker = _Worker(device, params, target, pixel_size, display, denoise)
                 self.worker.submit(data, parts={"geometry"}, size=(width, height))
                 self.worker.start()
                 self._camera_key, self._size = _camera_key(camera), (width, height)
@@ -334,16 +475,17 @@ class ViewportRender:
                 warnings = []
                 if parts:
                     parts, warnings = self.exporter.update(depsgraph, parts)
-                if parts or (params, target, pixel_size) != self._settings:
+                if parts or (params, target, pixel_size, denoise) != self._settings:
                     self.worker.submit(self.exporter.data, parts=parts, params=params,
-                                       target=target, pixel_size=pixel_size, display=display)
+                                       target=target, pixel_size=pixel_size, display=display,
+                                       denoise=denoise)
                 elif display != self.worker.display:
                     self.worker.submit(display=display)
         except (ImportError, ValueError, RuntimeError, MemoryError) as e:
             engine.update_stats("", f"Parallax: {e}")
             engine.report({"ERROR"}, f"Parallax: {e}")
             return
-        self._settings = (params, target, pixel_size)
+        self._settings = (params, target, pixel_size, denoise)
         for message in warnings:
             if message not in self._reported:  # once per viewport, not on every edit
                 self._reported.add(message)
@@ -374,11 +516,15 @@ class ViewportRender:
         frame = worker.frame
         if frame is not None:
             self._draw_frame(engine, depsgraph.scene, frame, size)
-            image, samples, pixel_size, _ = frame
+            image, samples, pixel_size, _, denoised = frame
             target = self._settings[1] if self._settings else 0
             status = f"Sample {samples}" + (f"/{target}" if target else "")
+            if denoised:
+                status += " (denoised)"
+            elif worker.denoise_message:
+                status += " | not denoised: no OpenImageDenoise"
             engine.update_stats("", status if pixel_size == 1 else f"{status} (preview)")
-        if not worker.done:
+        if not worker.done or worker.denoise_pending():
             engine.tag_redraw()
 
     def _draw_frame(self, engine, scene, frame, size):

@@ -209,6 +209,7 @@ NB_MODULE(_native, m) {
         d["description"] = p.description;
         d["technique"] = p.technique;
         d["setting"] = p.setting;
+        d["core"] = p.core();
         passes.append(d);
     }
     m.attr("_PASSES") = nb::tuple(passes);

@@ -14,7 +14,16 @@ def open_scene(bpy, name, width, height, engine="PARALLAX"):
     scene.render.engine = engine
     scene.render.resolution_x, scene.render.resolution_y = width, height
     scene.render.resolution_percentage = 100
+    pin_denoising_off(scene)
     return scene
+
+
+def pin_denoising_off(scene):
+    """Denoising off on both engines (both default to on): the tests compare F12 images
+    numerically, as rendered; tests/addon/test_denoising.py turns it on."""
+    scene.cycles.use_denoising = False
+    if hasattr(scene, "parallax"):
+        scene.parallax.use_denoising = False
 
 
 def render(bpy, path):
@@ -31,8 +40,10 @@ def render(bpy, path):
 
 def render_engine(bpy, tmp_path, scene, engine, seed, samples):
     """The Combined RGB of `scene` rendered by `engine` ("PARALLAX" with MIS and Cycles' bounce
-    count, or "CYCLES") with `samples` and `seed`: the parity tests' one render."""
+    count, or "CYCLES") with `samples` and `seed`: the parity tests' one render, denoising
+    off on both engines."""
     scene.render.engine = engine
+    pin_denoising_off(scene)
     if engine == "PARALLAX":
         settings = scene.parallax
         settings.samples, settings.samples_per_frame, settings.seed = samples, 16, seed

@@ -31,4 +31,5 @@ def fresh(bpy):
     scene.camera = camera
     scene.render.resolution_x = scene.render.resolution_y = 32
     scene.parallax.samples = 4
+    scene.parallax.use_denoising = False  # as rendered (test_denoising.py turns it on)
     return scene

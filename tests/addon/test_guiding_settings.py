@@ -66,7 +66,7 @@ def test_viewport_worker_shows_a_guiding_pass_live():
 
     try:
         wait_done()
-        lobes, samples, pixel_size, _ = worker.frame
+        lobes, samples, pixel_size, _, _ = worker.frame
         session = worker._full
         assert pixel_size == 1 and samples == 8 and lobes.shape == (16, 16, 4)
         np.testing.assert_array_equal(lobes[..., :3], session.read("guiding_lobes"))
@@ -79,7 +79,7 @@ def test_viewport_worker_shows_a_guiding_pass_live():
         assert np.array_equal(components[..., 0], components[..., 2]) and (components[..., 3] == 1).all()
         worker.submit(display="combined")
         wait_done()
-        image, samples, _, _ = worker.frame
+        image, samples, _, _, _ = worker.frame
         assert samples == 8 and session.stats()["guiding_region_fits"] == fits
         np.testing.assert_array_equal(image, session.read("combined"))
     finally:

@@ -132,7 +132,10 @@ def test_a_change_of_any_row_reaches_the_viewport(fresh):
         elif row.core and row.name not in viewport_rows.values():
             assert len(view.worker.submitted) == handed_over + 1, row.name
             assert same(view.worker.submitted[-1]["params"][row.name], changed(row)), row.name
-        else:  # F12's samples, time limit and adaptive sampling: the viewport has its own
+        elif "preview_denois" in row.name:  # the viewport's denoising, to its denoise thread
+            assert len(view.worker.submitted) == handed_over + 1, row.name
+            assert same(view.worker.submitted[-1]["denoise"][row.name], changed(row)), row.name
+        else:  # F12's samples, time limit, adaptive sampling and denoising: the viewport has its own
             assert len(view.worker.submitted) == handed_over, row.name
 
 
@@ -157,7 +160,8 @@ class _Layout:
 def drawn(panel, context):
     """The property names ``panel`` draws (header first)."""
     shown = []
-    fake = types.SimpleNamespace(layout=_Layout(shown), **{k: getattr(panel, k) for k in ("rows", "header", "switches")
+    fake = types.SimpleNamespace(layout=_Layout(shown), **{k: getattr(panel, k) for k in
+                                                           ("rows", "header", "switches", "bl_idname")
                                                            if hasattr(panel, k)})
     if hasattr(panel, "draw_header"):
         panel.draw_header(fake, context)

@@ -124,3 +124,46 @@ def test_npz_render_with_the_irradiance_cache(tmp_path):
     assert irradiance.shape == gradients.shape == (12, 16, 3)
     assert np.isfinite(irradiance).all() and irradiance.mean() > 0.0
     assert np.isfinite(gradients).all() and (gradients[..., 2] == 0).all()
+
+
+def test_npz_denoising_settings_round_trip(tmp_path):
+    """Denoising is on by default (as Cycles'): the EXR holds the denoised Combined and the
+    Noisy Image; --set turns it off or changes its settings; bad values fail before rendering;
+    with no OIDN the render is written undenoised with a warning."""
+    npz = tmp_path / "cb.npz"
+    run("scene", "cornell_box", "-o", str(npz), "--width", "24", "--height", "16")
+
+    def render(name, *args, env=None):
+        exr = tmp_path / f"{name}.exr"
+        r = subprocess.run([*PARALLAX, "render", str(npz), "-o", str(exr), "--spp", "2", "--seed", "1", *args],
+                           capture_output=True, text=True, timeout=120, env=env)
+        assert r.returncode == 0, r.stderr
+        return read_exr(str(exr)), r
+
+    def rgb(channels, layer):
+        return np.stack([channels[f"{layer}.{c}"] for c in "RGB"], axis=-1)
+
+    default, r = render("default")
+    assert "Denoised with OpenImageDenoise" in r.stdout
+    noisy = rgb(default, "Noisy Image")
+    assert not np.allclose(rgb(default, "Combined"), noisy)
+    # The denoised image is smoother: less difference between neighbouring pixels.
+    assert np.abs(np.diff(rgb(default, "Combined"), axis=1)).mean() < 0.7 * np.abs(np.diff(noisy, axis=1)).mean()
+    off, r = render("off", "--set", "use_denoising=off")
+    assert "Noisy Image.R" not in off and "Denoised" not in r.stdout
+    np.testing.assert_array_equal(rgb(off, "Combined"), noisy)  # the same film, same seed
+    rgb_only, _ = render("rgb", "--set", "denoising_input_passes=RGB", "--set", "denoising_prefilter=NONE",
+                         "--set", "denoising_quality=FAST")
+    np.testing.assert_array_equal(rgb(rgb_only, "Noisy Image"), noisy)
+    assert not np.array_equal(rgb(rgb_only, "Combined"), rgb(default, "Combined"))
+    for value, message in (("denoising_prefilter=BEST", "NONE, FAST, ACCURATE"),
+                           ("use_denoising=maybe", "expected 1/0"),
+                           ("preview_denoising_start_sample=-1", "preview_denoising_start_sample must be in")):
+        r = run("render", str(npz), "-o", str(tmp_path / "x.exr"), "--set", value, check=False)
+        assert r.returncode == 2 and message in r.stderr and "Traceback" not in r.stderr, r.stderr
+    import os
+
+    missing, r = render("missing", env={**os.environ, "PARALLAX_OIDN_LIBRARY": str(tmp_path / "none.so")})
+    assert "OpenImageDenoise not found" in r.stderr and "not denoised" in r.stdout
+    np.testing.assert_array_equal(rgb(missing, "Combined"), noisy)
+    np.testing.assert_array_equal(rgb(missing, "Noisy Image"), noisy)

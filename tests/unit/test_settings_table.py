@@ -11,7 +11,7 @@ from parallax_core.cli import parse_params
 from parallax_core.exr import layer_channels
 
 TYPES = {"bool": bool, "int": int, "float": float, "enum": str}
-PANELS = {"", "sampling", "light_paths", "lights", "ic", "adrrs", "guiding"}
+PANELS = {"", "sampling", "light_paths", "lights", "denoising", "ic", "adrrs", "guiding"}
 
 
 def test_rows_are_well_formed():
@@ -32,8 +32,13 @@ def test_rows_are_well_formed():
     # Each technique's switch is the bool setting named as the technique.
     for t in ("ic", "adrrs", "guiding"):
         assert pc.setting(t).type == "bool" and pc.setting(t).technique == t
+    # The engine's rows (no core field): sampling's, the viewport's adaptive sampling and denoising's
+    # (parallax_core.denoise).
     assert [s.name for s in pc.SETTINGS if not s.core] == [
-        "samples", "time_limit", "use_preview_adaptive_sampling", "preview_adaptive_threshold"]
+        "samples", "time_limit", "use_preview_adaptive_sampling", "preview_adaptive_threshold",
+        "use_denoising", "denoising_input_passes", "denoising_prefilter",
+        "denoising_quality", "use_preview_denoising", "preview_denoising_start_sample",
+        "preview_denoising_input_passes", "preview_denoising_prefilter", "preview_denoising_quality"]
 
 
 def test_render_params_come_from_the_core_rows():
@@ -107,11 +112,19 @@ def test_passes_table():
     settings = {s.name: s for s in pc.SETTINGS}
     for p in pc.PASSES:
         assert len(p.channel_ids) == p.channels and p.description, p
-        assert p.setting == "" or (settings[p.setting].type == "bool" and p.technique == p.setting), p
+        # A technique's passes are switched by the technique; the engine's Noisy Image by Use Denoising.
+        switch = p.technique if p.core else "use_denoising"
+        assert p.setting == "" or (settings[p.setting].type == "bool" and p.setting == switch), p
         assert layer_channels(p.name, p.channels) == [f"{p.label}.{c}" for c in p.channel_ids]
+    assert [p.name for p in pc.PASSES if not p.core] == ["noisy_image"]
     s = pc.Session(3, 2)
     from parallax_core import scenes
     s.update(scenes.cornell_box(3, 2))
     s.render(1)
     for p in pc.PASSES:
-        assert s.read(p.name).shape == (2, 3, p.channels), p.name
+        if p.core:
+            assert s.read(p.name).shape == (2, 3, p.channels), p.name
+        else:  # made by the engine (the denoiser), not the film
+            with pytest.raises(ValueError, match="made by the engine"):
+                s.read(p.name)
+    assert set(s.read_all()) == {p.name for p in pc.PASSES if p.core}

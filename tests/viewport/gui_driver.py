@@ -4,6 +4,9 @@ MODE "viewport": switches the biggest 3D viewport to Rendered shading with Paral
 through the scene camera with overlays off, and takes `xwd -root` screenshots: after the
 first full-resolution frames, after more samples, after moving the tall box, and after
 orbiting the view. MODE "cancel": starts an F12 render and waits for the test to press Esc.
+MODE "denoise": the Rendered viewport with Use Viewport Denoising until a denoised frame
+shows, then an F12 render with denoising (the default). PX_DENOISE=1 turns viewport denoising
+on in the other modes (bench/viewport_latency.py --denoise).
 Steps run from timers so Blender's event loop (and its drawing) goes on; results go to
 OUT_DIR/result.json, and Blender quits at the end.
 """
@@ -102,6 +105,8 @@ def rendered_camera_view():
     region = next(r for r in area.regions if r.type == "WINDOW")
     with bpy.context.temp_override(area=area, region=region):
         bpy.ops.view3d.view_center_camera()
+    if os.environ.get("PX_DENOISE") == "1":
+        bpy.context.scene.parallax.use_preview_denoising = True
     result["rendered_at"] = time.perf_counter()
     space.shading.type = "RENDERED"
     result["region"] = [region.x, region.y, region.width, region.height]
@@ -173,6 +178,7 @@ def bench_steps():
     assert worker().generation == generation, "the view changed while counting samples"
     result["samples_per_second"] = (worker().frame[1] - s0) / (time.perf_counter() - t0)
     result["size"] = list(worker().frame[0].shape[:2])
+    result["denoised_frames"] = worker().denoised_frames  # with PX_DENOISE=1: the denoiser ran
 
 
 def startup_steps():
@@ -188,6 +194,33 @@ def startup_steps():
     result["first_image_seconds"] = w.first_frame_at - result["rendered_at"]
     result["first_full_frame_seconds"] = w.first_full_frame_at - result["rendered_at"]
     result["size"] = list(w.frame[0].shape[:2])
+
+
+def denoise_steps():
+    """The viewport's denoise thread and F12's denoiser in Blender 3.4, which has no OIDN of its
+    own: both must find the pyoidn the add-on bundles."""
+    from parallax import ui
+    from parallax.engine import final
+
+    scene = bpy.context.scene
+    result["denoiser"] = [list(line) for line in ui.denoiser_status()]
+    scene.parallax.use_preview_denoising, scene.parallax.preview_denoising_start_sample = True, 2
+    space = yield from rendered_camera_view()
+    yield lambda: worker() is not None and (worker().frame is not None and worker().frame[4]
+                                            or worker().denoise_message is not None)
+    w = worker()
+    result["viewport"] = {"denoised_frames": w.denoised_frames, "message": w.denoise_message,
+                          "samples": w.frame[1], "first_denoised_s": (w.first_denoised_at or 0) - result["rendered_at"]}
+    yield after(0.5)  # drawn
+    screenshot("denoised")
+    space.shading.type = "SOLID"
+    yield after(1.0)
+    scene.parallax.samples, scene.render.resolution_x, scene.render.resolution_y = 4, 64, 48
+    bpy.ops.render.render("INVOKE_DEFAULT")
+    yield lambda: final.last_report.finished_at is not None
+    report = final.last_report
+    result["f12"] = {"denoised": report.denoised, "message": report.denoise_message,
+                     "errors": report.errors, "samples": report.samples}
 
 
 def cancel_steps():
@@ -215,7 +248,7 @@ try:
     assert addon_utils.enable("parallax", default_set=True) is not None, "the add-on did not enable"
     bpy.context.scene.render.engine = "PARALLAX"
     run_steps({"viewport": viewport_steps, "bench": bench_steps, "cancel": cancel_steps,
-               "startup": startup_steps}[MODE]())
+               "startup": startup_steps, "denoise": denoise_steps}[MODE]())
 except Exception:
     result["errors"].append(traceback.format_exc())
     save_result()

@@ -111,3 +111,16 @@ def test_escape_cancels_an_f12_render_within_a_second(gui):
     assert not result["still_rendering"] and result["job_seconds"] < 5.0, result
     assert result["responsive"]
     print(f"Esc -> render stopped {result['cancel_seconds']:.2f} s, job ended {result['job_seconds']:.2f} s")
+
+
+def test_denoising_in_blender_34_finds_the_bundled_pyoidn(gui):
+    """Debian's Blender 3.4 has no OIDN: the panel, the viewport's denoise thread and F12 use the
+    library of the pyoidn wheel the add-on carries (unpacked into _site/ with the core)."""
+    proc, out = gui.start("cornell_box", "denoise")
+    result, log = _finish(proc, Path(out))
+    assert result["denoiser"] == [["OpenImageDenoise from pyoidn", "INFO"]], result["denoiser"]
+    viewport = result["viewport"]
+    assert viewport["message"] is None and viewport["denoised_frames"] >= 1 and viewport["samples"] >= 2, viewport
+    f12 = result["f12"]
+    assert not f12["errors"] and f12["samples"] == 4 and f12["denoised"], f12
+    assert "from pyoidn" in f12["message"], f12

@@ -21,6 +21,7 @@ from ._native import (LIMITS, DeviceMemoryError, background_compiles, devices, l
                       wait_for_background_compiles)
 from ._native import Session as _NativeSession
 from ._native import _PASSES, _SETTINGS, _make_params, _setting_index
+from . import denoise  # noqa: F401  (OIDN: parallax_core.denoise)
 from .scene import PART_KEYS, PARTS, parts_set
 
 __all__ = ["Session", "RenderParams", "SETTINGS", "PASSES", "setting", "devices", "METHODS", "PARTS", "LIMITS",
@@ -41,8 +42,9 @@ Setting = collections.namedtuple(
     "Setting", "name technique type default min max items label tooltip panel group unit core")
 SETTINGS = tuple(Setting(**row) for row in _SETTINGS)
 # Passes in film order; label: the Blender pass and EXR layer name; setting: the setting
-# that enables the pass ("" = always).
-Pass = collections.namedtuple("Pass", "name label channels channel_ids description technique setting")
+# that enables the pass ("" = always); core: read from the film by Session.read (False: made by
+# the engine in Python, as the denoiser's Noisy Image, parallax_core.denoise).
+Pass = collections.namedtuple("Pass", "name label channels channel_ids description technique setting core")
 PASSES = tuple(Pass(**row) for row in _PASSES)
 
 
@@ -152,7 +154,7 @@ class Session(_NativeSession):
         return warnings
 
     def read_all(self) -> dict:
-        """Every pass the film holds (``passes``), by name."""
+        """Every pass the film holds (``passes``; not the engine's Noisy Image), by name."""
         return {name: self.read(name) for name in self.passes}
 
     def test_sampling(self, routine: int, params, count: int, seed: int = 0, directions=None, constants=None):

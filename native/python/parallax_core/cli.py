@@ -78,7 +78,7 @@ _PARSERS = {"bool": _parse_bool, "int": _parse_int, "float": _parse_float, "enum
 
 def parse_params(assignments):
     """``NAME=VALUE`` pairs (``--set`` for .npz scenes) -> keyword arguments for
-    ``Session.set_params`` (and the engine's ``samples`` and ``time_limit``). NAME is a row of
+    ``Session.set_params`` (and the engine's settings: ``samples``, ``time_limit``, denoising). NAME is a row of
     ``parallax_core.SETTINGS``; VALUE is parsed by the row's type (the core checks its range
     or enum name). Raises ValueError naming the item."""
     from . import SETTINGS
@@ -94,10 +94,20 @@ def parse_params(assignments):
         if row is None:
             raise ValueError(f"--set {item!r}: for .npz scenes NAME is a setting: {', '.join(rows)}")
         try:
-            params[name] = _PARSERS[row.type](text)
+            params[name] = value = _PARSERS[row.type](text)
+            if not row.core:  # the core checks its own rows; the engine's are checked here
+                check_engine_value(row, value)
         except ValueError as e:
             raise ValueError(f"--set {item!r}: {e}") from None
     return params
+
+
+def check_engine_value(row, value):
+    """ValueError unless ``value`` is within an engine row's range or among its items."""
+    if row.type == "enum" and value not in [i[0] for i in row.items]:
+        raise ValueError(f"{row.name} must be one of {', '.join(i[0] for i in row.items)}")
+    if row.type in ("int", "float") and not row.min <= value <= row.max:
+        raise ValueError(f"{row.name} must be in [{row.min}, {row.max}]")
 
 
 def ic_status(stats):
@@ -111,6 +121,27 @@ def guiding_status(stats):
     return (f"Guiding {stats.get('guiding_trained_regions', 0)}/{stats.get('guiding_regions', 0)} regions trained, "
             f"{stats.get('guiding_lobes', 0)} lobes, {stats.get('guiding_training_frames', 0)} training frames, "
             f"fit {stats.get('guiding_fit_milliseconds', 0.0) / 1e3:.2f} s")
+
+
+def denoise_film(session, settings):
+    """({"combined": denoised, "noisy_image": noisy}, status line) for a finished render; with
+    no OIDN (or an OIDN error) Combined stays noisy, Noisy Image is the same image and the line
+    says why (the render is never lost to the denoiser)."""
+    from . import denoise
+
+    images = {name: session.read(name) for name in denoise.film_passes(settings)}
+    start = time.perf_counter()
+    try:
+        denoiser = denoise.Denoiser(session.device_type)
+        try:
+            out = denoise.denoise_images(images, settings, denoiser)
+        finally:
+            denoiser.close()
+    except (denoise.DenoiserUnavailable, denoise.DenoiseError) as e:
+        print(f"parallax: warning: {e}; the image is not denoised", file=sys.stderr)
+        return {"noisy_image": images["combined"]}, "Denoising: not denoised (no OpenImageDenoise)"
+    return out, (f"Denoised with OpenImageDenoise {denoiser.version} ({denoiser.source}, "
+                 f"{denoiser.device_kind}) in {time.perf_counter() - start:.2f} s")
 
 
 def _device_arg(value):
@@ -176,13 +207,13 @@ def cmd_render(args):
     if args.engine:
         raise ValueError("--engine applies to .blend files only")
     overrides = parse_params(args.set) if args.set else {}  # (needs the native module)
-    # The engine's settings (no core field): samples per pixel and a time limit.
+    # The engine's settings (no core field): samples per pixel, a time limit, denoising.
+    from . import SETTINGS
+
     if "samples" in overrides:
-        args.samples = overrides.pop("samples")
-    time_limit = overrides.pop("time_limit", 0.0)
-    from . import setting
-    for name in [n for n in overrides if not setting(n).core]:  # the viewport's: no viewport here
-        overrides.pop(name)
+        args.samples = overrides["samples"]
+    engine = {s.name: overrides.pop(s.name, s.default) for s in SETTINGS if not s.core}
+    time_limit = engine["time_limit"]
     from .exr import write_exr, write_png
     from .scene import SceneData
 
@@ -238,8 +269,13 @@ def cmd_render(args):
 
     ic, adrrs, guiding = params.get("ic", False), params.get("adrrs", False), params.get("guiding", False)
     # A pass whose setting is off is left out (a technique's passes only with the technique on).
-    settings = dataclasses.asdict(session.params)
-    passes = {p.name: session.read(p.name) for p in PASSES if not p.setting or settings[p.setting]}
+    settings = {**dataclasses.asdict(session.params), **engine}
+    passes = {p.name: session.read(p.name) for p in PASSES
+              if p.core and (not p.setting or settings[p.setting])}
+    denoised = denoise_line = None
+    if settings["use_denoising"]:
+        denoised, denoise_line = denoise_film(session, settings)
+        passes.update(denoised)
     write_exr(args.output, passes)
     if args.png:
         write_png(args.png, passes["combined"])
@@ -250,6 +286,8 @@ def cmd_render(args):
     print(f"{stats.get('samples', frames * per_frame)} spp, {rays / 1e6:.1f} Mrays in "
           f"{seconds:.2f} s{rate} on {stats.get('device', '?')} -> {args.output}"
           + (f", {args.png}" if args.png else ""))
+    if denoise_line:
+        print(denoise_line)
     if ic or adrrs:
         print(ic_status(stats))
     if guiding:

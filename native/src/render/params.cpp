@@ -13,6 +13,27 @@ namespace {
 
 constexpr FieldRef kEngine{};  // an engine setting: no core field (the core is progressive)
 
+// Cycles' denoising enumerations (CyclesRenderSettings: denoising_input_passes, _prefilter, _quality).
+std::vector<EnumItem> denoising_input_items() {
+    return {{"RGB", "None", "Don't use utility passes for denoising", 0},
+            {"RGB_ALBEDO", "Albedo", "Use albedo pass for denoising", 1},
+            {"RGB_ALBEDO_NORMAL", "Albedo and Normal", "Use albedo and normal passes for denoising", 2}};
+}
+std::vector<EnumItem> denoising_prefilter_items() {
+    return {{"NONE", "None", "No prefiltering, use when guiding passes are noise-free", 0},
+            {"FAST", "Fast",
+             "Denoise color and guiding passes together. Improves quality when guiding passes are noisy using "
+             "least amount of extra processing time", 1},
+            {"ACCURATE", "Accurate",
+             "Prefilter noisy guiding passes before denoising color. Improves quality when guiding passes are noisy "
+             "using extra processing time", 2}};
+}
+std::vector<EnumItem> denoising_quality_items() {
+    return {{"HIGH", "High", "High quality", 0},
+            {"BALANCED", "Balanced", "Balanced between performance and quality", 1},
+            {"FAST", "Fast", "High performance", 2}};
+}
+
 // The base path tracer's settings and the film's own passes.
 const SettingTable& base_table() {
     static const SettingTable table{"base",
@@ -78,6 +99,34 @@ const SettingTable& base_table() {
                          {{"power", "Power", "Power heuristic, exponent 2 (Veach 1997, eq. 9.13)", HEURISTIC_POWER},
                           {"balance", "Balance", "Balance heuristic (Veach 1997, eq. 9.10)", HEURISTIC_BALANCE}},
                          "MIS Heuristic", "How MIS weighs light and BSDF samples", "lights"),
+            // Denoising (engine settings: parallax_core.denoise runs OIDN on the film's passes).
+            // Cycles' names, items and defaults (CyclesRenderSettings).
+            bool_setting("use_denoising", kEngine, true, "Use Denoising",
+                         "Denoise the rendered image with OpenImageDenoise (Combined gets the denoised image, "
+                         "Noisy Image the undenoised one)", "denoising"),
+            enum_setting("denoising_input_passes", kEngine, 2, denoising_input_items(), "Denoising Input Passes",
+                         "Passes used by the denoiser to distinguish noise from shader and geometry detail",
+                         "denoising"),
+            enum_setting("denoising_prefilter", kEngine, 2, denoising_prefilter_items(), "Denoising Prefilter",
+                         "Prefilter noisy guiding (albedo and normal) passes to improve denoising quality",
+                         "denoising"),
+            enum_setting("denoising_quality", kEngine, 0, denoising_quality_items(), "Denoising Quality",
+                         "Overall denoising quality", "denoising"),
+            bool_setting("use_preview_denoising", kEngine, false, "Use Viewport Denoising",
+                         "Denoise the image in the 3D viewport (on a thread of its own: edits do not wait for it)",
+                         "denoising").in_group("Viewport"),
+            int_setting("preview_denoising_start_sample", kEngine, 1, 0, 1 << 24, "Start Denoising",
+                        "Sample to start denoising the preview at", "denoising").in_group("Viewport"),
+            enum_setting("preview_denoising_input_passes", kEngine, 1, denoising_input_items(),
+                         "Viewport Denoising Input Passes",
+                         "Passes used by the denoiser to distinguish noise from shader and geometry detail",
+                         "denoising").in_group("Viewport"),
+            enum_setting("preview_denoising_prefilter", kEngine, 1, denoising_prefilter_items(),
+                         "Viewport Denoising Prefilter",
+                         "Prefilter noisy guiding (albedo and normal) passes to improve denoising quality",
+                         "denoising").in_group("Viewport"),
+            enum_setting("preview_denoising_quality", kEngine, 1, denoising_quality_items(),
+                         "Viewport Denoising Quality", "Overall denoising quality", "denoising").in_group("Viewport"),
             // The viewport's first frame (not a user setting).
             bool_setting("preview", PX_FIELD(RenderParams, preview), false, "Preview",
                          "First-hit shading only (preview.rgen): compiles in a fraction of the path tracer's time; "
@@ -97,6 +146,9 @@ const SettingTable& base_table() {
             // Adaptive sampling at work: low where the image is flat (Cycles' Sample Count).
             {"sample_count", "Sample Count", 1, "X", "Samples the pixel took (fewer where adaptive sampling stopped it)",
              PASS_SAMPLE_COUNT, ""},
+            // Cycles' Noisy Image: Combined before the denoiser (which then fills Combined).
+            {"noisy_image", "Noisy Image", 4, "RGBA", "The rendered image before denoising (with Use Denoising on)",
+             0, "use_denoising", "", false, true},
         }};
     return table;
 }

@@ -107,7 +107,11 @@ void Session::allocate_film() {
 
 void Session::set_passes(const std::vector<std::string>& names) {
     uint32_t mask = 1u << PASS_COMBINED;
-    for (const std::string& name : names) mask |= 1u << pass(name).index;  // unknown: invalid_argument
+    for (const std::string& name : names) {
+        const PassInfo& p = pass(name);  // unknown: invalid_argument
+        if (p.engine) throw std::invalid_argument("pass '" + name + "' is made by the engine (parallax_core.denoise), not the film");
+        mask |= 1u << p.index;
+    }
     std::lock_guard<std::mutex> updating(update_mutex_);
     std::lock_guard<std::mutex> lock(mutex_);
     if (mask == listed_passes_) return;
@@ -119,7 +123,7 @@ std::vector<std::string> Session::passes() {
     std::lock_guard<std::mutex> lock(mutex_);
     std::vector<std::string> names;
     for (const PassInfo& p : px::passes())
-        if (listed_passes_ >> p.index & 1u) names.push_back(p.name);
+        if (!p.engine && (listed_passes_ >> p.index & 1u)) names.push_back(p.name);
     return names;
 }
 
@@ -636,6 +640,8 @@ bool Session::render_rows(uint32_t rows) {
 
 std::vector<float> Session::read(const std::string& pass, uint32_t& channels) {
     const PassInfo* info = &px::pass(pass);
+    if (info->engine)
+        throw std::invalid_argument("pass '" + pass + "' is made by the engine (parallax_core.denoise), not the film");
     std::lock_guard<std::mutex> lock(mutex_);
     if (!(listed_passes_ >> info->index & 1u))
         throw std::invalid_argument("pass '" + pass + "' is not rendered: add it to Session.passes");

@@ -112,7 +112,7 @@ SettingInfo float_setting(const char* name, FieldRef field, double def, double m
 
 SettingInfo enum_setting(const char* name, FieldRef field, uint32_t def, std::vector<EnumItem> items,
                          const char* label, const char* tooltip, const char* panel) {
-    assert(field.storage == Storage::U32);
+    assert(field.storage == Storage::U32 || field.storage == Storage::None);
     SettingInfo r = row(name, SettingType::Enum, field, def, 0, 0, label, tooltip, panel);
     r.items = std::move(items);
     assert(r.item(def));

@@ -47,7 +47,7 @@ struct SettingInfo {
     std::vector<EnumItem> items;
     const char* label;
     const char* tooltip;
-    // The UI panel: "sampling", "light_paths", "lights", "ic", "adrrs", "guiding"; "": none.
+    // The UI panel: "sampling", "light_paths", "lights", "denoising", "ic", "adrrs", "guiding"; "": none.
     const char* panel;
     const char* technique = "";  // "base", "ic", "adrrs", "guiding" (set by the table)
     // The sub-panel inside `panel` ("": the panel itself), as the cache's "Accuracy".
@@ -87,6 +87,10 @@ struct PassInfo {
     const char* setting;      // the setting that enables it ("": always)
     const char* technique = "";
     bool fraction = false;    // read as x / y of the sums (a ratio of counts; 0 where y is 0)
+    // Made by the engine in Python, not by the film (the denoiser's Noisy Image): no film slot,
+    // Session.read refuses it; exported to Python as `core` False, as the engine's settings.
+    bool engine = false;
+    bool core() const { return !engine; }
 };
 
 // One technique's settings (fields relative to its Params struct) and passes.
