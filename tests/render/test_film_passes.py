@@ -18,7 +18,7 @@ def session(passes=None, **params):
 
 def test_default_holds_every_pass():
     s = session()
-    assert s.passes == [p.name for p in pc.PASSES]
+    assert s.passes == [p.name for p in pc.PASSES if p.core]
 
 
 def test_combined_only_matches_the_full_film_bit_for_bit():
@@ -41,8 +41,14 @@ def test_a_technique_pass_reads_zeros_while_the_technique_is_off():
     assert not s.read("ic_irradiance").any()
 
 
+def test_the_engines_pass_is_not_the_films():
+    s = pc.Session(8, 8, "cpu")
+    with pytest.raises(ValueError, match="made by the engine"):
+        s.passes = ["combined", "noisy_image"]
+
+
 def test_unknown_pass_is_a_clear_error():
     s = pc.Session(8, 8, "cpu")
     with pytest.raises(ValueError, match="unknown pass 'beauty'"):
         s.passes = ["combined", "beauty"]
-    assert s.passes == [p.name for p in pc.PASSES]  # unchanged
+    assert s.passes == [p.name for p in pc.PASSES if p.core]  # unchanged
