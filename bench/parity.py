@@ -49,10 +49,11 @@ def open_scene(bpy, cli, name, engine, size):
 
 def render(bpy, cli, name, engine, size, samples, out_dir, tag=""):
     scene = open_scene(bpy, cli, name, engine, size)
-    # Denoising off on both engines: parity compares the estimators (both default to on).
-    scene.cycles.use_denoising = False
+    # Denoising and adaptive sampling off on both engines: parity compares the estimators, every
+    # pixel with the same samples (both default to on).
+    scene.cycles.use_denoising = scene.cycles.use_adaptive_sampling = False
     if engine == "PARALLAX":
-        scene.parallax.use_denoising = False
+        scene.parallax.use_denoising = scene.parallax.use_adaptive_sampling = False
         scene.parallax.samples, scene.parallax.samples_per_frame = samples, 8
         scene.parallax.max_depth, scene.parallax.depth_leeway = scene.cycles.max_bounces, 0
         scene.parallax.method = "mis"

@@ -19,11 +19,12 @@ def open_scene(bpy, name, width, height, engine="PARALLAX"):
 
 
 def pin_denoising_off(scene):
-    """Denoising off on both engines (both default to on): the tests compare F12 images
-    numerically, as rendered; tests/addon/test_denoising.py turns it on."""
-    scene.cycles.use_denoising = False
+    """Denoising and adaptive sampling off on both engines (both default to on): the tests
+    compare F12 images numerically, every pixel with the same samples; tests/addon/
+    test_denoising.py and tests/render/test_adaptive_sampling.py turn them on."""
+    scene.cycles.use_denoising = scene.cycles.use_adaptive_sampling = False
     if hasattr(scene, "parallax"):
-        scene.parallax.use_denoising = False
+        scene.parallax.use_denoising = scene.parallax.use_adaptive_sampling = False
 
 
 def render(bpy, path):
@@ -41,7 +42,7 @@ def render(bpy, path):
 def render_engine(bpy, tmp_path, scene, engine, seed, samples):
     """The Combined RGB of `scene` rendered by `engine` ("PARALLAX" with MIS and Cycles' bounce
     count, or "CYCLES") with `samples` and `seed`: the parity tests' one render, denoising
-    off on both engines."""
+    and adaptive sampling off on both engines."""
     scene.render.engine = engine
     pin_denoising_off(scene)
     if engine == "PARALLAX":
