@@ -413,7 +413,7 @@ def _render(session, scene_input):
     """Updates, renders 2 frames and checks every pass; the Outcome."""
     warnings = session.update(scene_input)
     session.render(2)
-    finite = all(np.isfinite(session.read(p.name)).all() for p in pc.PASSES)
+    finite = all(np.isfinite(session.read(p.name)).all() for p in pc.PASSES if p.core)
     if not finite:
         return Outcome("nonfinite", "; ".join(warnings))
     return Outcome("warn" if warnings else "render", "\n".join(warnings))
@@ -432,7 +432,7 @@ def _cancelled(session, scene, wait=1.0, limit=300.0, frames=1000):
     thread.join(limit)
     if thread.is_alive():
         raise TimeoutError(f"render(1) still running {limit:.0f} s after cancel()")
-    finite = all(np.isfinite(session.read(p.name)).all() for p in pc.PASSES)
+    finite = all(np.isfinite(session.read(p.name)).all() for p in pc.PASSES if p.core)
     if done[0] >= frames or not finite:
         return Outcome("render" if finite else "nonfinite", f"render({frames}) completed {done} frames")
     return Outcome("cancelled", f"render({frames}) stopped by cancel() after {done[0]} frames")

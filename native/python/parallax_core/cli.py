@@ -206,6 +206,10 @@ def cmd_render(args):
         return cmd_render_blend(args)
     if args.engine:
         raise ValueError("--engine applies to .blend files only")
+    from .exr import write_exr, write_png
+    from .scene import SceneData
+
+    scene = SceneData.load(args.scene)  # first: a missing file is the error to report
     overrides = parse_params(args.set) if args.set else {}  # (needs the native module)
     # The engine's settings (no core field): samples per pixel, a time limit, denoising.
     from . import SETTINGS
@@ -214,10 +218,6 @@ def cmd_render(args):
         args.samples = overrides["samples"]
     engine = {s.name: overrides.pop(s.name, s.default) for s in SETTINGS if not s.core}
     time_limit = engine["time_limit"]
-    from .exr import write_exr, write_png
-    from .scene import SceneData
-
-    scene = SceneData.load(args.scene)
     width, height = args.width, args.height
     if width or height:
         if scene.width and scene.height:
