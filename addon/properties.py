@@ -17,7 +17,10 @@ INT32_MIN, INT32_MAX = -2**31, 2**31 - 1  # Blender's IntProperty is 32-bit
 LOBES_LOOP_FRAMES = 48  # Animate Lobes: frames per loop of the spheres through their regions (2 s at 24 fps)
 # A float row's unit as Blender shows it.
 UNITS = {"time": dict(subtype="TIME_ABSOLUTE", unit="TIME_ABSOLUTE"),
-         "length": dict(subtype="DISTANCE", unit="LENGTH")}
+         "length": dict(subtype="DISTANCE", unit="LENGTH"),
+         "pixel": dict(subtype="PIXEL")}
+# Rows whose Cycles setting has another name (the others share Cycles' names).
+CYCLES_NAMES = {"max_depth": "max_bounces"}
 DEVICE_ITEMS = (
     ("auto", "Automatic", "An NVIDIA or other ray-tracing GPU if present, else the CPU (lavapipe)"),
     ("cpu", "CPU", "Mesa lavapipe: Vulkan on the CPU"),
@@ -108,10 +111,36 @@ class ParallaxRenderSettings(bpy.types.PropertyGroup):
         name="Device", description="Vulkan device to render on", items=DEVICE_ITEMS, default="auto")
 
     def render_params(self):
-        """Keyword arguments for ``parallax_core.Session.set_params``: every core row's value."""
+        """Keyword arguments for ``parallax_core.Session.set_params``: every core row's value,
+        the scene's Cycles light paths where this scene never set Parallax's (cycles_light_paths)."""
         params = {row.name: getattr(self, row.name) for row in table_rows() if row.core}
+        params.update(self.cycles_light_paths())
         params["guiding_lobes_phase"] = self.guiding_lobes_phase()
         return params
+
+    def cycles_light_paths(self):
+        """The light-path and pixel-filter rows that take the scene's Cycles values: those set
+        in Cycles (``is_property_set``) and never in Parallax, so a scene made with Cycles renders
+        with its bounces, clamps and filter when a user switches engine. Cycles' Total counts
+        every bounce: where it sets Max Bounces, Discrete Leeway is 0 unless set here."""
+        cycles = getattr(self.id_data, "cycles", None)
+        if cycles is None:  # Cycles not enabled
+            return {}
+        values = {}
+        for row in table_rows():
+            name = CYCLES_NAMES.get(row.name, row.name)
+            if (row.panel not in ("light_paths", "film") or self.is_property_set(row.name)
+                    or name not in cycles.bl_rna.properties or not cycles.is_property_set(name)):
+                continue
+            value = getattr(cycles, name)
+            if row.type == "enum" and value not in {item[0] for item in row.items}:
+                continue
+            if row.type in ("int", "float") and not row.min <= value <= row.max:
+                continue
+            values[row.name] = value
+        if "max_depth" in values and not self.is_property_set("depth_leeway"):
+            values["depth_leeway"] = 0
+        return values
 
     def engine_values(self):
         """The engine's rows (no core field: samples, time limit, denoising) by name."""

@@ -21,7 +21,8 @@ def render(scene, method="mis", spp=64, spp_per_frame=None, seed=0, session=None
     k = spp_per_frame or min(spp, 64)
     # Every parameter set explicitly: a shared session keeps what earlier tests set. Adaptive
     # sampling off unless a test asks for it: estimators are compared at equal sample counts.
-    defaults = {**dataclasses.asdict(pc.RenderParams()), "use_adaptive_sampling": False}
+    # Unbiased light paths (no kind budget, no clamp, a one-pixel box) unless a test asks.
+    defaults = {**dataclasses.asdict(pc.RenderParams()), "use_adaptive_sampling": False, **pc.UNBIASED_LIGHT_PATHS}
     s.set_params(**{**defaults, "method": method, "samples_per_frame": k, "seed": seed, **params})
     if session is None:
         s.update(scene)

@@ -16,7 +16,15 @@ struct BsdfSample {
     vec3 weight;  // f * |cos| / pdf
     float pdf;    // 0 for delta lobes' pdf-free use; set to 1 with delta = true
     bool delta;
+    uint kind;    // BOUNCE_*: the budget the bounce counts towards (Cycles' label)
 };
+
+// Kinds of bounce, as Cycles labels a sampled lobe (path_state_next): reflection off a diffuse
+// lobe (Lambert, Principled's diffuse and sheen), other reflection (glossy and mirror), and
+// any transmission. Cycles' Diffuse, Glossy and Transmission bounce budgets count them.
+const uint BOUNCE_DIFFUSE = 0u;
+const uint BOUNCE_GLOSSY = 1u;
+const uint BOUNCE_TRANSMISSION = 2u;
 
 
 // ---- GGX ------------------------------------------------------------------------------
@@ -186,6 +194,7 @@ bool bsdf_sample(Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
     bs.pdf = 0.0;
     bs.weight = vec3(0.0);
     bs.wi = vec3(0.0, 0.0, 1.0);
+    bs.kind = s.type == MATERIAL_DIFFUSE ? BOUNCE_DIFFUSE : BOUNCE_GLOSSY;
     if (s.type == MATERIAL_EMISSION) return false;
     if (HAS(FEATURE_PRINCIPLED) && s.type == MATERIAL_PRINCIPLED) return principled_sample(s.pr, wo, u, bs);
     if (s.type == MATERIAL_DIFFUSE) {
@@ -221,6 +230,7 @@ bool bsdf_sample(Surface s, vec3 wo, vec3 u, out BsdfSample bs) {
     } else {
         bs.wi = refract(-wo, m, 1.0 / s.eta);
         if (bs.wi.z >= 0.0 || dot(bs.wi, bs.wi) == 0.0) return false;
+        bs.kind = BOUNCE_TRANSMISSION;
     }
     if (s.alpha < DELTA_ALPHA) {
         bs.delta = true;

@@ -2,6 +2,19 @@
 #ifndef PARALLAX_CAMERA_GLSL
 #define PARALLAX_CAMERA_GLSL
 
+// A camera sample's position in its pixel ((0.5, 0.5): the centre; the filter's tails reach
+// into the neighbours), drawn from the pixel filter: its inverted CDF (render/pixel_filter.h),
+// interpolated, in x and in y. Importance-sampled, so every sample weighs 1 (Ernst et al. 2006).
+float pixel_filter_offset(float u) {
+    float x = u * float(PIXEL_FILTER_TABLE_SIZE - 1u);
+    uint i = min(uint(x), PIXEL_FILTER_TABLE_SIZE - 2u);
+    return mix(pixel_filter_table[i], pixel_filter_table[i + 1u], x - float(i));
+}
+
+vec2 pixel_filter_sample(vec2 u) {
+    return vec2(0.5 + pixel_filter_offset(u.x), 0.5 + pixel_filter_offset(u.y));
+}
+
 // The camera ray through image position (x, y) in pixels (row 0 = top); t_min, t_max from the
 // clip distances, axis_cos = cos of the angle to the view axis.
 void camera_ray(vec2 xy, out vec3 origin, out vec3 dir, out float t_min, out float t_max, out float axis_cos) {

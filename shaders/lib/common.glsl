@@ -28,6 +28,7 @@ layout(set = 0, binding = BINDING_ENV_MARGINAL, scalar) readonly buffer EnvMargi
 layout(set = 0, binding = BINDING_ENV_CONDITIONAL, scalar) readonly buffer EnvConditionalBuffer { float env_conditional[]; };
 layout(set = 0, binding = BINDING_SCENE, scalar) readonly buffer SceneBuffer { SceneInfo scene; };
 layout(set = 0, binding = BINDING_GGX_TABLES, scalar) readonly buffer GgxTableBuffer { uint ggx_table_words[]; };
+layout(set = 0, binding = BINDING_PIXEL_FILTER, scalar) readonly buffer PixelFilterBuffer { float pixel_filter_table[]; };
 
 layout(push_constant, scalar) uniform PushConstants { FrameParams params; };
 

@@ -28,6 +28,7 @@ struct PathOptions {
     vec3 throughput;
     uint bounces;
     uint discrete;
+    uvec3 kind_bounces;  // bounces of each kind (BOUNCE_*) so far
     bool resume;
     // The triangle the first ray starts on (NO_INDEX: a camera or cache ray, off any surface).
     uint self_instance;
@@ -46,6 +47,7 @@ PathOptions path_options() {
     opt.throughput = vec3(1.0);
     opt.bounces = 0u;
     opt.discrete = 0u;
+    opt.kind_bounces = uvec3(0u);
     opt.resume = false;
     opt.self_instance = NO_INDEX;
     opt.self_primitive = NO_INDEX;
@@ -88,6 +90,7 @@ struct PathState {
     float prev_pdf;
     vec3 prev_ng;     // geometric normal at the segment's origin (the light tree's receiver)
     uint bounces, discrete;
+    uvec3 kind_bounces;  // Cycles' diffuse, glossy and transmission bounces (BOUNCE_*)
     ShadowRay pending;
 };
 
@@ -218,6 +221,35 @@ float emission_weight(bool prev_delta, float prev_pdf, float light_pdf, uint lig
     return mis_weight(prev_pdf, float(light_samples) * light_pdf);
 }
 
+// Cycles' light paths. Scattering events before the path's current vertex, every bounce
+// counted as Cycles' bounce does (ps.bounces leaves out the leeway's discrete bounces).
+uint scatter_count(PathState ps, PathOptions opt) {
+    return ps.bounces + min(ps.discrete, opt.depth_leeway);
+}
+
+// Whether a contribution is direct light for Cycles' clamps: a camera path's emission seen
+// directly or found by the first vertex's BSDF ray (at most one scatter before it), or the
+// first vertex's NEE (none); Cycles' film_write_emission_or_background_pass (bounce - 1) and
+// film_write_direct_light. The cache's hemisphere paths carry indirect light only.
+bool direct_light(PathState ps, PathOptions opt, uint most_scatters) {
+    return opt.from_camera && scatter_count(ps, opt) <= most_scatters;
+}
+
+// Cycles' sample clamp (film_clamp_light): a contribution whose |R| + |G| + |B| exceeds the
+// limit (3x the setting, FrameParams) is scaled down to it, keeping its hue. Biased: off (an
+// infinite limit) unless set.
+vec3 clamp_light(vec3 contribution, bool direct) {
+    float limit = direct ? params.clamp_direct : params.clamp_indirect;
+    float sum = abs(contribution.r) + abs(contribution.g) + abs(contribution.b);
+    return sum > limit ? contribution * (limit / sum) : contribution;
+}
+
+// Whether a bounce budget of Cycles' light paths is spent: the path's emission at this vertex
+// still counts, its scattering does not (Cycles' PATH_RAY_TERMINATE_AFTER_TRANSPARENT).
+bool kind_budget_spent(PathState ps) {
+    return any(greaterThan(ps.kind_bounces, uvec3(params.diffuse_bounces, params.glossy_bounces, params.transmission_bounces)));
+}
+
 PathResult path_result() {
     return PathResult(vec3(0.0), INFINITY_F, vec3(0.0), vec3(0.0), 0u, 0u, 0u, 0u);
 }
@@ -239,6 +271,7 @@ PathState path_state(vec3 origin, vec3 dir, float t_min, float t_max, PathOption
     ps.prev_ng = vec3(0.0);
     ps.bounces = opt.bounces;
     ps.discrete = opt.discrete;
+    ps.kind_bounces = opt.kind_bounces;
     ps.pending = no_shadow_ray(origin, dir);
     return ps;
 }
@@ -252,6 +285,7 @@ bool emission_stage(inout PathState ps, inout PathResult res, TechniquePath tp, 
     bool camera_ray = opt.from_camera && res.segments == 1u;
     // A split copy re-traces the ray to its vertex, whose emission and NEE are counted.
     float emission_scale = ((opt.skip_first_emission || opt.resume) && res.segments == 1u) ? 0.0 : 1.0;
+    bool direct = direct_light(ps, opt, 1u);
 
     // Analytic lights are not in the TLAS: test them against this segment. As in Cycles they
     // do not occlude (shadow rays ignore them too): every one along the segment adds its
@@ -260,14 +294,14 @@ bool emission_stage(inout PathState ps, inout PathResult res, TechniquePath tp, 
         float t_light, light_pdf;
         vec3 light_radiance;
         if (!analytic_light_hit(i, ps.origin, ps.prev_ng, ps.dir, t_surface, t_light, light_radiance, light_pdf)) continue;
-        res.radiance += ps.throughput * light_radiance * (emission_scale * emission_weight(ps.prev_delta, ps.prev_pdf, light_pdf, opt.light_samples));
+        res.radiance += clamp_light(ps.throughput * light_radiance * (emission_scale * emission_weight(ps.prev_delta, ps.prev_pdf, light_pdf, opt.light_samples)), direct);
         if (res.segments == 1u) res.first_t = min(res.first_t, t_light);
     }
     if (hit.t < 0.0) {  // escaped
         guiding_escaped(tp.guiding);
         float light_pdf;
         vec3 le = distant_radiance(ps.dir, camera_ray, light_pdf);
-        res.radiance += ps.throughput * le * (emission_scale * emission_weight(ps.prev_delta, ps.prev_pdf, light_pdf, opt.light_samples));
+        res.radiance += clamp_light(ps.throughput * le * (emission_scale * emission_weight(ps.prev_delta, ps.prev_pdf, light_pdf, opt.light_samples)), direct);
         return false;
     }
 
@@ -285,7 +319,7 @@ bool emission_stage(inout PathState ps, inout PathResult res, TechniquePath tp, 
             uint light = instances[sh.instance].light_offset + sh.primitive;
             lp = triangle_light_pdf(light, ps.origin, ps.prev_ng, hit.t, dot(sh.ng, ps.dir));
         }
-        res.radiance += ps.throughput * mat.emission * emission_weight(ps.prev_delta, ps.prev_pdf, lp, opt.light_samples);
+        res.radiance += clamp_light(ps.throughput * mat.emission * emission_weight(ps.prev_delta, ps.prev_pdf, lp, opt.light_samples), direct);
     }
     return true;
 }
@@ -337,7 +371,8 @@ void direct_light_stage(inout PathState ps, inout PathResult res, inout Techniqu
         if (max3(f) <= 0.0 || max3(ls.radiance) <= 0.0) continue;
         bsdf_pdf = guiding_continuation_pdf(tv.guiding, bsdf_pdf, v.sh.p, ls.wi);
         float w = (METHOD == METHOD_MIS && !ls.delta && !last_vertex) ? mis_weight(float(opt.light_samples) * ls.pdf, bsdf_pdf) : 1.0;
-        ps.pending.contribution = ps.throughput * f * ls.radiance * (w / (ls.pdf * float(opt.light_samples)));
+        ps.pending.contribution = clamp_light(ps.throughput * f * ls.radiance * (w / (ls.pdf * float(opt.light_samples))),
+                                              direct_light(ps, opt, 0u));
         // Aim the shadow ray from its origin at the sampled point itself (a direction
         // kept from the unmoved point misses grazing lights), stopping short of it.
         // A shadow ray through the surface (transmission) leaves on it; one on the side the
@@ -370,6 +405,7 @@ bool continuation_stage(inout PathState ps, PathResult res, inout TechniquePath 
     ps.roulette_throughput *= bs.weight;
     guiding_sampled_pdf(tv.guiding, v.sh.p, v.tangent, v.bitangent, v.ns, bs);
     ps.throughput *= bs.weight;
+    ps.kind_bounces += uvec3(equal(uvec3(bs.kind), uvec3(BOUNCE_DIFFUSE, BOUNCE_GLOSSY, BOUNCE_TRANSMISSION)));
     if (bs.delta) {
         ps.discrete++;
         if (ps.discrete > opt.depth_leeway) ps.bounces++;
@@ -425,7 +461,7 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         SurfaceHit sh;
         Material mat;
         if (!emission_stage(ps, res, tp, opt, sh, mat)) break;
-        if (ps.bounces > opt.max_depth) break;
+        if (ps.bounces > opt.max_depth || kind_budget_spent(ps)) break;
         Vertex v;
         if (!vertex_stage(sh, mat, ps.dir, rng, v)) break;
         if (!ps.albedo_done && !v.delta) {

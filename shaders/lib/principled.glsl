@@ -273,6 +273,7 @@ bool principled_sample(Principled p, vec3 wo, vec3 u, out BsdfSample bs) {
     bs.wi = vec3(0.0, 0.0, 1.0);
     uint i = 0u;
     while (i + 1u < PRINCIPLED_LOBES && u.z >= p.cdf[i]) ++i;
+    bs.kind = (i == 0u || i == 5u) ? BOUNCE_DIFFUSE : BOUNCE_GLOSSY;  // sheen, diffuse: Cycles' diffuse labels
     float lo = i == 0u ? 0.0 : p.cdf[i - 1u];
     float uz = clamp((u.z - lo) / max(p.cdf[i] - lo, 1e-12), 0.0, 0.99999994);  // reused below
     if (max3(p.w[i]) <= 0.0) return false;
@@ -290,6 +291,7 @@ bool principled_sample(Principled p, vec3 wo, vec3 u, out BsdfSample bs) {
         }
         bs.wi = refl ? reflect(-wo, m) : refract(-wo, m, 1.0 / p.glass_eta);
         if (!refl && (bs.wi.z >= 0.0 || dot(bs.wi, bs.wi) == 0.0)) return false;
+        if (!refl) bs.kind = BOUNCE_TRANSMISSION;
         if (refl && bs.wi.z <= 0.0) return false;
     }
     if (i != 3u && bs.wi.z <= 0.0) return false;

@@ -65,7 +65,9 @@ PX_CONST uint BINDING_ADAPTIVE_AUX = 39;
 // uint[2 * pixels]: the active pixels' indices in image order (FrameParams.active_pixels of
 // them, dispatch_pixel), then per pixel 1 while it is still sampled (the filtered mask).
 PX_CONST uint BINDING_ADAPTIVE_PIXELS = 40;
-PX_CONST uint BINDING_COUNT = 41;
+// float[PIXEL_FILTER_TABLE_SIZE]: the pixel filter's inverted CDF (render/pixel_filter.h)
+PX_CONST uint BINDING_PIXEL_FILTER = 41;
+PX_CONST uint BINDING_COUNT = 42;
 
 // ---- shader binding table: miss shaders and hit groups (RayTracingPipeline group order) -
 PX_CONST uint MISS_SCENE = 0;         // miss.rmiss: the world
@@ -314,7 +316,21 @@ struct FrameParams {
     uint adaptive;
     uint active_pixels;
     float adaptive_threshold;  // adaptive.comp: Cycles' threshold (x5, as Cycles scales it)
+    // Cycles' light paths: the bounce budgets of each kind of scattering (BOUNCE_*, counted as
+    // Cycles' labels) and the sample clamps (x3, as Cycles scales them; +inf: off).
+    uint diffuse_bounces;
+    uint glossy_bounces;
+    uint transmission_bounces;
+    float clamp_direct;
+    float clamp_indirect;
 };
+
+// Pixel filters (RenderParams.pixel_filter_type, Cycles' order) and the size of the table that
+// importance-samples them (BINDING_PIXEL_FILTER).
+PX_CONST uint FILTER_BOX = 0;
+PX_CONST uint FILTER_GAUSSIAN = 1;
+PX_CONST uint FILTER_BLACKMAN_HARRIS = 2;
+PX_CONST uint PIXEL_FILTER_TABLE_SIZE = 256;
 
 PX_CONST uint ADAPTIVE_OFF = 0;
 PX_CONST uint ADAPTIVE_IMAGE = 1;

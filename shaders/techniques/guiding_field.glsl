@@ -233,6 +233,11 @@ bool guiding_sample(GuidingVertex v, Surface surf, vec3 wo_local, vec3 p, vec3 t
     ok = !(max3(f) <= 0.0 || !(bs.pdf > 0.0));
     bs.weight = f / bs.pdf;  // as if the BSDF had sampled it; the mixture pdf follows
     bs.delta = false;
+    // A guided direction has no lobe: a reflection counts as diffuse off a surface with a
+    // diffuse lobe (Cycles' budgets, BOUNCE_*).
+    bool diffuse = surf.type == MATERIAL_DIFFUSE ||
+                   (HAS(FEATURE_PRINCIPLED) && surf.type == MATERIAL_PRINCIPLED && max3(surf.pr.w[5]) > 0.0);
+    bs.kind = bs.wi.z < 0.0 ? BOUNCE_TRANSMISSION : (diffuse ? BOUNCE_DIFFUSE : BOUNCE_GLOSSY);
     return true;
 }
 

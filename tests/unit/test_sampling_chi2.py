@@ -39,7 +39,7 @@ IC_THETA, IC_PHI = 10, 20  # shaders/shared/techniques.h
 EVAL = 16                 # routine + EVAL: evaluate at given directions
 N = 300_000               # samples per chi-square test
 DISTANT = 1e29            # sample distance at or above this: a light at infinity
-CHI2_TESTS = 59           # upper bound on the chi-square tests below (Sidak correction)
+CHI2_TESTS = 63           # upper bound on the chi-square tests below (Sidak correction)
 ALPHA = 1.0 - (1.0 - 0.01) ** (1.0 / CHI2_TESTS)
 # Added to every seed; set PARALLAX_CHI2_SEED to check the p-values are uniform over seeds.
 SEED = int(os.environ.get("PARALLAX_CHI2_SEED", "0"))
@@ -1123,3 +1123,59 @@ def test_adrrs_copies_have_mean_q_and_unit_weight(session, ratio):
 def test_adrrs_without_splitting_leaves_heavy_paths_alone(session):
     r = session.test_sampling(TEST_ADRRS, [10.0, 5.0, 0.1, 0.0, 0.0], 1000, seed=1)
     assert np.all(r[:, 0, 0] == 1.0) and np.all(r[:, 0, 1] == 1.0)
+
+
+# ---- the pixel filter (render/pixel_filter.h, camera.glsl's pixel_filter_sample) ----------
+
+def filter_profile(kind, width, x):
+    """Cycles' filter profiles (film.cpp): box over w, Gaussian over 3w, Blackman-Harris over 2w."""
+    if kind == "GAUSSIAN":
+        return np.exp(-2.0 * (6.0 * x / (3.0 * width)) ** 2), 1.5 * width
+    if kind == "BLACKMAN_HARRIS":
+        t = 2.0 * np.pi * (x / (2.0 * width) + 0.5)
+        return 0.35875 - 0.48829 * np.cos(t) + 0.14128 * np.cos(2 * t) - 0.01168 * np.cos(3 * t), width
+    return np.ones_like(x), 0.5 * width
+
+
+def filter_cdf(kind, width, t):
+    """P(offset <= t) for a camera sample's offset from its pixel centre."""
+    _, half = filter_profile(kind, width, np.zeros(1))
+    x = np.linspace(-half, half, 200_001)
+    f, _ = filter_profile(kind, width, x)
+    cdf = np.concatenate([[0.0], np.cumsum(0.5 * (f[1:] + f[:-1]))])
+    return np.interp(t, x, cdf / cdf[-1], left=0.0, right=1.0)
+
+
+@pytest.mark.parametrize("kind,width", [("BOX", 1.0), ("GAUSSIAN", 1.5), ("BLACKMAN_HARRIS", 1.5),
+                                        ("BLACKMAN_HARRIS", 3.0)])
+def test_pixel_filter_chi2(kind, width):
+    # An orthographic camera, one world unit per pixel, over a black world and an emissive strip
+    # 0.25 px wide off any pixel centre: each column's camera samples hit the strip with the
+    # probability that the filter's offset lands on it, so the columns' hit counts histogram the
+    # filter (every sample weighs 1: it is importance-sampled).
+    from parallax_core.scene import Camera
+
+    columns, rows, spp, frames = 24, 8, 256, 4
+    x0, strip = 0.3, 0.25
+    to_world = np.eye(4)[:3].copy()
+    to_world[2, 3] = 1.0
+    camera = Camera(camera_to_world=to_world, type="orthographic", window=(-12.0, 12.0, -4.0, 4.0))
+    line = scenes.quad([(x0 - strip / 2, -10.0, 0.0), (x0 + strip / 2, -10.0, 0.0), (x0 + strip / 2, 10.0, 0.0),
+                        (x0 - strip / 2, 10.0, 0.0)])
+    white = Material("emission", (1.0, 1.0, 1.0), emission=(1.0, 1.0, 1.0), emission_strength=1.0)
+    scene = SceneData([line], [], [white], [], [], World((0.0, 0.0, 0.0), 1.0), camera, columns, rows)
+    s = pc.Session(columns, rows)
+    s.set_params(method="pt", max_depth=0, samples_per_frame=spp, use_adaptive_sampling=False, seed=SEED,
+                 pixel_filter_type=kind, filter_width=width)
+    s.update(scene)
+    s.render(frames)
+    n = spp * frames * rows  # samples per column
+    hits = np.rint(s.read("combined")[..., 0] * spp * frames).sum(axis=0)
+    centres = np.arange(columns) - 12.0 + 0.5
+    p = filter_cdf(kind, width, x0 + strip / 2 - centres) - filter_cdf(kind, width, x0 - strip / 2 - centres)
+    assert hits[p == 0.0].sum() == 0, "samples beyond the filter's support"
+    # Independent binomial columns: Pearson's statistic over the columns expected to see >= 5 hits.
+    tested = n * np.minimum(p, 1.0 - p) >= 5.0
+    stat = float(((hits[tested] - n * p[tested]) ** 2 / (n * p[tested] * (1.0 - p[tested]))).sum())
+    assert tested.sum() >= 1
+    assert chi2_sf(stat, int(tested.sum())) > ALPHA, (kind, width, hits[tested], n * p[tested])

@@ -11,7 +11,7 @@ from parallax_core.cli import parse_params
 from parallax_core.exr import layer_channels
 
 TYPES = {"bool": bool, "int": int, "float": float, "enum": str}
-PANELS = {"", "sampling", "light_paths", "lights", "denoising", "ic", "adrrs", "guiding"}
+PANELS = {"", "sampling", "light_paths", "film", "lights", "denoising", "ic", "adrrs", "guiding"}
 
 
 def test_rows_are_well_formed():

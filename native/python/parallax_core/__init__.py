@@ -24,7 +24,7 @@ from ._native import _PASSES, _SETTINGS, _make_params, _setting_index
 from . import denoise  # noqa: F401  (OIDN: parallax_core.denoise)
 from .scene import PART_KEYS, PARTS, parts_set
 
-__all__ = ["Session", "RenderParams", "SETTINGS", "PASSES", "setting", "devices", "METHODS", "PARTS", "LIMITS",
+__all__ = ["Session", "RenderParams", "UNBIASED_LIGHT_PATHS", "SETTINGS", "PASSES", "setting", "devices", "METHODS", "PARTS", "LIMITS",
            "DeviceMemoryError", "memory", "set_memory_budget", "validation_enabled", "validation_messages",
            "light_tree_min_lights", "set_light_tree_min_lights", "primitive_order", "background_compiles",
            "wait_for_background_compiles", "adaptive_threshold"]
@@ -36,7 +36,7 @@ atexit.register(wait_for_background_compiles)
 # base path tracer's settings first, then the irradiance cache's, ADRRS' and guiding's.
 # type: bool | int | float | enum; min/max: None for bool and enum; items: (name, label,
 # description) of an enum; panel: the UI panel ("" = none); group: the sub-panel inside it
-# ("" = the panel itself); unit: "" | "time" | "length"; core: a RenderParams field (False for
+# ("" = the panel itself); unit: "" | "time" | "length" | "pixel"; core: a RenderParams field (False for
 # the engine's samples and time_limit).
 Setting = collections.namedtuple(
     "Setting", "name technique type default min max items label tooltip panel group unit core")
@@ -83,6 +83,16 @@ RenderParams = dataclasses.make_dataclass(
     [(s.name, _TYPES[s.type], dataclasses.field(default=s.default)) for s in SETTINGS if s.core],
     namespace={"validate": _validate, "native": _native_params, "__module__": __name__,
                "__doc__": "Integrator settings, one field per core row of SETTINGS (see setting(name))."})
+
+
+# The light-path settings under which a render estimates the scene's radiance without bias,
+# through a one-pixel box filter: Max Bounces alone ends paths (no kind budget binds) and no
+# sample is clamped. Cycles' defaults (Diffuse 4, Glossy 4, Clamp Indirect 10, Blackman-Harris
+# 1.5 px), which are the table's, are biased: tests and benches that compare estimators or
+# meet references pin these, as they pin Max Bounces.
+UNBIASED_LIGHT_PATHS = {"diffuse_bounces": 1024, "glossy_bounces": 1024, "transmission_bounces": 1024,
+                        "sample_clamp_direct": 0.0, "sample_clamp_indirect": 0.0,
+                        "pixel_filter_type": "BOX", "filter_width": 1.0}
 
 
 class Session(_NativeSession):

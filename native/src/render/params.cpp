@@ -68,16 +68,47 @@ const SettingTable& base_table() {
             float_setting("preview_adaptive_threshold", kEngine, 0.1, 0.0, 1.0, "Noise Threshold",
                           "The viewport's noise threshold (0: automatic, from the viewport's sample count)",
                           "sampling").in_group("Viewport"),
-            // Light paths
-            int_setting("max_depth", PX_FIELD(RenderParams, max_depth), 8, 0, 1024, "Max Bounces",
-                        "Maximum number of non-specular bounces (Cycles' Max Bounces)", "light_paths"),
+            // Light paths (Cycles' names, defaults and ranges; a bounce counts towards the budget
+            // of its sampled lobe's kind, as Cycles' labels: integrator.glsl, bounce_kind)
+            int_setting("max_depth", PX_FIELD(RenderParams, max_depth), 12, 0, 1024, "Total",
+                        "Maximum number of bounces, bounded by the leeway's discrete bounces (Cycles' Max "
+                        "Bounces: Total, which counts every bounce, is this with a leeway of 0)", "light_paths")
+                .in_group("Max Bounces"),
             int_setting("depth_leeway", PX_FIELD(RenderParams, depth_leeway), 4, 0, 1024, "Discrete Leeway",
-                        "Specular (delta) bounces that do not count towards Max Bounces, so light through glass "
-                        "and mirrors is not cut short (thesis, sec. 3.1)", "light_paths"),
+                        "Specular (delta) bounces that do not count towards the Total, so light through glass "
+                        "and mirrors is not cut short (thesis, sec. 3.1; Parallax's own, 0 counts as Cycles)",
+                        "light_paths").in_group("Max Bounces"),
+            int_setting("diffuse_bounces", PX_FIELD(RenderParams, diffuse_bounces), 4, 0, 1024, "Diffuse",
+                        "Maximum number of diffuse reflection bounces, bounded by total maximum", "light_paths")
+                .in_group("Max Bounces"),
+            int_setting("glossy_bounces", PX_FIELD(RenderParams, glossy_bounces), 4, 0, 1024, "Glossy",
+                        "Maximum number of glossy reflection bounces, bounded by total maximum", "light_paths")
+                .in_group("Max Bounces"),
+            int_setting("transmission_bounces", PX_FIELD(RenderParams, transmission_bounces), 12, 0, 1024,
+                        "Transmission", "Maximum number of transmission bounces, bounded by total maximum",
+                        "light_paths").in_group("Max Bounces"),
+            float_setting("sample_clamp_direct", PX_FIELD(RenderParams, sample_clamp_direct), 0.0, 0.0, 1e30,
+                          "Direct Light",
+                          "If non-zero, the maximum value for a direct sample, higher values will be scaled down to "
+                          "avoid too much noise and slow convergence at the cost of accuracy (biased)", "light_paths")
+                .in_group("Clamping"),
+            float_setting("sample_clamp_indirect", PX_FIELD(RenderParams, sample_clamp_indirect), 10.0, 0.0, 1e30,
+                          "Indirect Light",
+                          "If non-zero, the maximum value for an indirect sample, higher values will be scaled down "
+                          "to avoid too much noise and slow convergence at the cost of accuracy (biased)",
+                          "light_paths").in_group("Clamping"),
             int_setting("rr_start_depth", PX_FIELD(RenderParams, rr_start_depth), 3, 0, 1024, "Russian Roulette",
                         "First bounce at which Russian roulette may end a low-throughput path (survival "
                         "probability the square root of the throughput, as Cycles), reweighting the survivors; 0 = "
                         "off", "light_paths"),
+            // Film: the pixel filter, importance-sampled (render/pixel_filter.h)
+            enum_setting("pixel_filter_type", PX_FIELD(RenderParams, pixel_filter_type), FILTER_BLACKMAN_HARRIS,
+                         {{"BOX", "Box", "Box filter", FILTER_BOX},
+                          {"GAUSSIAN", "Gaussian", "Gaussian filter", FILTER_GAUSSIAN},
+                          {"BLACKMAN_HARRIS", "Blackman-Harris", "Blackman-Harris filter", FILTER_BLACKMAN_HARRIS}},
+                         "Pixel Filter", "Pixel filter type", "film"),
+            float_setting("filter_width", PX_FIELD(RenderParams, filter_width), 1.5, 0.01, 10.0, "Width",
+                          "Pixel filter width", "film").with_unit("pixel"),
             // Lights
             enum_setting("method", PX_FIELD(RenderParams, method), METHOD_MIS,
                          {{"mis", "MIS",

@@ -17,6 +17,15 @@ struct RenderParams {
     uint32_t max_depth{};
     uint32_t depth_leeway{};
     uint32_t rr_start_depth{};  // 0: no Russian roulette
+    // Cycles' light paths: bounce budgets per kind of scattering, sample clamps (0: off), and
+    // the pixel filter (render/pixel_filter.h).
+    uint32_t diffuse_bounces{};
+    uint32_t glossy_bounces{};
+    uint32_t transmission_bounces{};
+    float sample_clamp_direct{};
+    float sample_clamp_indirect{};
+    uint32_t pixel_filter_type{};
+    float filter_width{};
     uint32_t light_samples{};
     uint32_t seed{};
     // The viewport's first frame: preview.rgen's first-hit shading, which compiles quickly.

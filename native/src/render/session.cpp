@@ -1,4 +1,5 @@
 #include "render/session.h"
+#include "render/pixel_filter.h"
 
 #include "techniques/adrrs.h"
 #include "techniques/guiding/guiding.h"
@@ -12,6 +13,7 @@
 #include <condition_variable>
 #include <thread>
 #include <cstring>
+#include <limits>
 #include <stdexcept>
 
 namespace px {
@@ -41,6 +43,8 @@ Session::Session(uint32_t width, uint32_t height, const std::string& device) : w
     set_->bind_buffer(BINDING_TECH_PARAMS, technique_params_);
     ggx_tables_ = Buffer::with_data(*ctx_, GGX_TABLE_WORDS, sizeof(GGX_TABLE_WORDS), kStorageUsage);
     set_->bind_buffer(BINDING_GGX_TABLES, ggx_tables_);
+    pixel_filter_ = Buffer(*ctx_, PIXEL_FILTER_TABLE_SIZE * sizeof(float), kStorageUsage);
+    set_->bind_buffer(BINDING_PIXEL_FILTER, pixel_filter_);
     adaptive_ = std::make_unique<AdaptiveSampling>(*ctx_, width, height);
     adaptive_->bind(*set_);
     for (const auto& t : techniques_) t->bind(*set_);
@@ -63,6 +67,12 @@ void Session::reset_accumulation(bool view_only) {
     film_.fill_zero();
     ray_count_.fill_zero();
     adaptive_->configure(params_);  // every pixel sampled again
+    const std::pair<uint32_t, float> filter{params_.pixel_filter_type, params_.filter_width};
+    if (filter != pixel_filter_uploaded_) {
+        const std::vector<float> table = pixel_filter_table(filter.first, filter.second);
+        pixel_filter_.upload(table.data(), table.size() * sizeof(float));
+        pixel_filter_uploaded_ = filter;
+    }
     if (!scene_) return;
     if (view_only) {  // what the techniques hold in world space stays
         for (const auto& t : techniques_) t->view_changed();
@@ -434,6 +444,13 @@ FrameParams Session::frame_params(uint32_t frame) const {
     fp.depth_leeway = params_.depth_leeway;
     fp.rr_start_depth = params_.rr_start_depth;
     fp.light_samples = params_.light_samples;
+    fp.diffuse_bounces = params_.diffuse_bounces;
+    fp.glossy_bounces = params_.glossy_bounces;
+    fp.transmission_bounces = params_.transmission_bounces;
+    // Cycles' clamps: 0 is off; else 3x the setting, against the sum of |RGB| (film_clamp_light).
+    auto clamp_limit = [](float v) { return v > 0.0f ? 3.0f * v : std::numeric_limits<float>::infinity(); };
+    fp.clamp_direct = clamp_limit(params_.sample_clamp_direct);
+    fp.clamp_indirect = clamp_limit(params_.sample_clamp_indirect);
     fp.mode = FRAME_RENDER;
     fp.film_passes = allocated_passes_;
     for (const auto& t : techniques_) t->fill_frame_params(fp);

@@ -195,6 +195,8 @@ private:
     uint32_t allocated_passes_ = 0;  // the passes film_ holds
     Buffer film_, ray_count_, test_io_, technique_params_, ggx_tables_;  // ggx: constant, multiscatter albedos
     std::unique_ptr<AdaptiveSampling> adaptive_;  // Cycles' adaptive sampling (render/adaptive.h)
+    Buffer pixel_filter_;  // the pixel filter's inverted CDF (render/pixel_filter.h) ...
+    std::pair<uint32_t, float> pixel_filter_uploaded_{~0u, 0.0f};  // ... of this type and width
     // The techniques, in the order their hooks run (built by the constructor).
     std::vector<std::unique_ptr<Technique>> techniques_;
     uint64_t scene_version_ = 0;  // bumped by every update but a camera-only one (guiding keeps its field)

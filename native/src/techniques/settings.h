@@ -52,7 +52,7 @@ struct SettingInfo {
     const char* technique = "";  // "base", "ic", "adrrs", "guiding" (set by the table)
     // The sub-panel inside `panel` ("": the panel itself), as the cache's "Accuracy".
     const char* group = "";
-    // How a number reads: "" (plain), "time" (seconds) or "length" (scene units).
+    // How a number reads: "" (plain), "time" (seconds), "length" (scene units) or "pixel".
     const char* unit = "";
     SettingInfo in_group(const char* g) && {
         group = g;
