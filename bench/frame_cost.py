@@ -33,7 +33,10 @@ def supported(params, known):
 def frame_ms(scene, device, spp, params, seconds=1.0):
     import parallax_core as pc
 
-    params = supported(params, {f.name for f in dataclasses.fields(pc.RenderParams)})
+    # Like for like across builds: unbiased light paths (pc.UNBIASED_LIGHT_PATHS) where a build has them.
+    known = {f.name for f in dataclasses.fields(pc.RenderParams)}
+    pins = {k: v for k, v in getattr(pc, "UNBIASED_LIGHT_PATHS", {}).items() if k in known}
+    params = {**pins, **supported(params, known)}
     session = pc.Session(scene.width, scene.height, device)
     session.set_params(samples_per_frame=spp, max_depth=MAX_DEPTH, depth_leeway=0, seed=0, **params)
     session.update(scene)
@@ -54,13 +57,16 @@ def main(argv=None):
     ap.add_argument("--seconds", type=float, default=1.0, help="time per method after the warm-up (default 1)")
     ap.add_argument("--device", default="gpu")
     ap.add_argument("--out", help="write the table as JSON here")
-    ap.add_argument("--set", nargs="*", default=[], metavar="NAME=INT",
-                    help="render settings for every method (Session.set_params), e.g. light_tree=0")
+    ap.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE",
+                    help="render settings for every method (Session.set_params, as the CLI's --set), "
+                         "e.g. light_tree=0 pixel_filter_type=BLACKMAN_HARRIS")
     args = ap.parse_args(argv)
+    from parallax_core.cli import parse_params
+
     try:
-        overrides = {k: int(v) for k, v in (item.split("=", 1) for item in args.set)}
-    except ValueError:
-        ap.error(f"--set takes NAME=INTEGER pairs, not {args.set}")
+        overrides = parse_params(args.set)
+    except ValueError as e:
+        ap.error(str(e))
     methods = args.methods.split(",")
     unknown = [m for m in methods if m not in METHODS]
     if unknown:

@@ -33,6 +33,7 @@ devices, per wall second on GPUs); the goal line is 80 % (CPU) or 70 % (GPU).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import platform
@@ -209,8 +210,12 @@ def run(sizes=(1_000, 100_000, 1_000_000), resolution=None, seconds=10.0, method
     del probe
     res = int(resolution or (512 if cpu_device else 1024))
     samples_per_frame = int(samples_per_frame or (8 if cpu_device else 16))
-    params = dict(method=method, max_depth=max_depth, rr_start_depth=0,
-                  samples_per_frame=samples_per_frame, seed=seed)
+    # Like for like across builds: unbiased light paths (no kind budget, no clamp, a one-pixel box
+    # filter) and no adaptive sampling, in every build that has those settings.
+    known = {f.name for f in dataclasses.fields(parallax_core.RenderParams)}
+    pins = {**getattr(parallax_core, "UNBIASED_LIGHT_PATHS", {}), "use_adaptive_sampling": False}
+    params = dict({k: v for k, v in pins.items() if k in known}, method=method, max_depth=max_depth,
+                  rr_start_depth=0, samples_per_frame=samples_per_frame, seed=seed)
     main = Session(res, res, device)
     if passes is not None and hasattr(main, "passes"):
         main.passes = list(passes)

@@ -28,7 +28,7 @@ struct PathOptions {
     vec3 throughput;
     uint bounces;
     uint discrete;
-    uvec3 kind_bounces;  // bounces of each kind (BOUNCE_*) so far
+    uint kind_bounces;  // bounces of each kind so far (PathState.kind_bounces)
     bool resume;
     // The triangle the first ray starts on (NO_INDEX: a camera or cache ray, off any surface).
     uint self_instance;
@@ -47,7 +47,7 @@ PathOptions path_options() {
     opt.throughput = vec3(1.0);
     opt.bounces = 0u;
     opt.discrete = 0u;
-    opt.kind_bounces = uvec3(0u);
+    opt.kind_bounces = 0u;
     opt.resume = false;
     opt.self_instance = NO_INDEX;
     opt.self_primitive = NO_INDEX;
@@ -90,7 +90,9 @@ struct PathState {
     float prev_pdf;
     vec3 prev_ng;     // geometric normal at the segment's origin (the light tree's receiver)
     uint bounces, discrete;
-    uvec3 kind_bounces;  // Cycles' diffuse, glossy and transmission bounces (BOUNCE_*)
+    // Cycles' diffuse, glossy and transmission bounces, 10 bits each at 10 x BOUNCE_* (counted
+    // up to 1023) where the pipeline carries the budgets (LIMIT_KIND_BOUNCES).
+    uint kind_bounces;
     ShadowRay pending;
 };
 
@@ -239,6 +241,7 @@ bool direct_light(PathState ps, PathOptions opt, uint most_scatters) {
 // limit (3x the setting, FrameParams) is scaled down to it, keeping its hue. Biased: off (an
 // infinite limit) unless set.
 vec3 clamp_light(vec3 contribution, bool direct) {
+    if (!LIMITS(LIMIT_CLAMP)) return contribution;
     float limit = direct ? params.clamp_direct : params.clamp_indirect;
     float sum = abs(contribution.r) + abs(contribution.g) + abs(contribution.b);
     return sum > limit ? contribution * (limit / sum) : contribution;
@@ -247,7 +250,15 @@ vec3 clamp_light(vec3 contribution, bool direct) {
 // Whether a bounce budget of Cycles' light paths is spent: the path's emission at this vertex
 // still counts, its scattering does not (Cycles' PATH_RAY_TERMINATE_AFTER_TRANSPARENT).
 bool kind_budget_spent(PathState ps) {
-    return any(greaterThan(ps.kind_bounces, uvec3(params.diffuse_bounces, params.glossy_bounces, params.transmission_bounces)));
+    if (!LIMITS(LIMIT_KIND_BOUNCES)) return false;
+    uvec3 counts = (uvec3(ps.kind_bounces) >> uvec3(0u, 10u, 20u)) & 1023u;
+    return any(greaterThan(counts, uvec3(params.diffuse_bounces, params.glossy_bounces, params.transmission_bounces)));
+}
+
+void count_kind_bounce(inout PathState ps, uint kind) {
+    if (!LIMITS(LIMIT_KIND_BOUNCES)) return;
+    uint shift = 10u * kind;
+    if (((ps.kind_bounces >> shift) & 1023u) < 1023u) ps.kind_bounces += 1u << shift;
 }
 
 PathResult path_result() {
@@ -405,7 +416,7 @@ bool continuation_stage(inout PathState ps, PathResult res, inout TechniquePath 
     ps.roulette_throughput *= bs.weight;
     guiding_sampled_pdf(tv.guiding, v.sh.p, v.tangent, v.bitangent, v.ns, bs);
     ps.throughput *= bs.weight;
-    ps.kind_bounces += uvec3(equal(uvec3(bs.kind), uvec3(BOUNCE_DIFFUSE, BOUNCE_GLOSSY, BOUNCE_TRANSMISSION)));
+    count_kind_bounce(ps, bs.kind);
     if (bs.delta) {
         ps.discrete++;
         if (ps.discrete > opt.depth_leeway) ps.bounces++;

@@ -15,12 +15,14 @@
 //   TECHNIQUES          TECH_* bits of the enabled techniques (techniques.h), tested by USES
 //   EMPTY_SHADOW_CALLS  1: paths without a pending shadow ray make an empty trace call
 //                       (integrator.glsl, trace_pending_shadow); 0 on lavapipe
+//   LIGHT_PATH_LIMITS   LIMIT_* bits of the light-path limits that can bind, tested by LIMITS()
 #define PX_SPEC_CONSTANTS(X)                              \
     X(0, METHOD, method, METHOD_MIS)                      \
     X(1, MIS_HEURISTIC, heuristic, HEURISTIC_POWER)       \
     X(2, SCENE_FEATURES, features, FEATURE_ALL)           \
     X(3, TECHNIQUES, techniques, 0u)                      \
-    X(4, EMPTY_SHADOW_CALLS, empty_shadow_calls, 1u)
+    X(4, EMPTY_SHADOW_CALLS, empty_shadow_calls, 1u)      \
+    X(5, LIGHT_PATH_LIMITS, light_path_limits, LIMIT_ALL)
 
 #ifdef __cplusplus
 #include <array>
@@ -65,6 +67,7 @@ PX_SPEC_CONSTANTS(PX_SPEC_DECLARE)
 // hooks (shaders/techniques/), never at the call site.
 #define HAS(FEATURE) ((SCENE_FEATURES & (FEATURE)) != 0u)
 #define USES(TECH) ((TECHNIQUES & (TECH)) != 0u)
+#define LIMITS(LIMIT) ((LIGHT_PATH_LIMITS & (LIMIT)) != 0u)
 #endif
 
 #endif

@@ -93,13 +93,14 @@ struct AdrrsSplit {
     uint rng;         // seeds the copies' streams
     uint bounces;     // bounces | discrete << 16
     uint copies;      // paths to trace from this entry
-    uint flags;       // ADRRS_SPLIT_CAMERA_RAY: the ray was the camera ray; ADRRS_SPLIT_HALF
+    uint flags;       // ADRRS_SPLIT_CAMERA_RAY: the ray was the camera ray; ADRRS_SPLIT_HALF; kind counts
     uint segments;    // segments the path had traced up to the vertex
     uint self_instance;   // the triangle the ray starts on (NO_INDEX: none)
     uint self_primitive;
 };
 PX_CONST uint ADRRS_SPLIT_CAMERA_RAY = 1u;
 PX_CONST uint ADRRS_SPLIT_HALF = 2u;  // queued by a sample of adaptive sampling's half buffer
+PX_CONST uint ADRRS_SPLIT_KIND_SHIFT = 2u;  // flags >> this: the path's kind bounce counts
 
 #include "guiding.h"
 

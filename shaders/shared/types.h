@@ -150,6 +150,13 @@ PX_CONST uint FEATURE_PRINCIPLED = 1u << 12;
 PX_CONST uint FEATURE_TRANSMISSION = 1u << 13;
 PX_CONST uint FEATURE_ALL = 0xffffffffu;
 
+// The light-path limits a pipeline carries (LIGHT_PATH_LIMITS, tested by LIMITS()): only where
+// the settings can bind them (light_path_limits in render/params.h). Carrying them costs the
+// H200 7% of its rays on the soup (bench/results/regression_h200_lightpaths).
+PX_CONST uint LIMIT_KIND_BOUNCES = 1u;  // Cycles' diffuse, glossy and transmission budgets
+PX_CONST uint LIMIT_CLAMP = 2u;         // Cycles' direct and indirect sample clamps
+PX_CONST uint LIMIT_ALL = 3u;
+
 // ---- scene records --------------------------------------------------------------------
 struct MeshInfo {
     uint first_triangle;

@@ -159,17 +159,6 @@ void adrrs_vertex_adjoint(AdrrsOptions o, Surface surf, bool delta, vec3 p, vec3
         found = adrrs_adjoint_irradiance(p, n, irradiance);  // the adjoint alone
 }
 
-// A split copy's bounce counts per kind (PathState.kind_bounces) ride in AdrrsSplit.flags'
-// upper bytes, 8 bits each (saturated at 255: a budget above that binds late in copies).
-uint adrrs_pack_kind_bounces(uvec3 k) {
-    uvec3 b = min(k, uvec3(255u));
-    return (b.x << 8) | (b.y << 16) | (b.z << 24);
-}
-
-uvec3 adrrs_unpack_kind_bounces(uint flags) {
-    return uvec3((flags >> 8) & 255u, (flags >> 16) & 255u, flags >> 24);
-}
-
 // ADRRS on the continuation of a non-delta vertex v, whose cached (or adjoint) irradiance is
 // ic's: roulette or split by the adjoint. The split copies start on the segment that reached
 // the vertex (ps' origin, dir, t_min, t_max). Returns whether ADRRS decided (the throughput
@@ -194,8 +183,9 @@ bool adrrs_continuation(AdrrsOptions o, IcVertex ic, Vertex v, inout PathState p
         ps.throughput /= q;
         ps.roulette_throughput /= q;
         if (copies > 1u) {
+            // The path's kind counts (PathState.kind_bounces, 30 bits) ride above the flags.
             uint flags = (camera_segment ? ADRRS_SPLIT_CAMERA_RAY : 0u) | (o.half_sample ? ADRRS_SPLIT_HALF : 0u) |
-                         adrrs_pack_kind_bounces(ps.kind_bounces);
+                         (ps.kind_bounces << ADRRS_SPLIT_KIND_SHIFT);
             uint seed = uint(rnd(rng) * 4294967040.0) ^ (segments << 24);
             adrrs_queue(o.local, o.pixels,
                         AdrrsSplit(ps.origin, ps.t_min, ps.dir, ps.t_max, ps.throughput, seed,

@@ -70,3 +70,22 @@ def test_render_params_match_the_core(bpy):
     fields = {f.name for f in dataclasses.fields(RenderParams)} - {"preview"}
     params = set(scene.parallax.render_params())
     assert params == fields
+
+
+def test_a_scene_renders_with_its_cycles_light_paths(fresh):
+    # Values set in Cycles are used where Parallax's were never set: a scene made with Cycles
+    # keeps its bounces, clamps and filter when a user switches engine.
+    settings, cycles = fresh.parallax, fresh.cycles
+    params = settings.render_params()
+    assert (params["max_depth"], params["depth_leeway"], params["diffuse_bounces"]) == (12, 4, 4)  # Parallax's defaults
+    cycles.max_bounces, cycles.diffuse_bounces, cycles.sample_clamp_indirect = 6, 2, 3.0
+    cycles.pixel_filter_type, cycles.filter_width = "GAUSSIAN", 2.0
+    params = settings.render_params()
+    assert (params["max_depth"], params["diffuse_bounces"], params["sample_clamp_indirect"]) == (6, 2, 3.0)
+    assert (params["pixel_filter_type"], params["filter_width"]) == ("GAUSSIAN", 2.0)
+    assert params["depth_leeway"] == 0  # Cycles' Total counts every bounce
+    assert params["glossy_bounces"] == 4  # never set in Cycles: Parallax's (the same default)
+    # Parallax's own values win once set.
+    settings.diffuse_bounces, settings.depth_leeway = 3, 2
+    params = settings.render_params()
+    assert (params["diffuse_bounces"], params["depth_leeway"], params["max_depth"]) == (3, 2, 6)

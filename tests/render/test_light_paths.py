@@ -76,3 +76,13 @@ def test_cycles_defaults_and_the_unbiased_pins():
     assert unbiased.sample_clamp_direct == unbiased.sample_clamp_indirect == 0.0
     with pytest.raises(ValueError, match="filter_width"):
         pc.RenderParams(filter_width=0.0).validate()
+
+
+def test_limits_that_cannot_bind_leave_the_image_bit_for_bit():
+    # A pipeline carries the budgets and clamps only where the settings can bind them
+    # (LIGHT_PATH_LIMITS). Carried but idle (a glossy budget in a Lambertian box, a clamp no
+    # sample reaches) they change nothing: the same image as the pipeline without them.
+    scene = scenes.cornell_box(16, 16)
+    plain, _ = render(scene, "mis", spp=16)
+    idle, _ = render(scene, "mis", spp=16, glossy_bounces=0, transmission_bounces=0, sample_clamp_indirect=1e5)
+    assert np.array_equal(plain, idle)

@@ -17,7 +17,7 @@ from parallax_core import scenes
 
 def one_frame(**params):
     s = pc.Session(48, 48)
-    s.set_params(samples_per_frame=1, seed=5, **params)
+    s.set_params(samples_per_frame=1, seed=5, **{**pc.UNBIASED_LIGHT_PATHS, **params})
     s.update(scenes.cornell_box(48, 48))
     s.render(1)
     return s.read_all()

@@ -26,7 +26,7 @@ def textured_quad(texture, width=32, height=32, interpolation="linear", base_col
 
 def albedo(scene, session=None):
     s = session or pc.Session(scene.width, scene.height)
-    s.set_params(method="mis", samples_per_frame=16)
+    s.set_params(method="mis", samples_per_frame=16, **pc.UNBIASED_LIGHT_PATHS)
     s.update(scene)
     s.render(1)
     return s.read("albedo"), s.read("depth")
@@ -127,7 +127,7 @@ def test_instance_transform_matches_baked_geometry():
     images = []
     for scene in (instanced, baked):
         s = pc.Session(32, 32)
-        s.set_params(samples_per_frame=4)
+        s.set_params(samples_per_frame=4, **pc.UNBIASED_LIGHT_PATHS)
         s.update(scene)
         s.render(1)
         images.append((s.read("normal"), s.read("combined")))
@@ -152,7 +152,7 @@ def test_lights_hidden_from_the_camera_still_light_the_scene(kind):
         light.camera_visible = visible
         scene = SceneData(meshes, [], [Material()], [], [light], World((0, 0, 0), 0.0), camera, 24, 24)
         s = pc.Session(24, 24)
-        s.set_params(samples_per_frame=64, seed=1)
+        s.set_params(samples_per_frame=64, seed=1, **pc.UNBIASED_LIGHT_PATHS)
         s.update(scene)
         s.render(1)
         images[visible] = s.read("combined")[..., :3]

@@ -188,7 +188,8 @@ CASES = {
 def parallax_render(scene, spp, max_depth=8, seed=0):
     s = parallax_core.Session(scene.width, scene.height)
     k = min(spp, 64)
-    s.set_params(method="mis", samples_per_frame=k, max_depth=max_depth, depth_leeway=0, seed=seed)
+    s.set_params(method="mis", samples_per_frame=k, max_depth=max_depth, depth_leeway=0, seed=seed,
+                 **parallax_core.UNBIASED_LIGHT_PATHS)
     s.update(scene)
     s.render(max(1, spp // k))
     return s.read("combined")[..., :3].copy()

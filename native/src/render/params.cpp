@@ -4,6 +4,7 @@
 #include "techniques/guiding/field.h"
 #include "techniques/irradiance_cache.h"
 
+#include <algorithm>
 #include <cstring>
 #include <stdexcept>
 
@@ -87,12 +88,12 @@ const SettingTable& base_table() {
             int_setting("transmission_bounces", PX_FIELD(RenderParams, transmission_bounces), 12, 0, 1024,
                         "Transmission", "Maximum number of transmission bounces, bounded by total maximum",
                         "light_paths").in_group("Max Bounces"),
-            float_setting("sample_clamp_direct", PX_FIELD(RenderParams, sample_clamp_direct), 0.0, 0.0, 1e30,
+            float_setting("sample_clamp_direct", PX_FIELD(RenderParams, sample_clamp_direct), 0.0, 0.0, 1e6,
                           "Direct Light",
                           "If non-zero, the maximum value for a direct sample, higher values will be scaled down to "
                           "avoid too much noise and slow convergence at the cost of accuracy (biased)", "light_paths")
                 .in_group("Clamping"),
-            float_setting("sample_clamp_indirect", PX_FIELD(RenderParams, sample_clamp_indirect), 10.0, 0.0, 1e30,
+            float_setting("sample_clamp_indirect", PX_FIELD(RenderParams, sample_clamp_indirect), 10.0, 0.0, 1e6,
                           "Indirect Light",
                           "If non-zero, the maximum value for an indirect sample, higher values will be scaled down "
                           "to avoid too much noise and slow convergence at the cost of accuracy (biased)",
@@ -254,6 +255,14 @@ void set_setting(RenderParams& p, const std::string& name, const SettingValue& v
     const SettingInfo& row = setting(name);
     if (!row.core()) throw std::invalid_argument(name + " is the engine's setting, not the core's");
     write_setting(&p, row, value);
+}
+
+uint32_t light_path_limits(const RenderParams& p) {
+    // A path's kind counts reach at most its scatters, max_depth + depth_leeway where it may go on.
+    const uint32_t deepest = p.max_depth + p.depth_leeway;
+    const bool budgets = std::min({p.diffuse_bounces, p.glossy_bounces, p.transmission_bounces}) < deepest;
+    const bool clamp = p.sample_clamp_direct > 0.0f || p.sample_clamp_indirect > 0.0f;
+    return (budgets ? LIMIT_KIND_BOUNCES : 0u) | (clamp ? LIMIT_CLAMP : 0u);
 }
 
 bool technique_on(const RenderParams& p, const std::string& name) {

@@ -57,6 +57,11 @@ const PassInfo& pass(const std::string& name);  // std::invalid_argument listing
 // technique (ic, adrrs, guiding).
 bool technique_on(const RenderParams& p, const std::string& name);
 
+// The LIMIT_* bits of the light-path limits that can change a render with these settings (a
+// pipeline carries only those): a kind's bounce budget below the deepest path Max Bounces and
+// the leeway allow, a clamp that is set.
+uint32_t light_path_limits(const RenderParams& p);
+
 // Writes one setting (type, range and enum name checked: std::invalid_argument naming it).
 void set_setting(RenderParams& p, const std::string& name, const SettingValue& value);
 // Every setting within its range, and the checks that relate settings (a technique's own,

@@ -262,11 +262,12 @@ PipelineKey Session::pipeline_key(uint32_t program, bool render_frame) const {
     c.features = scene_->host().features;
     c.empty_shadow_calls = ctx_->is_cpu() ? 0u : 1u;
     if (program == PROGRAM_PREVIEW) {
-        c.method = c.heuristic = c.techniques = 0u;
+        c.method = c.heuristic = c.techniques = c.light_path_limits = 0u;
         return {program, c};
     }
     c.method = params_.method;
     c.heuristic = params_.mis_heuristic;
+    c.light_path_limits = light_path_limits(params_);
     c.techniques = 0u;
     for (const auto& t : techniques_) c.techniques |= t->spec_bit(render_frame);
     return {program, c};
