@@ -251,7 +251,8 @@ def test_clean_rows_smoke(tmp_path):
         for p in row["checkpoints"]:
             assert p["spp"] > 0 and np.isfinite(p["rel_mse"]) and 0.0 <= p["flip"] <= 1.0
             assert p["denoise_seconds"] is not None and p["denoise_seconds"] >= 0.0
-            assert (tmp_path / "raw" / f"cornell_box__{converge._slug(row['renderer'])}__{p['checkpoint']:g}s.npy").exists()
+            image = f"cornell_box__{converge._slug(row['renderer'])}__{p['checkpoint']:g}s.npy"
+            assert (tmp_path / "raw" / image).exists()
         assert row["rel_mse"] == pytest.approx(row["checkpoints"][-1]["rel_mse"])
     parallax = rows[0]["checkpoints"]
     assert parallax[0]["seconds"] <= parallax[1]["seconds"] and "noisy_rel_mse" in parallax[0]
