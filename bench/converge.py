@@ -2,7 +2,8 @@
 
     .venv/bin/python -m bench.converge [--scenes cornell_box,veach_mis,...,sun_room] [--seconds 120]
         [--device auto] [--methods pt,nee,mis,ic] [--peers cycles,cycles_guiding,mitsuba]
-        [--width 320] [--reference-seconds 1200] [--npz DIR] [--out bench/results/<device>]
+        [--width 320] [--reference-seconds 1200] [--checkpoints 5,20,60] [--npz DIR]
+        [--out bench/results/<device>]
 
 The thesis' evaluation (Scholl 2020, ch. 5): each renderer gets the same wall-clock time,
 start-up included, on the same scene, and its image is compared with a reference by the
@@ -21,10 +22,24 @@ largest 0.1% of pixels dropped, the rest averaged.
   its Open PGL path guiding) renders the same .blend at the same size with a time limit,
   once per checkpoint. Mitsuba 3 renders the same SceneData (bench/mitsuba_peer.py),
   progressively.
-- The reference is a long Parallax render (MIS; PT where every light is behind glass), cached
-  in bench/references/ (not committed) with a JSON note of how it was made, and reused.
+- Time to a clean image (issue 36): the method `mis_clean` is Parallax with F12's defaults
+  (every row of parallax_core.SETTINGS at its default: adaptive sampling and OIDN denoising on)
+  and the peer `cycles_clean` is Cycles with its own F12 defaults (adaptive sampling, OIDN on
+  the CPU), both with the path length pinned to MAX_DEPTH and no sample cap. They are judged at
+  --checkpoints (seconds): mis_clean in one progressive run whose film is denoised at each
+  (parallax_core.cli.denoise_film, as the CLI; the denoise is not charged to its clock, as
+  Cycles' time limit leaves its denoise out), cycles_clean once per checkpoint with that time
+  limit. Every other Parallax method applies parallax_core.UNBIASED_LIGHT_PATHS (no clamps, no
+  per-kind bounce limits, a 1-px box filter) and renders undenoised. bench/clean_goal.py
+  tables the clean rows (GOAL.md).
+- The reference is a long Parallax render (MIS; PT where every light is behind glass;
+  undenoised, unbiased light paths, its own seed), cached in bench/references/ (not
+  committed) with a JSON note of how it was made, and reused.
+- Besides relMSE every row has the mean HDR-FLIP (Andersson et al. 2021, the flip-evaluator
+  package) of its final image: relMSE punishes a denoiser's blur less than the eye does.
 - Output in --out: NAME.md (table), NAME_convergence.png, NAME_images.png (final images and
-  the reference), results.json (raw numbers).
+  the reference), results.json (raw numbers), raw/ (final images; the clean rows' at every
+  checkpoint).
 """
 from __future__ import annotations
 
@@ -49,8 +64,11 @@ THESIS_SUITE = ("atrium", "thesis_veach_mis", "cornell_dielectric", "clocks", "t
 # guiding_pt: guiding without NEE; guiding_noparallax: guiding with parallax off; guiding_device:
 # guiding fitted by compute passes on the device (guiding_fit = device); guiding_pt_device: both.
 # mis_adaptive: MIS with adaptive sampling at its defaults (Cycles'; every other method: off).
+# mis_clean: F12's defaults (adaptive sampling and denoising on), the path length pinned.
 METHODS = ("pt", "nee", "mis", "ic", "ic_noupdate", "adrrs", "guiding", "guiding_pt", "guiding_noparallax",
-           "guiding_device", "guiding_pt_device", "mis_adaptive")
+           "guiding_device", "guiding_pt_device", "mis_adaptive", "mis_clean")
+# cycles_clean: Cycles with its F12 defaults (adaptive sampling, OIDN), the path length pinned.
+PEERS = ("cycles", "cycles_guiding", "cycles_clean", "mitsuba")
 # Every method row of the thesis' tables 5.1-5.4 (ic_noupdate: the cache never refreshes an entry).
 THESIS_METHODS = ("pt", "nee", "mis", "ic_noupdate", "ic", "adrrs", "guiding_pt", "guiding", "guiding_device",
                   "guiding_pt_device")
@@ -60,6 +78,17 @@ MAX_DEPTH = 8  # Cycles' Max Bounces in every scene; Parallax with no discrete l
 REFERENCE_METHOD = {"clocks": "pt", "light_behind_glass": "pt"}
 QUICK = dict(width=64, seconds=3.0, reference_seconds=20.0)  # --quick: a smoke run, numbers not meant
 REFERENCE_SEED = 7919  # the compared runs use seed 0
+# The rows of the clean method and peer (bench/clean_goal.py reads them by these names).
+CLEAN_ROWS = {"mis_clean": "Parallax mis_clean", "cycles_clean": "Cycles (F12 defaults)"}
+NO_SAMPLE_CAP = 1 << 20  # Cycles' samples for the timed runs: time decides
+# The Cycles settings blender_scenes/build.py (configure_render) pins to unbiased values, and
+# those of adaptive sampling and denoising: cycles_clean puts each back to Cycles' default.
+CYCLES_F12 = ("use_adaptive_sampling", "adaptive_threshold", "adaptive_min_samples", "use_denoising",
+              "denoising_input_passes", "denoising_prefilter", "denoising_quality", "denoising_use_gpu",
+              "seed", "use_animated_seed", "max_bounces", "diffuse_bounces", "glossy_bounces",
+              "transmission_bounces", "transparent_max_bounces", "volume_bounces", "sample_clamp_direct",
+              "sample_clamp_indirect", "blur_glossy", "caustics_reflective", "caustics_refractive",
+              "pixel_filter_type", "filter_width", "device")
 
 
 # ---- metric ------------------------------------------------------------------------------
@@ -74,6 +103,29 @@ def rel_mse(image, reference, drop=0.001):
     return float(np.partition(per_pixel, keep - 1)[:keep].mean())
 
 
+_flip_missing = []
+
+
+def mean_flip(image, reference):
+    """Mean HDR-FLIP (Andersson et al. 2021) of `image` against `reference` (linear RGB), from
+    the flip-evaluator package; None (said once) where it is not installed. Non-finite and
+    negative values count as 0 (FLIP takes non-negative radiance)."""
+    try:
+        import flip_evaluator
+    except ImportError as e:
+        if not _flip_missing:
+            _flip_missing.append(e)
+            print(f"bench.converge: no FLIP ({e}; pip install -r scripts/requirements.txt)", file=sys.stderr)
+        return None
+
+    def rgb(x):
+        x = np.nan_to_num(np.asarray(x, np.float32)[..., :3], nan=0.0, posinf=0.0, neginf=0.0)
+        return np.ascontiguousarray(np.maximum(x, 0.0))
+
+    _, mean, _ = flip_evaluator.evaluate(rgb(reference), rgb(image), "HDR", applyMagma=False)
+    return float(mean)
+
+
 def checkpoints(seconds):
     """Times at which the error is recorded: doubling up to `seconds`."""
     t, out = seconds, []
@@ -81,6 +133,36 @@ def checkpoints(seconds):
         out.append(t)
         t /= 2
     return sorted(out)
+
+
+def parse_checkpoints(text):
+    """"5,20,60" -> (5.0, 20.0, 60.0): positive, finite, distinct, sorted; ValueError otherwise."""
+    try:
+        marks = [float(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise ValueError(f"--checkpoints {text!r}: expected seconds separated by commas, e.g. 5,20,60") from None
+    if not marks or not all(math.isfinite(m) and m > 0 for m in marks) or len(set(marks)) != len(marks):
+        raise ValueError(f"--checkpoints {text!r}: expected distinct positive seconds, e.g. 5,20,60")
+    return tuple(sorted(marks))
+
+
+def due_checkpoints(pending, elapsed, next_seconds, finished=False):
+    """The leading checkpoints of `pending` (sorted) to take now, at `elapsed` seconds: those
+    the next step (`next_seconds` long) would pass, as a run with a time limit stops before
+    the frame that would overrun it; all of them when the run is `finished` (adaptive
+    sampling: every pixel converged, the image will not change)."""
+    if finished:
+        return list(pending)
+    return [m for m in pending if elapsed + next_seconds > m]
+
+
+def frames_per_call(frames, seconds, target=0.2, most=64):
+    """Frames for the next render() call, and how long it should take, given that `frames`
+    took `seconds`: about `target` seconds, at most 4x the last (its call may have compiled
+    a pipeline) and within 1..`most`."""
+    per_frame = max(seconds, 1e-6) / frames
+    n = int(max(1, min(most, 4 * frames, target / per_frame)))
+    return n, n * per_frame
 
 
 class Progress:
@@ -137,12 +219,45 @@ def load_scene(name, width, npz_dir):
 
 # ---- renderers ---------------------------------------------------------------------------
 
+def unbiased_light_paths():
+    """The settings that make Parallax's estimator unbiased and its film a 1-px box
+    (parallax_core.UNBIASED_LIGHT_PATHS; none in a core without Cycles' light-path settings):
+    every method but mis_clean, and the reference, apply them."""
+    import parallax_core as pc
+
+    return dict(getattr(pc, "UNBIASED_LIGHT_PATHS", {}))
+
+
+def clean_settings():
+    """(RenderParams fields, engine settings) of mis_clean: F12's defaults, every row of
+    parallax_core.SETTINGS at its default (adaptive sampling at 0.01, OIDN with albedo and
+    normal, ACCURATE prefilter, HIGH quality), but the path length pinned as every method's
+    (MAX_DEPTH bounces, no specular leeway: Cycles' Max Bounces, which the reference uses).
+    The engine's `samples` is not used: time decides (no sample cap)."""
+    import dataclasses
+
+    import parallax_core as pc
+
+    params = dict(dataclasses.asdict(pc.RenderParams()), max_depth=MAX_DEPTH, depth_leeway=0)
+    # As F12 (0 would be Cycles' automatic threshold, from the sample target: there is none).
+    params["adaptive_threshold"] = pc.adaptive_threshold(params["adaptive_threshold"], 0)
+    engine = {s.name: s.default for s in pc.SETTINGS if not s.core}
+    return params, engine
+
+
 def method_params(method):
     """RenderParams of a --methods name: pt, nee, mis, ic (MIS + the irradiance cache with
     its default settings) or adrrs (MIS + ADRRS, whose cache and estimate are built in the
-    measured time; the throughput roulette stays where ADRRS has no adjoint)."""
+    measured time; the throughput roulette stays where ADRRS has no adjoint); mis_clean:
+    clean_settings()' RenderParams. Every method but mis_clean with unbiased_light_paths()."""
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r} (methods: {', '.join(METHODS)})")
+    if method == "mis_clean":
+        return clean_settings()[0]
+    return {**_method_params(method), **unbiased_light_paths()}
+
+
+def _method_params(method):
     off = dict(ic=False, adrrs=False, guiding=False, guiding_parallax=True, guiding_training_spp=32,
                use_adaptive_sampling=False)
     if method == "mis_adaptive":
@@ -253,8 +368,110 @@ def render_parallax(scene, method, seconds, device, reference, label, seed=0):
     return image, spp, used, curve, info
 
 
-def render_cycles(name, width, seconds, guiding, reference, label):
-    """Cycles (CPU) on the same .blend at the same size, time-limited, once per checkpoint."""
+def render_parallax_clean(scene, marks, device, reference, label, seed=0):
+    """mis_clean: one progressive Parallax render with F12's defaults (clean_settings), its
+    film denoised at each checkpoint of `marks` (seconds) as the CLI denoises
+    (parallax_core.cli.denoise_film). The clock includes start-up and leaves out the
+    denoising and scoring at the checkpoints (Cycles' time limit leaves its denoise out).
+    A checkpoint is taken before the render() call that would pass it (after the first frame
+    at the earliest: F12 always gives a whole image), or as soon as every pixel converged.
+    Returns (image, spp, seconds, curve, info, points): the last denoised image, and per
+    checkpoint {checkpoint, seconds, spp, rel_mse, flip, noisy_rel_mse, denoise_seconds,
+    fallback_film, image}."""
+    import parallax_core as pc
+    from parallax_core.cli import denoise_film
+
+    if not marks:
+        raise ValueError("mis_clean: no checkpoints")
+    params, engine = clean_settings()
+    settings = {**params, **engine}
+    if not settings["use_denoising"]:
+        raise ValueError("mis_clean: use_denoising is off by default; F12's defaults denoise")
+    pending = sorted(marks)
+    bar = Progress(label, pending[-1])
+    start = time.perf_counter()
+    paused = 0.0  # seconds spent denoising and scoring: not on the clock
+    session = pc.Session(scene.width, scene.height, device)
+    session.background_compile = True  # as F12
+    session.set_params(**dict(params, seed=seed))
+    session.update(scene)
+    # As F12: the film holds the passes read (Combined and the denoiser's inputs) only.
+    session.passes = sorted({"combined", *pc.denoise.film_passes(settings)})
+    session.render(1)  # compiles the pipelines (inside the time, as every method's)
+    frame_start = time.perf_counter()
+    session.render(1)
+    frames, next_seconds = frames_per_call(1, time.perf_counter() - frame_start)
+    points = []
+    while pending:
+        elapsed = time.perf_counter() - start - paused
+        due = due_checkpoints(pending, elapsed, next_seconds, session.converged)
+        if due:
+            pause = time.perf_counter()
+            stats = session.stats()
+            out, line = denoise_film(session, settings)
+            denoise_seconds = time.perf_counter() - pause
+            if "combined" not in out:  # denoise_film kept the noisy image: not a clean row
+                raise RuntimeError(f"mis_clean: {line}")
+            image = out["combined"][..., :3]
+            point = dict(seconds=round(elapsed, 3), spp=int(stats["samples"]),
+                         denoise_seconds=round(denoise_seconds, 3), fallback_film=bool(stats["fallback_film"]),
+                         image=image)
+            if reference is not None:
+                point.update(rel_mse=rel_mse(image, reference), flip=mean_flip(image, reference),
+                             noisy_rel_mse=rel_mse(out["noisy_image"], reference))
+            points += [dict(point, checkpoint=m) for m in due]
+            pending = pending[len(due):]
+            paused += time.perf_counter() - pause
+            bar.update(elapsed, f"{point['spp']} spp, denoised")
+            continue
+        frame_start = time.perf_counter()
+        session.render(frames)
+        frames, next_seconds = frames_per_call(frames, time.perf_counter() - frame_start)
+        bar.update(time.perf_counter() - start - paused, f"{session.samples} spp")
+    last = points[-1]
+    bar.close(f"{last['spp']} spp")
+    curve = [(p["seconds"], p["rel_mse"]) for p in points if "rel_mse" in p]
+    info = {"converged": bool(session.converged), "denoiser": line}
+    return last["image"], last["spp"], last["seconds"], curve, info, points
+
+
+def cycles_clean_settings(scene):
+    """Cycles' F12 defaults on a scene of blender_scenes (which pins Cycles unbiased):
+    every setting of CYCLES_F12 back to its default as bpy's RNA gives it (adaptive sampling
+    at 0.01, OIDN on the CPU with albedo and normal, clamps, per-kind bounces, Blackman-Harris
+    1.5 px, ...), the view layers' denoising too, OIDN as the denoiser; but Max Bounces
+    pinned to MAX_DEPTH and no sample cap (time decides)."""
+    cycles = scene.cycles
+    props = cycles.bl_rna.properties
+    for name in CYCLES_F12:
+        setattr(cycles, name, props[name].default)
+    # Cycles' default denoiser is OIDN (its property's default is the enum value 4, which
+    # bl_rna cannot name: the items are made at run time, by the devices found).
+    cycles.denoiser = "OPENIMAGEDENOISE"
+    for layer in scene.view_layers:
+        layer.cycles.use_denoising = layer.cycles.bl_rna.properties["use_denoising"].default
+    cycles.max_bounces = MAX_DEPTH
+    cycles.samples = NO_SAMPLE_CAP
+
+
+def cycles_denoise_seconds(timed_stats):
+    """Seconds Cycles spent denoising, from its status lines [(time, text)]: from the last
+    line with samples rendered ("Sample 39/1048576") to "Finished" (Cycles shows nothing else
+    meanwhile; without denoising the two come together). None if either is missing."""
+    sampled = [t for t, text in timed_stats if _last_sample_count([text]) > 0]
+    finished = [t for t, text in timed_stats if "Finished" in text]
+    if not sampled or not finished:
+        return None
+    return max(0.0, finished[-1] - sampled[-1])
+
+
+def render_cycles(name, width, seconds, guiding, reference, label, clean=False, marks=None):
+    """Cycles (CPU) on the same .blend at the same size, time-limited, once per checkpoint:
+    `marks` (seconds; default: the doubling checkpoints from seconds / 4 to `seconds`).
+    `clean`: with Cycles' F12 defaults (cycles_clean_settings), denoised; otherwise pinned
+    unbiased, as the .blend has it, and undenoised. Returns (image, spp, seconds, curve,
+    points): per checkpoint {checkpoint, seconds (the render's wall time, scene sync and
+    denoise included), spp, rel_mse, flip, denoise_seconds, image}."""
     import bpy
 
     from parallax_blender import cli
@@ -262,19 +479,23 @@ def render_cycles(name, width, seconds, guiding, reference, label):
     stats = []
 
     def on_stats(text, *args):  # render_stats handler: Cycles' status line
-        if isinstance(text, str) and "Sample" in text:
-            stats.append(text)
+        if isinstance(text, str):
+            stats.append((time.perf_counter(), text))
 
-    curve, image, spp, used = [], None, 0, 0.0
-    marks = [t for t in checkpoints(seconds) if t >= seconds / 4]
+    curve, points, image, spp, used = [], [], None, 0, 0.0
+    marks = sorted(marks) if marks else [t for t in checkpoints(seconds) if t >= seconds / 4]
     bar = Progress(label, sum(marks))
     done = 0.0
     for limit in marks:
         scene = cli.open_blend(blend_path(name), "CYCLES", width)
         cycles = scene.cycles
-        cycles.samples, cycles.time_limit, cycles.use_adaptive_sampling = 1 << 20, limit, False
-        cycles.device = "CPU"
-        cycles.use_denoising = False  # pinned, as the Parallax methods' sessions (a later mis_clean turns it on)
+        if clean:
+            cycles_clean_settings(scene)
+        else:
+            cycles.samples, cycles.use_adaptive_sampling = NO_SAMPLE_CAP, False
+            cycles.device = "CPU"
+            cycles.use_denoising = False  # pinned, as the Parallax methods' sessions
+        cycles.time_limit = limit
         cycles.use_guiding = guiding
         if guiding:
             cycles.use_surface_guiding = cycles.use_volume_guiding = True
@@ -287,13 +508,17 @@ def render_cycles(name, width, seconds, guiding, reference, label):
             bpy.app.handlers.render_stats.remove(on_stats)
         used = time.perf_counter() - start
         image = render_result_rgb(scene, name)
-        spp = _last_sample_count(stats)
+        spp = _last_sample_count([text for _, text in stats])
+        point = dict(checkpoint=limit, seconds=round(used, 3), spp=spp, image=image,
+                     denoise_seconds=cycles_denoise_seconds(stats) if clean else None)
         if reference is not None:
             curve.append((used, rel_mse(image, reference)))
+            point.update(rel_mse=curve[-1][1], flip=mean_flip(image, reference) if clean else None)
+        points.append(point)
         done += limit
         bar.update(done, f"{spp} spp")
     bar.close(f"{spp} spp")
-    return image, spp, used, curve
+    return image, spp, used, curve, points
 
 
 def render_result_rgb(scene, name):
@@ -344,7 +569,8 @@ def warm_pipelines(scene, methods, device):
     session = pc.Session(scene.width, scene.height, device)
     session.update(scene)
     for method in methods:
-        session.set_params(**method_params(method), max_depth=MAX_DEPTH, depth_leeway=0, ic_prepare_frames=1)
+        session.set_params(**{**method_params(method), "max_depth": MAX_DEPTH, "depth_leeway": 0,
+                              "ic_prepare_frames": 1})
         session.render(1)  # with ic: one prepare frame (camera + hemisphere + finish pipelines) and a frame
 
 
@@ -355,7 +581,8 @@ def spin_up(scene, device, seconds=0.5):
     import parallax_core as pc
 
     session = pc.Session(scene.width, scene.height, device)
-    session.set_params(method="pt", samples_per_frame=1, max_depth=MAX_DEPTH, depth_leeway=0)
+    session.set_params(**{**unbiased_light_paths(), "method": "pt", "samples_per_frame": 1, "max_depth": MAX_DEPTH,
+                          "depth_leeway": 0})
     session.update(scene)
     start = time.perf_counter()
     while time.perf_counter() - start < seconds:
@@ -401,6 +628,7 @@ def reference_image(name, scene, seconds, device, folder=os.path.join(HERE, "ref
     with open(stem + ".json", "w") as f:
         json.dump({"renderer": "parallax", "method": method, "spp": spp, "seconds": round(used, 1),
                    "device": device, "max_depth": MAX_DEPTH, "seed": REFERENCE_SEED,
+                   "light_paths": unbiased_light_paths(), "denoised": False,
                    "made_by": " ".join(sys.argv)}, f, indent=1)
     return image
 
@@ -408,9 +636,19 @@ def reference_image(name, scene, seconds, device, folder=os.path.join(HERE, "ref
 # ---- output ------------------------------------------------------------------------------
 
 def write_outputs(out, name, rows, reference):
-    lines = [f"### {name}", "", "| renderer | relMSE | spp | time (s) |", "|---|---:|---:|---:|"]
+    lines = [f"### {name}", "", "| renderer | relMSE | FLIP | spp | time (s) |", "|---|---:|---:|---:|---:|"]
     for row in sorted(rows, key=lambda r: r["rel_mse"]):
-        lines.append(f"| {row['renderer']} | {row['rel_mse']:.4g} | {row['spp']} | {row['seconds']:.1f} |")
+        lines.append(f"| {row['renderer']} | {row['rel_mse']:.4g} | {_fmt(row.get('flip'))} | {row['spp']} | "
+                     f"{row['seconds']:.1f} |")
+    clean = [r for r in rows if r.get("checkpoints")]
+    if clean:  # time to a clean image: each clean row at each checkpoint
+        lines += ["", "| renderer | checkpoint (s) | relMSE | FLIP | spp | time (s) | denoise (s) |",
+                  "|---|---:|---:|---:|---:|---:|---:|"]
+        for row in clean:
+            for p in row["checkpoints"]:
+                lines.append(f"| {row['renderer']} | {p['checkpoint']:g} | {_fmt(p.get('rel_mse'))} | "
+                             f"{_fmt(p.get('flip'))} | {p['spp']} | {p['seconds']:.1f} | "
+                             f"{_fmt(p.get('denoise_seconds'), '.2f')} |")
     # The thesis' layout (tables 5.1-5.4): a column per renderer, in the order they ran.
     lines += ["", "| | " + " | ".join(r["renderer"] for r in rows) + " |", "|---" * (len(rows) + 1) + "|",
               "| relMSE | " + " | ".join(f"{r['rel_mse']:.4g}" for r in rows) + " |",
@@ -470,6 +708,10 @@ def write_outputs(out, name, rows, reference):
     plt.close(fig)
 
 
+def _fmt(value, spec=".4g"):
+    return "n/a" if value is None else format(value, spec)
+
+
 def device_kind(device):
     """("cpu" or "gpu", device name) of the device a session on `device` gets."""
     import parallax_core as pc
@@ -484,11 +726,18 @@ def _slug(label):
 
 def run(scenes=SCENES, seconds=120.0, device="auto", methods=("pt", "nee", "mis"),
         peers=("cycles", "cycles_guiding", "mitsuba"), width=320, reference_seconds=None,
-        npz_dir=None, out=None, reference_dir=os.path.join(HERE, "references"), append=False, warm=False):
+        npz_dir=None, out=None, reference_dir=os.path.join(HERE, "references"), append=False, warm=False,
+        clean_checkpoints=None):
     """Runs the comparison; returns {scene: [row, ...]} (rows without images). With `append`,
     rows of renderers not run now are kept from the earlier results.json in `out` (their
     images from out/raw/, their final relMSE against the reference of this run: `--methods ,
-    --peers "" --append` rescores a run against a new reference)."""
+    --peers "" --append` rescores a run against a new reference). `clean_checkpoints`: the
+    seconds at which mis_clean and cycles_clean are judged (default: `seconds` alone); their
+    rows hold them as `checkpoints`."""
+    for peer in peers:
+        if peer not in PEERS:
+            raise ValueError(f"unknown peer {peer!r} (peers: {', '.join(PEERS)})")
+    clean_marks = tuple(sorted(clean_checkpoints)) if clean_checkpoints else (seconds,)
     kind, device_name = device_kind(device)
     core = core_identity()  # now: the module file may be rebuilt while this runs
     out = out or os.path.join(HERE, "results", kind)
@@ -519,38 +768,54 @@ def run(scenes=SCENES, seconds=120.0, device="auto", methods=("pt", "nee", "mis"
         for method in methods:
             if warm:
                 spin_up(scene, device)
-            image, spp, used, curve, info = render_parallax(scene, method, seconds, device, reference,
-                                                            f"{name}: parallax {method}")
+            label = f"{name}: parallax {method}"
+            if method == "mis_clean":
+                image, spp, used, curve, info, points = render_parallax_clean(scene, clean_marks, device, reference,
+                                                                              label)
+                rows.append(dict(renderer=CLEAN_ROWS["mis_clean"], image=image, spp=spp, seconds=used, curve=curve,
+                                 info=info, checkpoints=points))
+                continue
+            image, spp, used, curve, info = render_parallax(scene, method, seconds, device, reference, label)
             rows.append(dict(renderer=f"Parallax {method}", image=image, spp=spp, seconds=used, curve=curve,
                              **({"ic": info} if method in ("ic", "adrrs") else {}), info=info))
         for peer in peers:
+            points = None
             if peer.startswith("cycles"):
                 if npz_dir:
                     continue  # no Blender here
-                guiding = peer == "cycles_guiding"
-                image, spp, used, curve = render_cycles(name, scene.width, seconds, guiding, reference,
-                                                        f"{name}: {peer}")
-                label = "Cycles (path guiding)" if guiding else "Cycles"
+                guiding, clean = peer == "cycles_guiding", peer == "cycles_clean"
+                image, spp, used, curve, points = render_cycles(
+                    name, scene.width, seconds, guiding, reference, f"{name}: {peer}", clean=clean,
+                    marks=clean_marks if clean else None)
+                label = CLEAN_ROWS[peer] if clean else "Cycles (path guiding)" if guiding else "Cycles"
+                points = points if clean else None
             elif peer == "mitsuba" and variant:
                 image, spp, used, curve = render_mitsuba(scene, seconds, variant, reference, f"{name}: mitsuba")
                 label = f"Mitsuba 3 ({variant})"
             else:
                 continue
-            rows.append(dict(renderer=label, image=image, spp=spp, seconds=used, curve=curve))
+            rows.append(dict(renderer=label, image=image, spp=spp, seconds=used, curve=curve,
+                             **({"checkpoints": points} if points else {})))
         for row in rows:
             row["pixels"] = scene.width * scene.height
             row["rel_mse"] = rel_mse(row["image"], reference)
+            row["flip"] = mean_flip(row["image"], reference)
             np.save(os.path.join(raw, f"{name}__{_slug(row['renderer'])}.npy"), row["image"].astype(np.float32))
+            for point in row.get("checkpoints", ()):  # every checkpoint's image, then only its numbers
+                np.save(os.path.join(raw, f"{name}__{_slug(row['renderer'])}__{point['checkpoint']:g}s.npy"),
+                        point.pop("image").astype(np.float32))
         run_now = {r["renderer"] for r in rows}
         for old in previous.get(name, []):
             image_file = os.path.join(raw, f"{name}__{_slug(old['renderer'])}.npy")
             if old["renderer"] not in run_now and os.path.exists(image_file):
                 image = np.load(image_file)  # scored against today's reference (its curve is as recorded)
-                rows.append({**old, "image": image, "rel_mse": rel_mse(image, reference)})
+                rows.append({**old, "image": image, "rel_mse": rel_mse(image, reference),
+                             "flip": mean_flip(image, reference)})
         write_outputs(out, name, rows, reference)
         results[name] = [{k: v for k, v in r.items() if k != "image"} for r in rows]
         with open(os.path.join(out, "results.json"), "w") as f:
             json.dump({"device": device_name, "kind": kind, "seconds": seconds, "width": width,
+                       "clean_checkpoints": list(clean_marks),
                        "warm_pipelines": warm, "core": core, "scenes": results}, f, indent=1)
     return results
 
@@ -564,12 +829,14 @@ def main(argv=None):
                    help=f"smoke run: {QUICK['width']} px wide, {QUICK['seconds']:g} s per renderer, "
                         "Cycles the only peer")
     p.add_argument("--scenes", help="default: the suite's")
-    p.add_argument("--seconds", type=float, default=120.0)
+    p.add_argument("--seconds", type=float, help="default: 120, or the last of --checkpoints")
     p.add_argument("--device", default="auto")
     p.add_argument("--methods", help="default: pt,nee,mis (thesis: every method of its tables)")
     p.add_argument("--peers", default="cycles,cycles_guiding,mitsuba")
     p.add_argument("--width", type=int, default=320)
     p.add_argument("--reference-seconds", type=float, help="default: 10 x --seconds")
+    p.add_argument("--checkpoints", help="seconds at which mis_clean and cycles_clean are judged, e.g. 5,20,60 "
+                                         "(default: --seconds)")
     p.add_argument("--npz", help="read (or with --export-only write) DIR/NAME.npz scenes")
     p.add_argument("--export-only", action="store_true")
     p.add_argument("--append", action="store_true", help="keep earlier rows of renderers not run now")
@@ -578,6 +845,12 @@ def main(argv=None):
                    help="compile every method's pipelines before the timed runs (start-up then excludes compiling), "
                         "and keep the device busy for 0.5 s before each (a GPU's clocks drop when it idles)")
     a = p.parse_args(argv)
+    try:
+        marks = parse_checkpoints(a.checkpoints) if a.checkpoints else None
+    except ValueError as e:
+        p.error(str(e))
+    if a.seconds is None:
+        a.seconds = marks[-1] if marks else 120.0
     thesis = a.suite == "thesis"
     if a.quick:
         a.width, a.seconds, a.peers = QUICK["width"], QUICK["seconds"], "cycles"
@@ -587,6 +860,9 @@ def main(argv=None):
     for m in methods:
         if m not in METHODS:
             p.error(f"unknown method {m!r} (methods: {', '.join(METHODS)})")
+    for peer in [x for x in a.peers.split(",") if x]:
+        if peer not in PEERS:
+            p.error(f"unknown peer {peer!r} (peers: {', '.join(PEERS)})")
     known = SCENES + EXTRA_SCENES + THESIS_SUITE
     for name in scenes:
         if name not in known:
@@ -611,11 +887,15 @@ def main(argv=None):
         kind = device_kind(a.device)[0]
         out = os.path.join(HERE, "results", kind + ("_thesis" if thesis else "") + ("_quick" if a.quick else ""))
     results = run(scenes, a.seconds, a.device, methods, [x for x in a.peers.split(",") if x],
-                  a.width, a.reference_seconds, a.npz, out, append=a.append, warm=a.warm)
+                  a.width, a.reference_seconds, a.npz, out, append=a.append, warm=a.warm, clean_checkpoints=marks)
     for name, rows in results.items():
         print(f"\n{name}")
         for row in sorted(rows, key=lambda r: r["rel_mse"]):
-            print(f"  {row['renderer']:28s} relMSE {row['rel_mse']:.4g}  {row['spp']:6d} spp  {row['seconds']:.1f} s")
+            print(f"  {row['renderer']:28s} relMSE {row['rel_mse']:.4g}  FLIP {_fmt(row.get('flip'))}  "
+                  f"{row['spp']:6d} spp  {row['seconds']:.1f} s")
+            for point in row.get("checkpoints", ()):
+                print(f"    at {point['checkpoint']:g} s: relMSE {_fmt(point.get('rel_mse'))}  "
+                      f"FLIP {_fmt(point.get('flip'))}  {point['spp']} spp  {point['seconds']:.1f} s")
     if thesis and not a.quick:
         from bench import thesis as thesis_tables
 
