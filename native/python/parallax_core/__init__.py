@@ -24,7 +24,8 @@ from ._native import _PASSES, _SETTINGS, _make_params, _setting_index
 from . import denoise  # noqa: F401  (OIDN: parallax_core.denoise)
 from .scene import PART_KEYS, PARTS, parts_set
 
-__all__ = ["Session", "RenderParams", "UNBIASED_LIGHT_PATHS", "SETTINGS", "PASSES", "setting", "devices", "METHODS", "PARTS", "LIMITS",
+__all__ = ["Session", "RenderParams", "UNBIASED_LIGHT_PATHS", "SETTINGS", "PASSES", "setting", "devices", "METHODS",
+           "PARTS", "LIMITS",
            "DeviceMemoryError", "memory", "set_memory_budget", "validation_enabled", "validation_messages",
            "light_tree_min_lights", "set_light_tree_min_lights", "primitive_order", "background_compiles",
            "wait_for_background_compiles", "adaptive_threshold"]

@@ -70,7 +70,7 @@ const SettingTable& base_table() {
                           "The viewport's noise threshold (0: automatic, from the viewport's sample count)",
                           "sampling").in_group("Viewport"),
             // Light paths (Cycles' names, defaults and ranges; a bounce counts towards the budget
-            // of its sampled lobe's kind, as Cycles' labels: integrator.glsl, bounce_kind)
+            // of its sampled lobe's kind, as Cycles' labels: BsdfSample.kind in bsdf.glsl)
             int_setting("max_depth", PX_FIELD(RenderParams, max_depth), 12, 0, 1024, "Total",
                         "Maximum number of bounces, bounded by the leeway's discrete bounces (Cycles' Max "
                         "Bounces: Total, which counts every bounce, is this with a leeway of 0)", "light_paths")
