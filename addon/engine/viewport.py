@@ -17,9 +17,10 @@ path tracer compiles on a thread of its own (issue 9).
 Denoising (Use Viewport Denoising): frames from Start Denoising on go to a denoise thread of
 their own (``_DenoiseThread``), never Blender's or the render worker's: it denoises the newest
 frame handed to it, dropping older ones, and shows the result if no edit came in meanwhile.
-The coarse preview frame of an edit goes too (small, so OIDN takes a fraction of a second on
-it: the first denoised image comes long before a full-size one, issue 36); the preview
-program's first-hit frame does not (it has no noise). Within one scene state the image shown
+The coarse preview frame of an edit goes too, to a second denoise thread at normal priority
+(small, so OIDN takes a fraction of a second of one core on it: the first denoised image comes
+long before a full-size one, issue 36); the preview program's first-hit frame does not (it
+has no noise). Within one scene state the image shown
 never gets coarser, and at a pixel size showing denoised frames it shows no noisy ones
 again (as Cycles' viewport): a coarse denoised frame gives way to the first full-size frame,
 noisy or not, and never replaces one. An edit shows its new noisy frames at once and never
@@ -39,6 +40,9 @@ PREVIEW_SECONDS = 0.03
 # OIDN's CPU threads in the viewport: a quarter of the cores (one on this 2-core machine), on
 # the denoise thread at nice +10, so the render keeps the cores edits need (issue 36).
 VIEWPORT_DENOISE_THREADS = max(1, (os.cpu_count() or 1) // 4)
+# The coarse preview frames' denoise thread keeps the render's priority: at nice +10 a
+# 0.2-CPU-second denoise waits seconds behind the render's threads (and a loaded machine's).
+COARSE_DENOISE_NICE, FULL_DENOISE_NICE = 0, 10
 PUBLISH_SECONDS = 0.05  # at most this often a new image for the viewport
 
 _workers = weakref.WeakSet()  # live workers, stopped on unregister
@@ -95,7 +99,8 @@ class _Worker(threading.Thread):
         # latest (image (H, W, 4), samples, pixel size, generation, denoised)
         self.frame = None
         self._denoise = denoise  # the denoising settings {name: value} with use_preview_denoising on, or None
-        self._denoiser = None    # _DenoiseThread, made with the first frame to denoise
+        # _DenoiseThread of the full-size frames, and of the coarse ones: made with their first frame
+        self._denoiser = self._coarse_denoiser = None
         self.denoised_frames = 0  # frames the denoiser showed (tests, bench/)
         self.first_denoised_at = None  # perf_counter() of the first (bench/)
         self.first_full_denoised_at = None  # ... of the first at pixel size 1 (bench/)
@@ -164,8 +169,9 @@ class _Worker(threading.Thread):
             self._stopped = True
             self._cancel()
             self._lock.notify()
-        if self._denoiser is not None:
-            self._denoiser.stop()
+        for denoiser in (self._denoiser, self._coarse_denoiser):
+            if denoiser is not None:
+                denoiser.stop()
         if self.is_alive() and threading.current_thread() is not self:
             self.join(wait)
 
@@ -175,7 +181,7 @@ class _Worker(threading.Thread):
 
     def denoise_pending(self):
         """A frame is with the denoiser (view_draw keeps redrawing until it is shown)."""
-        return self._denoiser is not None and self._denoiser.pending()
+        return any(d is not None and d.pending() for d in (self._denoiser, self._coarse_denoiser))
 
     def _show_denoised(self, generation, samples, pixel_size, image):
         """The denoise thread's result: shown if no edit came in since its frame, nothing finer
@@ -265,10 +271,12 @@ class _Worker(threading.Thread):
         # Done at the sample target, or once adaptive sampling found every pixel converged.
         if (target and samples >= target or self._full.converged) and not self._full.fallback_film:
             shown = self.frame
+            denoising = bool(self._denoise) and self._display == "combined" and self.denoise_message is None
             if (self._display_changed or shown is None or shown[1] != samples or shown[2] != 1
-                    or shown[4] and not self._denoise):
+                    or shown[4] != denoising):
                 # The last frame may have come too soon to publish, or to go to the busy denoiser
-                # (or denoising was switched off since).
+                # (shown noisy, an older denoised frame would replace it), or denoising was
+                # switched since.
                 self._publish(self._full, 1, last=True)
             self.done = True
             return True
@@ -346,14 +354,22 @@ class _Worker(threading.Thread):
                 self.frame = frame
         if (denoising and denoise and not session.fallback_film
                 and samples >= max(1, values["preview_denoising_start_sample"])
-                and (last or pixel_size > 1 or not self.denoise_pending())):
+                and (last or pixel_size > 1 or self._denoiser is None or not self._denoiser.pending())):
             images = {"combined": image}
             for name in self._denoise_passes()[1:]:
                 images[name] = session.read(name)
-            if self._denoiser is None:
-                self._denoiser = _DenoiseThread(self, session.device_type)
-                self._denoiser.start()
-            self._denoiser.submit((self._rendering, samples, pixel_size, images, values))
+            if pixel_size > 1:
+                if self._coarse_denoiser is None:
+                    self._coarse_denoiser = _DenoiseThread(self, session.device_type, COARSE_DENOISE_NICE,
+                                                          "parallax-viewport-denoise-coarse")
+                    self._coarse_denoiser.start()
+                denoiser = self._coarse_denoiser
+            else:
+                if self._denoiser is None:
+                    self._denoiser = _DenoiseThread(self, session.device_type, FULL_DENOISE_NICE)
+                    self._denoiser.start()
+                denoiser = self._denoiser
+            denoiser.submit((self._rendering, samples, pixel_size, images, values))
         self._published = time.perf_counter()
         self.first_frame_at = self.first_frame_at or self._published
         if pixel_size == 1:
@@ -368,14 +384,14 @@ class _Worker(threading.Thread):
 class _DenoiseThread(threading.Thread):
     """Denoises the newest frame handed to it (older ones are dropped) with one OIDN device
     of its own, and hands the result to the worker. OIDN's call releases the GIL (ctypes).
-    It runs at a lower CPU priority than the render (nice +10) on VIEWPORT_DENOISE_THREADS
-    threads, and an edit cancels the denoise in progress (OIDN's progress monitor), so the
-    edit's frames get the cores at once."""
+    It runs at ``nice`` (+10 for full-size frames: a lower CPU priority than the render) on
+    VIEWPORT_DENOISE_THREADS threads, and an edit cancels the denoise in progress (OIDN's
+    progress monitor), so the edit's frames get the cores at once."""
 
-    def __init__(self, worker, device_type):
-        super().__init__(name="parallax-viewport-denoise", daemon=True)
+    def __init__(self, worker, device_type, nice, name="parallax-viewport-denoise"):
+        super().__init__(name=name, daemon=True)
         self._worker = weakref.ref(worker)
-        self._device_type = device_type
+        self._device_type, self._nice = device_type, nice
         self._cond = threading.Condition()
         self._job, self._busy, self._stopped = None, False, False
 
@@ -397,7 +413,8 @@ class _DenoiseThread(threading.Thread):
         denoise = core.load().denoise
         denoiser = None
         try:
-            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), 10)  # this thread (Linux)
+            if self._nice:
+                os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), self._nice)  # this thread (Linux)
         except (AttributeError, OSError):
             pass
         try:

@@ -3,6 +3,7 @@ Image pass (Cycles' name) and carries on undenoised without OIDN; the viewport w
 on its own thread and an edit shows its noisy frame without waiting; the Denoising panel says
 which OIDN runs, or that none was found."""
 import dataclasses
+import os
 import time
 import types
 
@@ -176,7 +177,7 @@ def test_viewport_first_denoised_frame_is_the_coarse_preview(monkeypatch):
     def held_render_frame(self):
         # The first full-size frame waits for the denoiser to finish what it was given (events,
         # not rates), so the test sees the order the frames come in on a slow machine.
-        while not self._stopped and self._denoiser is not None and self._denoiser.pending():
+        while not self._stopped and self.denoise_pending():
             time.sleep(0.01)
         monkeypatch.setattr(viewport._Worker, "_render_frame", render_frame)
         return render_frame(self)
@@ -209,6 +210,10 @@ def test_viewport_first_denoised_frame_is_the_coarse_preview(monkeypatch):
         assert worker.first_denoised_at < worker.first_full_frame_at < worker.first_full_denoised_at
         image, samples, pixel_size, generation, denoised = worker.frame
         assert denoised and pixel_size == 1 and samples == 4 and image.shape[:2] == (48, 64)
+        # Coarse frames denoise at the render's priority, full-size ones at nice +10.
+        base = os.getpriority(os.PRIO_PROCESS, 0)
+        assert os.getpriority(os.PRIO_PROCESS, worker._coarse_denoiser.native_id) == base
+        assert os.getpriority(os.PRIO_PROCESS, worker._denoiser.native_id) == max(base, 10)
         # A coarse denoised frame coming late is dropped: the full-size one stays.
         frame = worker.frame
         worker._show_denoised(generation, 8, 4, np.zeros((12, 16, 4), np.float32))
