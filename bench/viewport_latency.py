@@ -170,6 +170,8 @@ def startup_denoise(args, size):
                     rows.append({"scene": scene, "cache": cache_state, "run": run,
                                  "first_image_s": result["first_image_seconds"],
                                  "first_full_frame_s": result["first_full_frame_seconds"],
+                                 "first_to_denoiser_s": result["first_handover_seconds"],
+                                 "first_to_denoiser_pixel_size": result["first_handover_pixel_size"],
                                  "first_denoised_s": result["first_denoised_seconds"],
                                  "first_full_denoised_s": result["first_full_denoised_seconds"],
                                  "size": result["size"], "loadavg_before": load})
@@ -179,11 +181,12 @@ def startup_denoise(args, size):
     os.makedirs(os.path.dirname(args.out), exist_ok=True)
     with open(args.out, "w") as f:
         json.dump({"window": list(size), "runs": rows}, f, indent=1)
-    print(f"| scene | Mesa cache | first image (s) | first denoised (s) | first full frame (s) | "
-          f"first full denoised (s) | load average (1 min) |")
+    print("| scene | Mesa cache | first image (s) | first to the denoiser (s, pixel size) | first denoised (s) | "
+          "first full frame (s) | first full denoised (s) | load average (1 min) |")
     for r in rows:
-        print(f"| {r['scene']} | {r['cache']} | {r['first_image_s']:.2f} | {r['first_denoised_s']:.2f} | "
-              f"{r['first_full_frame_s']:.2f} | {r['first_full_denoised_s']:.2f} | {r['loadavg_before'][0]:.2f} |")
+        print(f"| {r['scene']} | {r['cache']} | {r['first_image_s']:.2f} | {r['first_to_denoiser_s']:.2f} "
+              f"({r['first_to_denoiser_pixel_size']}) | {r['first_denoised_s']:.2f} | {r['first_full_frame_s']:.2f} | "
+              f"{r['first_full_denoised_s']:.2f} | {r['loadavg_before'][0]:.2f} |")
 
 
 if __name__ == "__main__":

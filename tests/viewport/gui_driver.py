@@ -190,6 +190,14 @@ def startup_steps():
         from parallax.engine import viewport
         viewport._Worker._quick_frame = lambda self, params: None
     denoise = os.environ.get("PX_DENOISE") == "1"
+    if denoise:  # when (and at which pixel size) the first frame went to the denoiser
+        from parallax.engine import viewport
+        submit = viewport._DenoiseThread.submit
+
+        def recording_submit(self, job):
+            result.setdefault("first_handover", (time.perf_counter(), job[2]))
+            submit(self, job)
+        viewport._DenoiseThread.submit = recording_submit
     yield from rendered_camera_view()
     yield lambda: worker() is not None and worker().first_full_frame_at is not None
     w = worker()
@@ -202,6 +210,8 @@ def startup_steps():
         assert w.denoise_message is None, w.denoise_message
         result["first_denoised_seconds"] = w.first_denoised_at - result["rendered_at"]
         result["first_full_denoised_seconds"] = w.first_full_denoised_at - result["rendered_at"]
+        at, result["first_handover_pixel_size"] = result.pop("first_handover")
+        result["first_handover_seconds"] = at - result["rendered_at"]
 
 
 def denoise_steps():
