@@ -20,11 +20,10 @@ frame handed to it, dropping older ones, and shows the result if no edit came in
 The coarse preview frame of an edit goes too, to a second denoise thread at normal priority
 (small, so OIDN takes a fraction of a second of one core on it: the first denoised image comes
 long before a full-size one, issue 36); the preview program's first-hit frame does not (it
-has no noise). Within one scene state the image shown
-never gets coarser, and at a pixel size showing denoised frames it shows no noisy ones
-again (as Cycles' viewport): a coarse denoised frame gives way to the first full-size frame,
-noisy or not, and never replaces one. An edit shows its new noisy frames at once and never
-waits for the denoiser.
+has no noise). Within one scene state the image shown never gets coarser, and at a pixel size
+showing denoised frames it shows no noisy ones again (as Cycles' viewport): a coarse denoised
+frame gives way to the first full-size frame, noisy or not, and never replaces one. An edit
+shows its new noisy frames at once and never waits for the denoiser.
 """
 import os
 import threading
