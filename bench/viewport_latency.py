@@ -9,6 +9,12 @@ lavapipe): time from an edit to the first new frame, and samples/s while refinin
 --denoise (issue 36): the same edits with the viewport's denoiser on (its own thread); written
 to bench/results/viewport_latency_denoise.json. The edit latency must not grow with it.
 
+--startup --denoise (issue 36): time from switching to Rendered (Use Viewport Denoising on) to
+the first denoised image (a coarse preview frame's) and to the first full-resolution denoised
+one. Per scene one Blender run fills a fresh Mesa shader cache ("cold"), then --runs runs use
+it ("warm"); written to --out (default bench/results/viewport_denoise_startup.json), with the
+load average before each run.
+
 --startup (issue 9): each run is a new Blender process (mode "startup" of gui_driver.py);
 "cold" runs get an empty Mesa shader cache (MESA_SHADER_CACHE_DIR), "warm" runs the cache the
 cold run filled. It measures the viewport as built ("quick": the preview program's first
@@ -27,6 +33,7 @@ import argparse
 import glob
 import json
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -47,10 +54,11 @@ def main(argv=None):
     parser.add_argument("--denoise", action="store_true", help="with Use Viewport Denoising on")
     args = parser.parse_args(argv)
     if args.denoise and args.out == parser.get_default("out"):
-        args.out = os.path.join(HERE, "results", "viewport_latency_denoise.json")
+        args.out = os.path.join(HERE, "results", "viewport_denoise_startup.json" if args.startup
+                                else "viewport_latency_denoise.json")
     size = tuple(int(v) for v in args.size.split("x"))
     if args.startup:
-        return startup(args, size)
+        return startup_denoise(args, size) if args.denoise else startup(args, size)
     with tempfile.TemporaryDirectory() as tmp:
         subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-build-isolation", "--no-deps",
                         "-w", tmp, REPO], check=True)
@@ -60,12 +68,14 @@ def main(argv=None):
         rows = {}
         try:
             for scene in args.scenes:
+                load = os.getloadavg()
                 proc, out = session.start(scene, "bench")
                 log, _ = proc.communicate(timeout=900)
                 with open(os.path.join(out, "result.json")) as f:
                     result = json.load(f)
                 if result["errors"]:
                     raise RuntimeError("\n".join(result["errors"]) + log[-2000:])
+                result["loadavg_before"], result["loadavg_after"] = load, os.getloadavg()
                 rows[scene] = result
         finally:
             session.close()
@@ -77,6 +87,9 @@ def main(argv=None):
             print(f"{scene:14s} {edit:9s} {ms:>30s}   (parts sent: {parts})")
         h, w = result["size"]
         print(f"{scene:14s} refining at {w}x{h}: {result['samples_per_second']:.1f} samples/s")
+        every = sorted(seconds for runs in result["edits"].values() for _, seconds in runs)
+        print(f"{scene:14s} median edit -> first new frame: {1000 * statistics.median(every):.0f} ms "
+              f"(load average before {result['loadavg_before'][0]:.2f}, after {result['loadavg_after'][0]:.2f})")
     os.makedirs(os.path.dirname(args.out), exist_ok=True)
     if os.path.exists(args.out) and not args.denoise:  # keep the start-up figures of --startup
         with open(args.out) as f:
@@ -131,6 +144,49 @@ def startup(args, size):
     with open(out + ".md", "w") as f:
         f.write("\n".join(lines) + "\n")
     print("\n".join(lines))
+
+
+def startup_denoise(args, size):
+    """--startup --denoise: per scene a cold run (fills a fresh Mesa cache), then args.runs warm."""
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-build-isolation", "--no-deps",
+                        "-w", tmp, REPO], check=True)
+        (wheel,) = glob.glob(os.path.join(tmp, "parallax_core-*-cp311-*.whl"))
+        session = gui.BlenderGui(os.path.join(tmp, "gui"), wheel, size, scenes=args.scenes)
+        try:
+            for scene in args.scenes:
+                session.env.update(MESA_SHADER_CACHE_DIR=tempfile.mkdtemp(dir=tmp), PX_DENOISE="1",
+                                   PX_NO_QUICK_FRAME="0")
+                for run in range(args.runs + 1):
+                    cache_state = "warm" if run else "cold"
+                    load = os.getloadavg()
+                    proc, out = session.start(scene, "startup", f"startup-denoise-{run}")
+                    log, _ = proc.communicate(timeout=900)
+                    with open(os.path.join(out, "result.json")) as f:
+                        result = json.load(f)
+                    if result["errors"]:
+                        raise RuntimeError("\n".join(result["errors"]) + log[-2000:])
+                    rows.append({"scene": scene, "cache": cache_state, "run": run,
+                                 "first_image_s": result["first_image_seconds"],
+                                 "first_full_frame_s": result["first_full_frame_seconds"],
+                                 "first_to_denoiser_s": result["first_handover_seconds"],
+                                 "first_to_denoiser_pixel_size": result["first_handover_pixel_size"],
+                                 "first_denoised_s": result["first_denoised_seconds"],
+                                 "first_full_denoised_s": result["first_full_denoised_seconds"],
+                                 "size": result["size"], "loadavg_before": load})
+                    print(rows[-1], flush=True)
+        finally:
+            session.close()
+    os.makedirs(os.path.dirname(args.out), exist_ok=True)
+    with open(args.out, "w") as f:
+        json.dump({"window": list(size), "runs": rows}, f, indent=1)
+    print("| scene | Mesa cache | first image (s) | first to the denoiser (s, pixel size) | first denoised (s) | "
+          "first full frame (s) | first full denoised (s) | load average (1 min) |")
+    for r in rows:
+        print(f"| {r['scene']} | {r['cache']} | {r['first_image_s']:.2f} | {r['first_to_denoiser_s']:.2f} "
+              f"({r['first_to_denoiser_pixel_size']}) | {r['first_denoised_s']:.2f} | {r['first_full_frame_s']:.2f} | "
+              f"{r['first_full_denoised_s']:.2f} | {r['loadavg_before'][0]:.2f} |")
 
 
 if __name__ == "__main__":

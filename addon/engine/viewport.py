@@ -14,12 +14,16 @@ with a cold shader cache), the first frame comes from the preview program (first
 shading, ``RenderParams.preview``, quick to compile) at the preview's pixel size, while the
 path tracer compiles on a thread of its own (issue 9).
 
-Denoising (Use Viewport Denoising): full-size frames from Start Denoising on go to a
-denoise thread of their own (``_DenoiseThread``), never Blender's or the render worker's:
-it denoises the newest frame handed to it, dropping older ones, and shows the result if no
-edit came in meanwhile. Until the first denoised frame of a scene state the noisy frames
-show; after it, the denoised ones (as Cycles' viewport). An edit shows its new noisy frames at
-once and never waits for the denoiser.
+Denoising (Use Viewport Denoising): frames from Start Denoising on go to a denoise thread of
+their own (``_DenoiseThread``), never Blender's or the render worker's: it denoises the newest
+frame handed to it, dropping older ones, and shows the result if no edit came in meanwhile.
+The coarse preview frame of an edit goes too, to a second denoise thread at normal priority
+(small, so OIDN takes a fraction of a second of one core on it: the first denoised image comes
+long before a full-size one, issue 36); the preview program's first-hit frame does not (it
+has no noise). Within one scene state the image shown never gets coarser, and at a pixel size
+showing denoised frames it shows no noisy ones again (as Cycles' viewport): a coarse denoised
+frame gives way to the first full-size frame, noisy or not, and never replaces one. An edit
+shows its new noisy frames at once and never waits for the denoiser.
 """
 import os
 import threading
@@ -35,6 +39,9 @@ PREVIEW_SECONDS = 0.03
 # OIDN's CPU threads in the viewport: a quarter of the cores (one on this 2-core machine), on
 # the denoise thread at nice +10, so the render keeps the cores edits need (issue 36).
 VIEWPORT_DENOISE_THREADS = max(1, (os.cpu_count() or 1) // 4)
+# The coarse preview frames' denoise thread keeps the render's priority: at nice +10 a
+# 0.2-CPU-second denoise waits seconds behind the render's threads (and a loaded machine's).
+COARSE_DENOISE_NICE, FULL_DENOISE_NICE = 0, 10
 PUBLISH_SECONDS = 0.05  # at most this often a new image for the viewport
 
 _workers = weakref.WeakSet()  # live workers, stopped on unregister
@@ -91,9 +98,11 @@ class _Worker(threading.Thread):
         # latest (image (H, W, 4), samples, pixel size, generation, denoised)
         self.frame = None
         self._denoise = denoise  # the denoising settings {name: value} with use_preview_denoising on, or None
-        self._denoiser = None    # _DenoiseThread, made with the first frame to denoise
+        # _DenoiseThread of the full-size frames, and of the coarse ones: made with their first frame
+        self._denoiser = self._coarse_denoiser = None
         self.denoised_frames = 0  # frames the denoiser showed (tests, bench/)
         self.first_denoised_at = None  # perf_counter() of the first (bench/)
+        self.first_full_denoised_at = None  # ... of the first at pixel size 1 (bench/)
         self.denoise_message = None  # why frames are not denoised (no OIDN), or None
         self.error = None
         self.done = False      # the sample target is reached and nothing is pending
@@ -159,8 +168,9 @@ class _Worker(threading.Thread):
             self._stopped = True
             self._cancel()
             self._lock.notify()
-        if self._denoiser is not None:
-            self._denoiser.stop()
+        for denoiser in (self._denoiser, self._coarse_denoiser):
+            if denoiser is not None:
+                denoiser.stop()
         if self.is_alive() and threading.current_thread() is not self:
             self.join(wait)
 
@@ -170,22 +180,27 @@ class _Worker(threading.Thread):
 
     def denoise_pending(self):
         """A frame is with the denoiser (view_draw keeps redrawing until it is shown)."""
-        return self._denoiser is not None and self._denoiser.pending()
+        return any(d is not None and d.pending() for d in (self._denoiser, self._coarse_denoiser))
 
-    def _show_denoised(self, generation, samples, image):
-        """The denoise thread's result: shown if no edit came in since its frame and nothing
-        newer of the same scene state is shown denoised."""
+    def _show_denoised(self, generation, samples, pixel_size, image):
+        """The denoise thread's result: shown if no edit came in since its frame, nothing finer
+        of the same scene state is shown (a full-size frame, noisy or not, over a coarse denoised
+        one) and nothing newer at its pixel size is shown denoised."""
         with self._lock:
             if self._stopped or generation != self._rendering or generation != self.generation:
                 return
             shown = self.frame
-            if shown is not None and shown[3] == generation and shown[4] and shown[1] >= samples:
+            if shown is not None and shown[3] == generation and (
+                    shown[2] < pixel_size or shown[2] == pixel_size and shown[4] and shown[1] >= samples):
                 return
             if self._display != "combined":
                 return
-            self.frame = (image, samples, 1, generation, True)
+            self.frame = (image, samples, pixel_size, generation, True)
             self.denoised_frames += 1
-            self.first_denoised_at = self.first_denoised_at or time.perf_counter()
+            now = time.perf_counter()
+            self.first_denoised_at = self.first_denoised_at or now
+            if pixel_size == 1:
+                self.first_full_denoised_at = self.first_full_denoised_at or now
 
     # -- worker thread --
 
@@ -228,8 +243,6 @@ class _Worker(threading.Thread):
             width, height = self._full.width, self._full.height
             self._preview = Session(max(1, width // factor), max(1, height // factor),
                                     self.device) if factor > 1 else None
-            if self._preview is not None:
-                self._preview.passes = ["combined"]  # it shows Combined alone (_publish)
             self._preview_factor, preview_parts = factor, None
         for session, session_parts in ((self._full, parts), (self._preview, preview_parts)):
             if session is not None:
@@ -246,6 +259,9 @@ class _Worker(threading.Thread):
             if self._stopped:
                 return False
         if edited and self._preview is not None:
+            # Combined, and the passes the viewport's denoiser reads of its frames (albedo and
+            # normal add nothing measurable to its frame time).
+            self._preview.passes = list(self._denoise_passes()) or ["combined"]
             if not self._full.pipeline_ready:
                 self._quick_frame(params)
             self._preview.render(1)
@@ -254,8 +270,12 @@ class _Worker(threading.Thread):
         # Done at the sample target, or once adaptive sampling found every pixel converged.
         if (target and samples >= target or self._full.converged) and not self._full.fallback_film:
             shown = self.frame
-            if self._display_changed or shown is None or shown[1] != samples or shown[2] != 1:
-                # The last frame may have come too soon to publish, or to go to the busy denoiser.
+            denoising = bool(self._denoise) and self._display == "combined" and self.denoise_message is None
+            if (self._display_changed or shown is None or shown[1] != samples or shown[2] != 1
+                    or shown[4] != denoising):
+                # The last frame may have come too soon to publish, or to go to the busy denoiser
+                # (shown noisy, an older denoised frame would replace it), or denoising was
+                # switched since.
                 self._publish(self._full, 1, last=True)
             self.done = True
             return True
@@ -275,7 +295,7 @@ class _Worker(threading.Thread):
         self._full.warm()
         self._preview.set_params(**_without_techniques(params), preview=True)
         self._preview.render(1)
-        self._publish(self._preview, self._preview_factor)
+        self._publish(self._preview, self._preview_factor, denoise=False)  # first-hit: no noise
         self._preview.set_params(**_without_techniques(params), preview=False)
 
     def _render_frame(self):
@@ -304,10 +324,17 @@ class _Worker(threading.Thread):
                 return factor
         return 8
 
-    def _publish(self, session, pixel_size, last=False):
-        """Shows ``session``'s image; with denoising, hands it to the denoise thread when that
-        is idle (reading the auxiliary passes for a frame it would drop costs frame time), or
-        when it is the ``last`` frame before the sample target."""
+    def _denoise_passes(self):
+        """The film passes the viewport's denoiser reads (none with denoising off)."""
+        denoise = self._denoise
+        return core.load().denoise.film_passes(denoise, preview=True) if denoise else ()
+
+    def _publish(self, session, pixel_size, last=False, denoise=True):
+        """Shows ``session``'s image; with denoising, hands it to the denoise thread: a coarse
+        preview frame always (the first of its scene state; small, so its passes read fast), a
+        full-size one when the thread is idle (reading the auxiliary passes for a frame it
+        would drop costs frame time) or when it is the ``last`` before the sample target.
+        ``denoise``: False for the preview program's first-hit frame."""
         display = self._display
         if display != "combined" and session is not self._full:
             return  # the quick preview renders without the techniques whose passes these are
@@ -316,23 +343,32 @@ class _Worker(threading.Thread):
         image = _as_rgba(session.read("combined" if display == "noisy_image" else display))
         samples = session.samples
         frame = (image, samples, pixel_size, self._rendering, False)
-        denoise = self._denoise
-        if (denoise and display == "combined" and session is self._full and not session.fallback_film
-                and samples >= max(1, denoise["preview_denoising_start_sample"])
-                and self.denoise_message is None and (last or not self.denoise_pending())):
-            denoise_module = core.load().denoise
-            images = {"combined": image}
-            for name in denoise_module.film_passes(denoise, preview=True)[1:]:
-                images[name] = session.read(name)
-            if self._denoiser is None:
-                self._denoiser = _DenoiseThread(self, session.device_type)
-                self._denoiser.start()
-            self._denoiser.submit((self._rendering, samples, images, denoise))
+        values = self._denoise
+        denoising = bool(values) and display == "combined" and self.denoise_message is None
+        with self._lock:  # shown before the denoiser has it: an edit's noisy frame comes first
             shown = self.frame
-            if shown is not None and shown[3] == self._rendering and shown[4]:
-                frame = None  # this scene state shows denoised frames now: the next comes from the denoiser
-        if frame is not None:
-            self.frame = frame
+            # This scene state shows a denoised frame at least as fine: the next comes from the denoiser.
+            if not (denoising and shown is not None and shown[3] == self._rendering and shown[4]
+                    and shown[2] <= pixel_size):
+                self.frame = frame
+        if (denoising and denoise and not session.fallback_film
+                and samples >= max(1, values["preview_denoising_start_sample"])
+                and (last or pixel_size > 1 or self._denoiser is None or not self._denoiser.pending())):
+            images = {"combined": image}
+            for name in self._denoise_passes()[1:]:
+                images[name] = session.read(name)
+            if pixel_size > 1:
+                if self._coarse_denoiser is None:
+                    self._coarse_denoiser = _DenoiseThread(self, session.device_type, COARSE_DENOISE_NICE,
+                                                          "parallax-viewport-denoise-coarse")
+                    self._coarse_denoiser.start()
+                denoiser = self._coarse_denoiser
+            else:
+                if self._denoiser is None:
+                    self._denoiser = _DenoiseThread(self, session.device_type, FULL_DENOISE_NICE)
+                    self._denoiser.start()
+                denoiser = self._denoiser
+            denoiser.submit((self._rendering, samples, pixel_size, images, values))
         self._published = time.perf_counter()
         self.first_frame_at = self.first_frame_at or self._published
         if pixel_size == 1:
@@ -347,14 +383,14 @@ class _Worker(threading.Thread):
 class _DenoiseThread(threading.Thread):
     """Denoises the newest frame handed to it (older ones are dropped) with one OIDN device
     of its own, and hands the result to the worker. OIDN's call releases the GIL (ctypes).
-    It runs at a lower CPU priority than the render (nice +10) on VIEWPORT_DENOISE_THREADS
-    threads, and an edit cancels the denoise in progress (OIDN's progress monitor), so the
-    edit's frames get the cores at once."""
+    It runs at ``nice`` (+10 for full-size frames: a lower CPU priority than the render) on
+    VIEWPORT_DENOISE_THREADS threads, and an edit cancels the denoise in progress (OIDN's
+    progress monitor), so the edit's frames get the cores at once."""
 
-    def __init__(self, worker, device_type):
-        super().__init__(name="parallax-viewport-denoise", daemon=True)
+    def __init__(self, worker, device_type, nice, name="parallax-viewport-denoise"):
+        super().__init__(name=name, daemon=True)
         self._worker = weakref.ref(worker)
-        self._device_type = device_type
+        self._device_type, self._nice = device_type, nice
         self._cond = threading.Condition()
         self._job, self._busy, self._stopped = None, False, False
 
@@ -376,7 +412,8 @@ class _DenoiseThread(threading.Thread):
         denoise = core.load().denoise
         denoiser = None
         try:
-            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), 10)  # this thread (Linux)
+            if self._nice:
+                os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), self._nice)  # this thread (Linux)
         except (AttributeError, OSError):
             pass
         try:
@@ -390,14 +427,14 @@ class _DenoiseThread(threading.Thread):
                 worker = self._worker()
                 if worker is None:
                     return
-                generation, samples, images, values = job
+                generation, samples, pixel_size, images, values = job
                 try:
                     if generation == worker.generation:  # not already edited away
                         denoiser = denoiser or denoise.Denoiser(self._device_type, threads=VIEWPORT_DENOISE_THREADS)
                         out = denoise.denoise_images(
                             images, values, denoiser, preview=True,
                             cancel=lambda: self._stopped or worker.edited_since(generation))
-                        worker._show_denoised(generation, samples, out["combined"])
+                        worker._show_denoised(generation, samples, pixel_size, out["combined"])
                 except denoise.DenoiseCancelled:
                     pass  # an edit came in: its frames come next
                 except (denoise.DenoiserUnavailable, denoise.DenoiseError) as e:

@@ -184,16 +184,34 @@ def bench_steps():
 def startup_steps():
     """Seconds from switching the viewport to Rendered to its first image, and to its first
     full-resolution path-traced frame. PX_NO_QUICK_FRAME=1: without the preview program's
-    first frame (the viewport before issue 9), for comparison."""
+    first frame (the viewport before issue 9), for comparison. PX_DENOISE=1 (issue 36): also
+    to the first denoised image (any pixel size) and to the first full-resolution denoised one."""
     if os.environ.get("PX_NO_QUICK_FRAME") == "1":
         from parallax.engine import viewport
         viewport._Worker._quick_frame = lambda self, params: None
+    denoise = os.environ.get("PX_DENOISE") == "1"
+    if denoise:  # when (and at which pixel size) the first frame went to the denoiser
+        from parallax.engine import viewport
+        submit = viewport._DenoiseThread.submit
+
+        def recording_submit(self, job):
+            result.setdefault("first_handover", (time.perf_counter(), job[2]))
+            submit(self, job)
+        viewport._DenoiseThread.submit = recording_submit
     yield from rendered_camera_view()
     yield lambda: worker() is not None and worker().first_full_frame_at is not None
     w = worker()
     result["first_image_seconds"] = w.first_frame_at - result["rendered_at"]
     result["first_full_frame_seconds"] = w.first_full_frame_at - result["rendered_at"]
     result["size"] = list(w.frame[0].shape[:2])
+    if denoise:
+        yield lambda: worker().first_full_denoised_at is not None or worker().denoise_message is not None
+        w = worker()
+        assert w.denoise_message is None, w.denoise_message
+        result["first_denoised_seconds"] = w.first_denoised_at - result["rendered_at"]
+        result["first_full_denoised_seconds"] = w.first_full_denoised_at - result["rendered_at"]
+        at, result["first_handover_pixel_size"] = result.pop("first_handover")
+        result["first_handover_seconds"] = at - result["rendered_at"]
 
 
 def denoise_steps():
