@@ -18,7 +18,7 @@ LOBES_LOOP_FRAMES = 48  # Animate Lobes: frames per loop of the spheres through 
 # A float row's unit as Blender shows it.
 UNITS = {"time": dict(subtype="TIME_ABSOLUTE", unit="TIME_ABSOLUTE"),
          "length": dict(subtype="DISTANCE", unit="LENGTH"),
-         "pixel": dict(subtype="PIXEL")}
+         "pixel": dict(subtype="PIXEL", unit="NONE")}
 # Rows whose Cycles setting has another name (the others share Cycles' names).
 CYCLES_NAMES = {"max_depth": "max_bounces"}
 DEVICE_ITEMS = (
