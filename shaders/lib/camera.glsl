@@ -12,6 +12,8 @@ float pixel_filter_offset(float u) {
 }
 
 vec2 pixel_filter_sample(vec2 u) {
+    // A box is uniform: no table reads, whose latency costs short (PT) frames on the H200.
+    if (params.filter_box_width > 0.0) return 0.5 + (u - 0.5) * params.filter_box_width;
     return vec2(0.5 + pixel_filter_offset(u.x), 0.5 + pixel_filter_offset(u.y));
 }
 

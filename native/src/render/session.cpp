@@ -452,6 +452,7 @@ FrameParams Session::frame_params(uint32_t frame) const {
     auto clamp_limit = [](float v) { return v > 0.0f ? 3.0f * v : std::numeric_limits<float>::infinity(); };
     fp.clamp_direct = clamp_limit(params_.sample_clamp_direct);
     fp.clamp_indirect = clamp_limit(params_.sample_clamp_indirect);
+    fp.filter_box_width = params_.pixel_filter_type == FILTER_BOX ? params_.filter_width : 0.0f;
     fp.mode = FRAME_RENDER;
     fp.film_passes = allocated_passes_;
     for (const auto& t : techniques_) t->fill_frame_params(fp);
