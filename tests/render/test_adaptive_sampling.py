@@ -46,7 +46,7 @@ def reference(scene):
 
 def adaptive_session(scene, spp_per_frame=16, **params):
     s = pc.Session(scene.width, scene.height, "cpu")
-    s.set_params(**{**ADAPTIVE, "samples_per_frame": spp_per_frame, **params})
+    s.set_params(**{**pc.UNBIASED_LIGHT_PATHS, **ADAPTIVE, "samples_per_frame": spp_per_frame, **params})
     s.update(scene)
     return s
 
@@ -148,6 +148,8 @@ def test_with_a_technique_it_renders_and_matches(scene, reference, technique):
 def test_background_compile_fallback_frames_then_the_technique(scene):
     s = adaptive_session(scene, ic=True, ic_prepare_frames=3)
     s.background_compile = True
+    s.render(1)  # starts the technique's compile in the background (or finds it compiled)
+    pc.wait_for_background_compiles()  # the event, not a number of frames (a cold compile outlasts 200)
     for _ in range(200):
         s.render(1)
         if not s.fallback_film and s.samples >= 64:
