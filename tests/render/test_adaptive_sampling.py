@@ -159,6 +159,17 @@ def test_background_compile_fallback_frames_then_the_technique(scene):
     assert np.isfinite(s.read("combined")).all() and count.min() < count.max() == s.samples
 
 
+def test_a_fallback_film_never_reads_as_converged(scene):
+    # F12 stops once every pixel converged: the fallback's samples, thrown away when the
+    # technique's pipelines are ready, must not end it (a 16-px F12 did, after 3616 of them).
+    s = adaptive_session(scene, adrrs=True, adaptive_threshold=0.5, adaptive_min_samples=1)
+    s.background_compile = True
+    s.render(1)
+    while s.fallback_film and pc.background_compiles():
+        assert not s.converged
+        s.render(1)
+
+
 def test_cli_set_for_npz(tmp_path, scene):
     from parallax_core import cli
     from parallax_core.cli import parse_params

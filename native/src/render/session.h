@@ -75,9 +75,11 @@ public:
     }
     // Adaptive sampling found every pixel converged: render() and render_rows() add nothing
     // until a reset (cheap).
+    // Every pixel converged (adaptive sampling). Never while the film holds the fallback's
+    // samples: they are thrown away once the techniques' pipelines are ready.
     bool converged() {
         std::lock_guard<std::mutex> lock(mutex_);
-        return adaptive_->converged();
+        return !fallback_frame_ && !film_after_fallback_ && adaptive_->converged();
     }
     // (height, width, channels) float32, row 0 = top; each pixel's sums divided by its own
     // sample count (exact after a partial or cancelled frame too).
