@@ -98,13 +98,29 @@ def main(argv=None):
         json.dump(rows, f, indent=1)
 
 
+def _gui_session(tmp, size, scenes):
+    """A Blender GUI session under Xvfb with this tree's parallax_core wheel, built into tmp."""
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-build-isolation", "--no-deps",
+                    "-w", tmp, REPO], check=True)
+    (wheel,) = glob.glob(os.path.join(tmp, "parallax_core-*-cp311-*.whl"))
+    return gui.BlenderGui(os.path.join(tmp, "gui"), wheel, size, scenes=scenes)
+
+
+def _startup_run(session, scene, name):
+    """One Blender run of gui_driver's startup steps; its result.json (RuntimeError on errors)."""
+    proc, out = session.start(scene, "startup", name)
+    log, _ = proc.communicate(timeout=900)
+    with open(os.path.join(out, "result.json")) as f:
+        result = json.load(f)
+    if result["errors"]:
+        raise RuntimeError("\n".join(result["errors"]) + log[-2000:])
+    return result
+
+
 def startup(args, size):
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
-        subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-build-isolation", "--no-deps",
-                        "-w", tmp, REPO], check=True)
-        (wheel,) = glob.glob(os.path.join(tmp, "parallax_core-*-cp311-*.whl"))
-        session = gui.BlenderGui(os.path.join(tmp, "gui"), wheel, size, scenes=args.scenes)
+        session = _gui_session(tmp, size, args.scenes)
         try:
             for scene in args.scenes:
                 for run in range(args.runs):
@@ -112,12 +128,7 @@ def startup(args, size):
                         cache = tempfile.mkdtemp(dir=tmp)
                         for cache_state in ("cold", "warm"):
                             session.env.update(MESA_SHADER_CACHE_DIR=cache, PX_NO_QUICK_FRAME=quick)
-                            proc, out = session.start(scene, "startup", f"startup-{variant}-{run}-{cache_state}")
-                            log, _ = proc.communicate(timeout=900)
-                            with open(os.path.join(out, "result.json")) as f:
-                                result = json.load(f)
-                            if result["errors"]:
-                                raise RuntimeError("\n".join(result["errors"]) + log[-2000:])
+                            result = _startup_run(session, scene, f"startup-{variant}-{run}-{cache_state}")
                             rows.append({"scene": scene, "variant": variant, "cache": cache_state, "run": run,
                                          "first_image_s": result["first_image_seconds"],
                                          "first_full_frame_s": result["first_full_frame_seconds"],
@@ -150,10 +161,7 @@ def startup_denoise(args, size):
     """--startup --denoise: per scene a cold run (fills a fresh Mesa cache), then args.runs warm."""
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
-        subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-build-isolation", "--no-deps",
-                        "-w", tmp, REPO], check=True)
-        (wheel,) = glob.glob(os.path.join(tmp, "parallax_core-*-cp311-*.whl"))
-        session = gui.BlenderGui(os.path.join(tmp, "gui"), wheel, size, scenes=args.scenes)
+        session = _gui_session(tmp, size, args.scenes)
         try:
             for scene in args.scenes:
                 session.env.update(MESA_SHADER_CACHE_DIR=tempfile.mkdtemp(dir=tmp), PX_DENOISE="1",
@@ -161,12 +169,7 @@ def startup_denoise(args, size):
                 for run in range(args.runs + 1):
                     cache_state = "warm" if run else "cold"
                     load = os.getloadavg()
-                    proc, out = session.start(scene, "startup", f"startup-denoise-{run}")
-                    log, _ = proc.communicate(timeout=900)
-                    with open(os.path.join(out, "result.json")) as f:
-                        result = json.load(f)
-                    if result["errors"]:
-                        raise RuntimeError("\n".join(result["errors"]) + log[-2000:])
+                    result = _startup_run(session, scene, f"startup-denoise-{run}")
                     rows.append({"scene": scene, "cache": cache_state, "run": run,
                                  "first_image_s": result["first_image_seconds"],
                                  "first_full_frame_s": result["first_full_frame_seconds"],
