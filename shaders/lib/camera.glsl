@@ -12,8 +12,9 @@ float pixel_filter_offset(float u) {
 }
 
 vec2 pixel_filter_sample(vec2 u) {
-    // A box is uniform: no table reads, whose latency costs short (PT) frames on the H200.
-    if (params.filter_box_width > 0.0) return 0.5 + (u - 0.5) * params.filter_box_width;
+    // A one-pixel box is a plain jitter: no table reads, and no branch on a frame parameter
+    // (either cost the H200 5-8% of its PT frames, bench/results/regression_issue32_final).
+    if (FILTER_FROM_TABLE == 0u) return u;
     return vec2(0.5 + pixel_filter_offset(u.x), 0.5 + pixel_filter_offset(u.y));
 }
 

@@ -44,6 +44,12 @@ void film_add(uint pass, uint pixel_index, vec4 value) {
     film[film_slot(pass) * (params.width * params.height) + pixel_index] += value;
 }
 
+// Adaptive sampling's mode this frame (ADAPTIVE_*): off in pipelines built without it, whose
+// code for it folds away (a frame parameter's branch costs the H200 3-4% of its PT frames).
+uint adaptive_mode() {
+    return ADAPTIVE_SAMPLING == 0u ? ADAPTIVE_OFF : params.adaptive;
+}
+
 // The image pixel of a dispatch's launch position `launch` (gl_LaunchIDEXT.xy): its place in
 // the dispatch's image rectangle (col_offset, row_offset), or with adaptive sampling's active
 // list (ADAPTIVE_LIST) the pixel that entry of the list names, the list read as a virtual image
@@ -51,7 +57,7 @@ void film_add(uint pass, uint pixel_index, vec4 value) {
 // a lane past the list's end, which traces nothing.
 bool dispatch_pixel(uvec2 launch, out uvec2 pixel) {
     pixel = launch + uvec2(params.col_offset, params.row_offset);
-    if (params.adaptive != ADAPTIVE_LIST) return true;
+    if (adaptive_mode() != ADAPTIVE_LIST) return true;
     uint entry = pixel.y * params.width + pixel.x;
     if (entry >= params.active_pixels) return false;
     uint index = adaptive_pixels[entry];

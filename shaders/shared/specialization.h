@@ -16,13 +16,20 @@
 //   EMPTY_SHADOW_CALLS  1: paths without a pending shadow ray make an empty trace call
 //                       (integrator.glsl, trace_pending_shadow); 0 on lavapipe
 //   LIGHT_PATH_LIMITS   LIMIT_* bits of the light-path limits that can bind, tested by LIMITS()
+//   FILTER_FROM_TABLE   1: camera samples are drawn from the pixel filter's table; 0: the filter
+//                       is a one-pixel box, a plain jitter (camera.glsl, pixel_filter_sample)
+//   ADAPTIVE_SAMPLING   0: adaptive sampling is off and its raygen state folds away (GPUs); 1:
+//                       FrameParams.adaptive decides (lavapipe always: the viewport's and F12's
+//                       defaults differ there, and one pipeline serves both)
 #define PX_SPEC_CONSTANTS(X)                              \
     X(0, METHOD, method, METHOD_MIS)                      \
     X(1, MIS_HEURISTIC, heuristic, HEURISTIC_POWER)       \
     X(2, SCENE_FEATURES, features, FEATURE_ALL)           \
     X(3, TECHNIQUES, techniques, 0u)                      \
     X(4, EMPTY_SHADOW_CALLS, empty_shadow_calls, 1u)      \
-    X(5, LIGHT_PATH_LIMITS, light_path_limits, LIMIT_ALL)
+    X(5, LIGHT_PATH_LIMITS, light_path_limits, LIMIT_ALL) \
+    X(6, FILTER_FROM_TABLE, filter_from_table, 1u)       \
+    X(7, ADAPTIVE_SAMPLING, adaptive_sampling, 1u)
 
 #ifdef __cplusplus
 #include <array>

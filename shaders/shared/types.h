@@ -330,7 +330,6 @@ struct FrameParams {
     uint transmission_bounces;
     float clamp_direct;
     float clamp_indirect;
-    float filter_box_width;  // > 0: a box pixel filter this wide, sampled without its table
 };
 
 // Pixel filters (RenderParams.pixel_filter_type, Cycles' order) and the size of the table that

@@ -256,18 +256,22 @@ void wait_for_background_compiles() {
 // The program and its specialisation constants (shaders/shared/specialization.h); the preview
 // program uses the scene features only. A technique's bit may differ between render frames and
 // host frames (Technique::spec_bit). GPUs make empty shadow calls, lavapipe does not
-// (integrator.glsl, trace_pending_shadow).
+// (integrator.glsl, trace_pending_shadow). A one-pixel box filter needs no table. On GPUs a
+// pipeline carries adaptive sampling only where it is on; lavapipe's always does (its compiles
+// are slow, and the viewport's and F12's defaults differ).
 PipelineKey Session::pipeline_key(uint32_t program, bool render_frame) const {
     SpecConstants c;
     c.features = scene_->host().features;
     c.empty_shadow_calls = ctx_->is_cpu() ? 0u : 1u;
     if (program == PROGRAM_PREVIEW) {
-        c.method = c.heuristic = c.techniques = c.light_path_limits = 0u;
+        c.method = c.heuristic = c.techniques = c.light_path_limits = c.filter_from_table = c.adaptive_sampling = 0u;
         return {program, c};
     }
     c.method = params_.method;
     c.heuristic = params_.mis_heuristic;
     c.light_path_limits = light_path_limits(params_);
+    c.filter_from_table = params_.pixel_filter_type == FILTER_BOX && params_.filter_width == 1.0f ? 0u : 1u;
+    c.adaptive_sampling = ctx_->is_cpu() || adaptive_->on() ? 1u : 0u;
     c.techniques = 0u;
     for (const auto& t : techniques_) c.techniques |= t->spec_bit(render_frame);
     return {program, c};
@@ -452,7 +456,6 @@ FrameParams Session::frame_params(uint32_t frame) const {
     auto clamp_limit = [](float v) { return v > 0.0f ? 3.0f * v : std::numeric_limits<float>::infinity(); };
     fp.clamp_direct = clamp_limit(params_.sample_clamp_direct);
     fp.clamp_indirect = clamp_limit(params_.sample_clamp_indirect);
-    fp.filter_box_width = params_.pixel_filter_type == FILTER_BOX ? params_.filter_width : 0.0f;
     fp.mode = FRAME_RENDER;
     fp.film_passes = allocated_passes_;
     for (const auto& t : techniques_) t->fill_frame_params(fp);
