@@ -336,6 +336,11 @@ void Session::warm() {
     if (!scene_) throw std::runtime_error("no scene: call update(scene) before warm()");
     auto wanted = needed_pipelines();
     wanted.push_back(fallback_key());
+    if (!ctx_->is_cpu()) {  // a GPU's viewport (no adaptive sampling by default) and F12 differ by it
+        PipelineKey other = fallback_key();
+        other.second.adaptive_sampling ^= 1u;
+        wanted.push_back(other);
+    }
     compiled_or_started(wanted);
 }
 
