@@ -28,7 +28,7 @@
     X(3, TECHNIQUES, techniques, 0u)                      \
     X(4, EMPTY_SHADOW_CALLS, empty_shadow_calls, 1u)      \
     X(5, LIGHT_PATH_LIMITS, light_path_limits, LIMIT_ALL) \
-    X(6, FILTER_FROM_TABLE, filter_from_table, 1u)       \
+    X(6, FILTER_FROM_TABLE, filter_from_table, 1u)        \
     X(7, ADAPTIVE_SAMPLING, adaptive_sampling, 1u)
 
 #ifdef __cplusplus
