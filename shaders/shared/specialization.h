@@ -19,8 +19,8 @@
 //   FILTER_FROM_TABLE   1: camera samples are drawn from the pixel filter's table; 0: the filter
 //                       is a one-pixel box, a plain jitter (camera.glsl, pixel_filter_sample)
 //   ADAPTIVE_SAMPLING   0: adaptive sampling is off and its raygen state folds away (GPUs); 1:
-//                       FrameParams.adaptive decides (lavapipe always: the viewport's and F12's
-//                       defaults differ there, and one pipeline serves both)
+//                       FrameParams.adaptive decides (lavapipe always: a variant more costs it
+//                       a cold compile of 1-29 s, bench/results/compile_lavapipe)
 #define PX_SPEC_CONSTANTS(X)                              \
     X(0, METHOD, method, METHOD_MIS)                      \
     X(1, MIS_HEURISTIC, heuristic, HEURISTIC_POWER)       \

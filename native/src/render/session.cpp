@@ -257,8 +257,8 @@ void wait_for_background_compiles() {
 // program uses the scene features only. A technique's bit may differ between render frames and
 // host frames (Technique::spec_bit). GPUs make empty shadow calls, lavapipe does not
 // (integrator.glsl, trace_pending_shadow). A one-pixel box filter needs no table. On GPUs a
-// pipeline carries adaptive sampling only where it is on; lavapipe's always does (its compiles
-// are slow, and the viewport's and F12's defaults differ).
+// pipeline carries adaptive sampling only where it is on; lavapipe's always does (a variant
+// more is a slow cold compile there, for a gain not measured on it).
 PipelineKey Session::pipeline_key(uint32_t program, bool render_frame) const {
     SpecConstants c;
     c.features = scene_->host().features;
@@ -336,11 +336,6 @@ void Session::warm() {
     if (!scene_) throw std::runtime_error("no scene: call update(scene) before warm()");
     auto wanted = needed_pipelines();
     wanted.push_back(fallback_key());
-    if (!ctx_->is_cpu()) {  // a GPU's viewport (no adaptive sampling by default) and F12 differ by it
-        PipelineKey other = fallback_key();
-        other.second.adaptive_sampling ^= 1u;
-        wanted.push_back(other);
-    }
     compiled_or_started(wanted);
 }
 

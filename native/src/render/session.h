@@ -119,8 +119,7 @@ public:
     }
     bool background_compile() const { return background_compile_; }
     // Starts compiling, on a worker thread, the pipelines the current settings need and their
-    // fallback (on GPUs with and without adaptive sampling, a specialisation there); returns at
-    // once (the add-on warms them when the engine is picked or a file loads).
+    // fallback; returns at once (the add-on warms them when the engine is picked or a file loads).
     void warm();
     size_t triangle_count() const { return scene_ ? scene_->triangle_count() : 0; }
 
