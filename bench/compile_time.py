@@ -8,7 +8,7 @@
 For every scene, method and technique: a child process with an empty Mesa shader cache of its
 own (cold: what a user meets first) uploads the scene and times `Session.compile()` (every
 pipeline that variant needs) and then its first frame (lavapipe finishes a ray-tracing
-pipeline's compile at its first dispatch: compile() alone takes 0.4-1.5 s there, the first
+pipeline's compile at its first dispatch: compile() alone takes 0.4-1.6 s there, the first
 frame the rest), then a second child with the same cache times it again (warm:
 the driver's disk cache; NVIDIA's own cache is switched off with __GL_SHADER_DISK_CACHE=0 for
 the cold run). Scenes are the procedural ones of parallax_core.scenes, or every .npz in --npz
