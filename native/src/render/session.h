@@ -74,9 +74,8 @@ public:
         return stats_.samples;
     }
     // Adaptive sampling found every pixel converged: render() and render_rows() add nothing
-    // until a reset (cheap).
-    // Every pixel converged (adaptive sampling). Never while the film holds the fallback's
-    // samples: they are thrown away once the techniques' pipelines are ready.
+    // until a reset (cheap). Never while the film holds the fallback's samples: they are
+    // thrown away once the techniques' pipelines are ready.
     bool converged() {
         std::lock_guard<std::mutex> lock(mutex_);
         return !fallback_frame_ && !film_after_fallback_ && adaptive_->converged();
