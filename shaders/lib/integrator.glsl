@@ -29,6 +29,7 @@ struct PathOptions {
     uint bounces;
     uint discrete;
     uint kind_bounces;  // bounces of each kind so far (PathState.kind_bounces)
+    float min_ray_pdf;  // PathState.min_ray_pdf so far
     bool resume;
     // The triangle the first ray starts on (NO_INDEX: a camera or cache ray, off any surface).
     uint self_instance;
@@ -48,6 +49,7 @@ PathOptions path_options() {
     opt.bounces = 0u;
     opt.discrete = 0u;
     opt.kind_bounces = 0u;
+    opt.min_ray_pdf = INFINITY_F;
     opt.resume = false;
     opt.self_instance = NO_INDEX;
     opt.self_primitive = NO_INDEX;
@@ -93,6 +95,9 @@ struct PathState {
     // Cycles' diffuse, glossy and transmission bounces, 10 bits each at 10 x BOUNCE_* (counted
     // up to 1023) where the pipeline carries the budgets (LIMIT_KIND_BOUNCES).
     uint kind_bounces;
+    // The smallest pdf of the non-delta BSDF samples so far (Cycles' min_ray_pdf; +inf: none),
+    // where the pipeline carries Filter Glossy (LIMIT_BLUR_GLOSSY).
+    float min_ray_pdf;
     ShadowRay pending;
 };
 
@@ -283,6 +288,7 @@ PathState path_state(vec3 origin, vec3 dir, float t_min, float t_max, PathOption
     ps.bounces = opt.bounces;
     ps.discrete = opt.discrete;
     ps.kind_bounces = opt.kind_bounces;
+    ps.min_ray_pdf = opt.min_ray_pdf;
     ps.pending = no_shadow_ray(origin, dir);
     return ps;
 }
@@ -335,12 +341,28 @@ bool emission_stage(inout PathState ps, inout PathResult res, TechniquePath tp, 
     return true;
 }
 
+// Cycles' Filter Glossy (surface_shader_prepare_closures): a path that took a bounce it was
+// unlikely to take (min_ray_pdf, the smallest BSDF pdf so far, below blur_glossy) sees glossy
+// and glass lobes blurred to GGX alpha >= sqrt(1 - blur_pdf) / 2, blur_pdf = min_ray_pdf /
+// blur_glossy: caustics seen after a diffuse bounce become rough, so NEE and MIS find them.
+// Biased (the lobes are no longer the material's); alpha is roughness^2 here as in Cycles.
+// The energy compensation follows the blurred roughness (Cycles keeps the original's).
+void blur_glossy(inout Material m, float min_ray_pdf) {
+    if (!LIMITS(LIMIT_BLUR_GLOSSY) || m.type == MATERIAL_DIFFUSE) return;
+    float blur_pdf = params.filter_glossy * min_ray_pdf;
+    if (blur_pdf >= 1.0) return;
+    float min_roughness = sqrt(sqrt(1.0 - blur_pdf) * 0.5);
+    m.roughness = max(m.roughness, min_roughness);
+    m.coat_roughness = max(m.coat_roughness, min_roughness);
+}
+
 // The vertex's BSDF and shading frame. False: its material (of the mix chain) is an emitter,
 // which scatters nothing.
-bool vertex_stage(SurfaceHit sh, Material mat, vec3 dir, inout Rng rng, out Vertex v) {
+bool vertex_stage(SurfaceHit sh, Material mat, vec3 dir, float min_ray_pdf, inout Rng rng, out Vertex v) {
     // Emission was the head material's; the BSDF may come from its mix chain.
     mat = select_mix_material(mat, rng);
     if (mat.type == MATERIAL_EMISSION) return false;
+    blur_glossy(mat, min_ray_pdf);
 
     // Shading frame. Reflective materials are two-sided: face the normals towards wo.
     // Glass keeps the geometric side to know whether the ray enters or leaves.
@@ -414,6 +436,8 @@ bool continuation_stage(inout PathState ps, PathResult res, inout TechniquePath 
         sampled = bsdf_sample(v.surf, v.wo_local, rnd3(rng), bs);
     if (!sampled) return false;
     ps.roulette_throughput *= bs.weight;
+    // The BSDF's own pdf, before guiding mixes its own in (Cycles' unguided_bsdf_pdf).
+    if (LIMITS(LIMIT_BLUR_GLOSSY) && !bs.delta) ps.min_ray_pdf = min(ps.min_ray_pdf, bs.pdf);
     guiding_sampled_pdf(tv.guiding, v.sh.p, v.tangent, v.bitangent, v.ns, bs);
     ps.throughput *= bs.weight;
     count_kind_bounce(ps, bs.kind);
@@ -474,7 +498,7 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         if (!emission_stage(ps, res, tp, opt, sh, mat)) break;
         if (ps.bounces > opt.max_depth || kind_budget_spent(ps)) break;
         Vertex v;
-        if (!vertex_stage(sh, mat, ps.dir, rng, v)) break;
+        if (!vertex_stage(sh, mat, ps.dir, ps.min_ray_pdf, rng, v)) break;
         if (!ps.albedo_done && !v.delta) {
             res.albedo = ps.albedo_throughput * v.surf.albedo;
             ps.albedo_done = true;

@@ -97,6 +97,7 @@ struct AdrrsSplit {
     uint segments;    // segments the path had traced up to the vertex
     uint self_instance;   // the triangle the ray starts on (NO_INDEX: none)
     uint self_primitive;
+    float min_ray_pdf;    // the path's (PathState.min_ray_pdf)
 };
 PX_CONST uint ADRRS_SPLIT_CAMERA_RAY = 1u;
 PX_CONST uint ADRRS_SPLIT_HALF = 2u;  // queued by a sample of adaptive sampling's half buffer

@@ -155,7 +155,8 @@ PX_CONST uint FEATURE_ALL = 0xffffffffu;
 // H200 7% of its rays on the soup (bench/results/regression_h200_lightpaths).
 PX_CONST uint LIMIT_KIND_BOUNCES = 1u;  // Cycles' diffuse, glossy and transmission budgets
 PX_CONST uint LIMIT_CLAMP = 2u;         // Cycles' direct and indirect sample clamps
-PX_CONST uint LIMIT_ALL = 3u;
+PX_CONST uint LIMIT_BLUR_GLOSSY = 4u;   // Cycles' Filter Glossy
+PX_CONST uint LIMIT_ALL = 7u;
 
 // ---- scene records --------------------------------------------------------------------
 struct MeshInfo {
@@ -324,12 +325,14 @@ struct FrameParams {
     uint active_pixels;
     float adaptive_threshold;  // adaptive.comp: Cycles' threshold (x5, as Cycles scales it)
     // Cycles' light paths: the bounce budgets of each kind of scattering (BOUNCE_*, counted as
-    // Cycles' labels) and the sample clamps (x3, as Cycles scales them; +inf: off).
+    // Cycles' labels), the sample clamps (x3, as Cycles scales them; +inf: off) and Filter
+    // Glossy's factor (1 / blur_glossy, as Cycles' kernel holds it).
     uint diffuse_bounces;
     uint glossy_bounces;
     uint transmission_bounces;
     float clamp_direct;
     float clamp_indirect;
+    float filter_glossy;
 };
 
 // Pixel filters (RenderParams.pixel_filter_type, Cycles' order) and the size of the table that

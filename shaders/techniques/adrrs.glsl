@@ -190,7 +190,7 @@ bool adrrs_continuation(AdrrsOptions o, IcVertex ic, Vertex v, inout PathState p
             adrrs_queue(o.local, o.pixels,
                         AdrrsSplit(ps.origin, ps.t_min, ps.dir, ps.t_max, ps.throughput, seed,
                                    ps.bounces | (ps.discrete << 16), copies - 1u, flags, segments,
-                                   ps.self_instance, ps.self_primitive));
+                                   ps.self_instance, ps.self_primitive, ps.min_ray_pdf));
         }
     }
     return true;

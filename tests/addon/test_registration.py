@@ -79,9 +79,10 @@ def test_a_scene_renders_with_its_cycles_light_paths(fresh):
     params = settings.render_params()
     assert (params["max_depth"], params["depth_leeway"], params["diffuse_bounces"]) == (12, 4, 4)  # Parallax's defaults
     cycles.max_bounces, cycles.diffuse_bounces, cycles.sample_clamp_indirect = 6, 2, 3.0
-    cycles.pixel_filter_type, cycles.filter_width = "GAUSSIAN", 2.0
+    cycles.pixel_filter_type, cycles.filter_width, cycles.blur_glossy = "GAUSSIAN", 2.0, 0.5
     params = settings.render_params()
     assert (params["max_depth"], params["diffuse_bounces"], params["sample_clamp_indirect"]) == (6, 2, 3.0)
+    assert params["blur_glossy"] == 0.5
     assert (params["pixel_filter_type"], params["filter_width"]) == ("GAUSSIAN", 2.0)
     assert params["depth_leeway"] == 0  # Cycles' Total counts every bounce
     assert params["glossy_bounces"] == 4  # never set in Cycles: Parallax's (the same default)

@@ -87,12 +87,12 @@ RenderParams = dataclasses.make_dataclass(
 
 
 # The light-path settings under which a render estimates the scene's radiance without bias,
-# through a one-pixel box filter: Max Bounces alone ends paths (no kind budget binds) and no
-# sample is clamped. Cycles' defaults (Diffuse 4, Glossy 4, Clamp Indirect 10, Blackman-Harris
-# 1.5 px), which are the table's, are biased: tests and benches that compare estimators or
+# through a one-pixel box filter: Max Bounces alone ends paths (no kind budget binds), no
+# sample is clamped and no glossy lobe blurred. Cycles' defaults (Diffuse 4, Glossy 4, Clamp
+# Indirect 10, Filter Glossy 1, Blackman-Harris 1.5 px), which are the table's, are biased: tests and benches that compare estimators or
 # meet references pin these, as they pin Max Bounces.
 UNBIASED_LIGHT_PATHS = {"diffuse_bounces": 1024, "glossy_bounces": 1024, "transmission_bounces": 1024,
-                        "sample_clamp_direct": 0.0, "sample_clamp_indirect": 0.0,
+                        "sample_clamp_direct": 0.0, "sample_clamp_indirect": 0.0, "blur_glossy": 0.0,
                         "pixel_filter_type": "BOX", "filter_width": 1.0}
 
 

@@ -98,6 +98,9 @@ const SettingTable& base_table() {
                           "If non-zero, the maximum value for an indirect sample, higher values will be scaled down "
                           "to avoid too much noise and slow convergence at the cost of accuracy (biased)",
                           "light_paths").in_group("Clamping"),
+            float_setting("blur_glossy", PX_FIELD(RenderParams, blur_glossy), 1.0, 0.0, 10.0, "Filter Glossy",
+                          "Adaptively blur glossy shaders after blurry bounces, to reduce noise at the cost of "
+                          "accuracy (biased; 0: off)", "light_paths").in_group("Caustics"),
             int_setting("rr_start_depth", PX_FIELD(RenderParams, rr_start_depth), 3, 0, 1024, "Russian Roulette",
                         "First bounce at which Russian roulette may end a low-throughput path (survival "
                         "probability the square root of the throughput, as Cycles), reweighting the survivors; 0 = "
@@ -262,7 +265,8 @@ uint32_t light_path_limits(const RenderParams& p) {
     const uint32_t deepest = p.max_depth + p.depth_leeway;
     const bool budgets = std::min({p.diffuse_bounces, p.glossy_bounces, p.transmission_bounces}) < deepest;
     const bool clamp = p.sample_clamp_direct > 0.0f || p.sample_clamp_indirect > 0.0f;
-    return (budgets ? LIMIT_KIND_BOUNCES : 0u) | (clamp ? LIMIT_CLAMP : 0u);
+    return (budgets ? LIMIT_KIND_BOUNCES : 0u) | (clamp ? LIMIT_CLAMP : 0u) |
+           (p.blur_glossy > 0.0f ? LIMIT_BLUR_GLOSSY : 0u);
 }
 
 bool technique_on(const RenderParams& p, const std::string& name) {

@@ -17,13 +17,14 @@ struct RenderParams {
     uint32_t max_depth{};
     uint32_t depth_leeway{};
     uint32_t rr_start_depth{};  // 0: no Russian roulette
-    // Cycles' light paths: bounce budgets per kind of scattering, sample clamps (0: off), and
-    // the pixel filter (render/pixel_filter.h).
+    // Cycles' light paths: bounce budgets per kind of scattering, sample clamps (0: off),
+    // Filter Glossy (0: off), and the pixel filter (render/pixel_filter.h).
     uint32_t diffuse_bounces{};
     uint32_t glossy_bounces{};
     uint32_t transmission_bounces{};
     float sample_clamp_direct{};
     float sample_clamp_indirect{};
+    float blur_glossy{};
     uint32_t pixel_filter_type{};
     float filter_width{};
     uint32_t light_samples{};
@@ -59,7 +60,7 @@ bool technique_on(const RenderParams& p, const std::string& name);
 
 // The LIMIT_* bits of the light-path limits that can change a render with these settings (a
 // pipeline carries only those): a kind's bounce budget below the deepest path Max Bounces and
-// the leeway allow, a clamp that is set.
+// the leeway allow, a clamp that is set, Filter Glossy where it is not 0.
 uint32_t light_path_limits(const RenderParams& p);
 
 // Writes one setting (type, range and enum name checked: std::invalid_argument naming it).

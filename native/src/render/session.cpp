@@ -456,6 +456,7 @@ FrameParams Session::frame_params(uint32_t frame) const {
     auto clamp_limit = [](float v) { return v > 0.0f ? 3.0f * v : std::numeric_limits<float>::infinity(); };
     fp.clamp_direct = clamp_limit(params_.sample_clamp_direct);
     fp.clamp_indirect = clamp_limit(params_.sample_clamp_indirect);
+    fp.filter_glossy = params_.blur_glossy > 0.0f ? 1.0f / params_.blur_glossy : 0.0f;  // read where LIMIT_BLUR_GLOSSY
     fp.mode = FRAME_RENDER;
     fp.film_passes = allocated_passes_;
     for (const auto& t : techniques_) t->fill_frame_params(fp);
