@@ -1,5 +1,6 @@
 // nanobind bindings: the only place the core meets Python. C++ exceptions become Python
 // exceptions (std::invalid_argument -> ValueError, others -> RuntimeError).
+#include "render/pixel_filter.h"
 #include "render/session.h"
 #include "techniques/guiding/guiding.h"
 #include "scene/light_tree.h"
@@ -140,6 +141,14 @@ NB_MODULE(_native, m) {
           }, "lo"_a, "hi"_a,
           "The order in which an upload hands primitives with boxes (lo, hi) (N x 3 float32) to "
           "the BVH builder (scene.h bvh_order): a permutation of range(N).");
+    m.def("pixel_filter_table",
+          [](const std::string& type, float width) {
+              for (const px::EnumItem& item : px::setting("pixel_filter_type").items)
+                  if (type == item.name) return px::pixel_filter_table(item.value, width);
+              throw std::invalid_argument("unknown pixel filter type " + type + " (BOX, GAUSSIAN, BLACKMAN_HARRIS)");
+          }, "type"_a, "width"_a,
+          "The pixel filter's inverted CDF that camera samples are drawn from (render/pixel_filter.h): "
+          "PIXEL_FILTER_TABLE_SIZE offsets in pixels, entry i for the CDF value i / (size - 1).");
     m.def("set_light_tree_min_lights", &px::set_light_tree_min_lights, "n"_a,
           "Sets light_tree_min_lights for scenes updated from now on (0 or 1: always the tree; "
           "2**32 - 1: never); a benchmark and test knob.");

@@ -336,11 +336,14 @@ struct FrameParams {
 };
 
 // Pixel filters (RenderParams.pixel_filter_type, Cycles' order) and the size of the table that
-// importance-samples them (BINDING_PIXEL_FILTER).
+// importance-samples them (BINDING_PIXEL_FILTER), Cycles' FILTER_TABLE_SIZE. Interpolating an
+// inverted CDF spreads each tail cell's samples evenly: with 256 entries Blackman-Harris 1.5 px
+// came out 0.8% wider than itself (standard deviation of the offsets) and 0.5% wider than
+// Cycles', blurring the image more; with 1024 it is within 0.15% of both.
 PX_CONST uint FILTER_BOX = 0;
 PX_CONST uint FILTER_GAUSSIAN = 1;
 PX_CONST uint FILTER_BLACKMAN_HARRIS = 2;
-PX_CONST uint PIXEL_FILTER_TABLE_SIZE = 256;
+PX_CONST uint PIXEL_FILTER_TABLE_SIZE = 1024;
 
 PX_CONST uint ADAPTIVE_OFF = 0;
 PX_CONST uint ADAPTIVE_IMAGE = 1;

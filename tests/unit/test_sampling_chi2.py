@@ -1179,3 +1179,23 @@ def test_pixel_filter_chi2(kind, width):
     stat = float(((hits[tested] - n * p[tested]) ** 2 / (n * p[tested] * (1.0 - p[tested]))).sum())
     assert tested.sum() >= 1
     assert chi2_sf(stat, int(tested.sum())) > ALPHA, (kind, width, hits[tested], n * p[tested])
+
+
+@pytest.mark.parametrize("kind,width,tolerance", [("BLACKMAN_HARRIS", 1.5, 0.002), ("BLACKMAN_HARRIS", 3.0, 0.002),
+                                                  ("GAUSSIAN", 1.5, 0.012)])
+def test_pixel_filter_table_is_as_wide_as_its_filter(kind, width, tolerance):
+    # The image's blur is the offsets' spread: the table's (its entries interpolated, as
+    # camera.glsl reads them, at a fine grid of u) against the filter's own standard deviation.
+    # A 256-entry table was 0.8% (Blackman-Harris 1.5 px) and 4.2% (Gaussian) too wide: it
+    # fills each tail cell evenly. Cycles' table (1024 entries) is 0.2% wide for Blackman-Harris.
+    table = np.asarray(pc.pixel_filter_table(kind, width), np.float64)
+    u = (np.arange(400_000) + 0.5) / 400_000
+    offsets = np.interp(u * (table.size - 1), np.arange(table.size), table)
+    _, half = filter_profile(kind, width, np.zeros(1))
+    x = np.linspace(-half, half, 400_001)
+    f, _ = filter_profile(kind, width, x)
+    exact = np.sqrt((f * x * x).sum() / f.sum())
+    assert abs(offsets.mean()) < 1e-4
+    assert abs(offsets.std() / exact - 1.0) < tolerance, offsets.std() / exact
+    with pytest.raises(ValueError, match="CATMULL"):
+        pc.pixel_filter_table("CATMULL", 1.0)

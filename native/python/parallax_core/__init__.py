@@ -17,7 +17,7 @@ import operator
 import os
 
 from ._native import (LIMITS, DeviceMemoryError, background_compiles, devices, light_tree_min_lights, memory, primitive_order,
-                      set_light_tree_min_lights, set_memory_budget, validation_enabled, validation_messages,
+                      pixel_filter_table, set_light_tree_min_lights, set_memory_budget, validation_enabled, validation_messages,
                       wait_for_background_compiles)
 from ._native import Session as _NativeSession
 from ._native import _PASSES, _SETTINGS, _make_params, _setting_index
@@ -27,7 +27,8 @@ from .scene import PART_KEYS, PARTS, parts_set
 __all__ = ["Session", "RenderParams", "UNBIASED_LIGHT_PATHS", "SETTINGS", "PASSES", "setting", "devices", "METHODS",
            "PARTS", "LIMITS",
            "DeviceMemoryError", "memory", "set_memory_budget", "validation_enabled", "validation_messages",
-           "light_tree_min_lights", "set_light_tree_min_lights", "primitive_order", "background_compiles",
+           "light_tree_min_lights", "set_light_tree_min_lights", "primitive_order", "pixel_filter_table",
+           "background_compiles",
            "wait_for_background_compiles", "adaptive_threshold"]
 
 # A pipeline still compiling on a worker thread when the process tears down crashed it: wait.
@@ -89,8 +90,8 @@ RenderParams = dataclasses.make_dataclass(
 # The light-path settings under which a render estimates the scene's radiance without bias,
 # through a one-pixel box filter: Max Bounces alone ends paths (no kind budget binds), no
 # sample is clamped and no glossy lobe blurred. Cycles' defaults (Diffuse 4, Glossy 4, Clamp
-# Indirect 10, Filter Glossy 1, Blackman-Harris 1.5 px), which are the table's, are biased: tests and benches that compare estimators or
-# meet references pin these, as they pin Max Bounces.
+# Indirect 10, Filter Glossy 1, Blackman-Harris 1.5 px), which are the table's, are biased:
+# tests and benches that compare estimators or meet references pin these, as they pin Max Bounces.
 UNBIASED_LIGHT_PATHS = {"diffuse_bounces": 1024, "glossy_bounces": 1024, "transmission_bounces": 1024,
                         "sample_clamp_direct": 0.0, "sample_clamp_indirect": 0.0, "blur_glossy": 0.0,
                         "pixel_filter_type": "BOX", "filter_width": 1.0}
