@@ -143,9 +143,9 @@ NB_MODULE(_native, m) {
           "the BVH builder (scene.h bvh_order): a permutation of range(N).");
     m.def("pixel_filter_table",
           [](const std::string& type, float width) {
-              for (const px::EnumItem& item : px::setting("pixel_filter_type").items)
-                  if (type == item.name) return px::pixel_filter_table(item.value, width);
-              throw std::invalid_argument("unknown pixel filter type " + type + " (BOX, GAUSSIAN, BLACKMAN_HARRIS)");
+              const px::EnumItem* item = px::setting("pixel_filter_type").item(type);
+              if (!item) throw std::invalid_argument("unknown pixel filter type " + type);
+              return px::pixel_filter_table(item->value, width);
           }, "type"_a, "width"_a,
           "The pixel filter's inverted CDF that camera samples are drawn from (render/pixel_filter.h): "
           "PIXEL_FILTER_TABLE_SIZE offsets in pixels, entry i for the CDF value i / (size - 1).");

@@ -17,8 +17,8 @@ import operator
 import os
 
 from ._native import (LIMITS, DeviceMemoryError, background_compiles, devices, light_tree_min_lights, memory, primitive_order,
-                      pixel_filter_table, set_light_tree_min_lights, set_memory_budget, validation_enabled, validation_messages,
-                      wait_for_background_compiles)
+                      pixel_filter_table, set_light_tree_min_lights, set_memory_budget, validation_enabled,
+                      validation_messages, wait_for_background_compiles)
 from ._native import Session as _NativeSession
 from ._native import _PASSES, _SETTINGS, _make_params, _setting_index
 from . import denoise  # noqa: F401  (OIDN: parallax_core.denoise)
