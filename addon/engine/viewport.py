@@ -25,6 +25,7 @@ showing denoised frames it shows no noisy ones again (as Cycles' viewport): a co
 frame gives way to the first full-size frame, noisy or not, and never replaces one. An edit
 shows its new noisy frames at once and never waits for the denoiser.
 """
+import dataclasses
 import os
 import threading
 import time
@@ -51,14 +52,10 @@ def _region_size(context):
     return max(1, context.region.width), max(1, context.region.height)
 
 
-def _context_camera(context):
-    rv3d = context.region_data
-    return sync.camera.view_camera(rv3d.view_matrix, rv3d.window_matrix, rv3d.is_perspective)
-
-
 def _camera_key(camera):
-    return (np.asarray(camera.camera_to_world).round(7).tobytes(), camera.type,
-            tuple(round(v, 7) for v in camera.window), camera.clip_start, camera.clip_end)
+    """What a viewport camera is made of, rounded: a change of it is a camera update."""
+    values = (getattr(camera, f.name) for f in dataclasses.fields(camera))
+    return tuple(v if isinstance(v, str) else np.round(np.asarray(v, dtype=np.float64), 7).tobytes() for v in values)
 
 
 def changed_parts(depsgraph):
@@ -501,7 +498,7 @@ class ViewportRender:
             if self.worker is None or device != self.worker.device or self.worker.error is not None:
                 self.free()
                 width, height = _region_size(context)
-                camera = _context_camera(context)
+                camera = sync.camera.viewport_camera(context, depsgraph)
                 data, warnings = self.exporter.full(depsgraph, width, height, view_camera=camera)
                 self.worker = _Worker(device, params, target, pixel_size, display, denoise)
                 self.worker.submit(data, parts={"geometry"}, size=(width, height))
@@ -534,7 +531,7 @@ class ViewportRender:
         if worker is None:
             return
         size = _region_size(context)
-        camera = _context_camera(context)
+        camera = sync.camera.viewport_camera(context, depsgraph)
         key = _camera_key(camera)
         if size != self._size or key != self._camera_key:
             data = self.exporter.data

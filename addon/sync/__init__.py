@@ -5,7 +5,7 @@ numpy; per-object Python work is constant. Anything not rendered exactly is appr
 named once in the returned warnings (see ``Warnings``).
 """
 from .. import core
-from . import camera, lights, materials, meshes, world
+from . import camera, lights, materials, meshes, unsupported, world
 
 PARTS = ("geometry", "instances", "materials", "lights", "camera")
 
@@ -49,6 +49,7 @@ class SceneExporter:
         self._materials.build(data)
         lights.export_lights(depsgraph, data, warnings)
         world.export_world(depsgraph.scene.world, data, warnings)
+        unsupported.warn_unsupported(depsgraph, warnings)  # once per full export, not per edit
         data.camera = view_camera or camera.export_camera(depsgraph, width, height, region)
         data.width, data.height = (region[2], region[3]) if region else (width, height)
         if not data.lights and not self._materials.has_emission and world.is_black(data.world):

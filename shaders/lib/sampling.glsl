@@ -70,3 +70,24 @@ vec3 stratified_cosine_hemisphere(uint j, uint k, uint m, uint n, vec2 u) {
     float phi = 2.0 * PI * (float(k) + u.y) / float(n);
     return vec3(sin_t * cos(phi), sin_t * sin(phi), cos_t);
 }
+
+// A point on a camera aperture of radius 1, uniform in area (Cycles' camera_sample_aperture):
+// a disk below 3 blades, else the regular polygon whose corners lie on the unit circle, turned
+// by `rotation`; x is divided by the anamorphic `ratio`.
+vec2 aperture_sample(vec2 u, float blades, float rotation, float ratio) {
+    vec2 p;
+    if (blades < 3.0) {
+        p = concentric_disk(u);
+    } else {
+        // u.x picks the triangle (the centre and two neighbouring corners, at rotation +-
+        // half_angle for corner 0) and, rescaled, the distance from the centre (the density
+        // grows with it); u.y the place across the triangle.
+        float half_angle = PI / blades;
+        float corner = min(floor(u.x * blades), blades - 1.0);
+        float s = sqrt(u.x * blades - corner);
+        vec2 q = s * vec2(cos(half_angle), (1.0 - 2.0 * u.y) * sin(half_angle));
+        float turn = rotation + 2.0 * corner * half_angle;
+        p = vec2(cos(turn) * q.x - sin(turn) * q.y, sin(turn) * q.x + cos(turn) * q.y);
+    }
+    return vec2(p.x / ratio, p.y);
+}

@@ -122,6 +122,16 @@ PX_CONST uint LIGHT_ENV = 6;       // the world (constant or map), at most one
 
 PX_CONST uint CAMERA_PERSPECTIVE = 0;
 PX_CONST uint CAMERA_ORTHOGRAPHIC = 1;
+PX_CONST uint CAMERA_PANORAMA = 2;  // SceneInfo.panorama_type picks the projection (camera.glsl)
+
+// Blender's (and Cycles') panoramic projections, in Blender's enum order.
+PX_CONST uint PANORAMA_EQUIRECTANGULAR = 0;
+PX_CONST uint PANORAMA_EQUIANGULAR_CUBEMAP_FACE = 1;
+PX_CONST uint PANORAMA_MIRRORBALL = 2;
+PX_CONST uint PANORAMA_FISHEYE_EQUIDISTANT = 3;
+PX_CONST uint PANORAMA_FISHEYE_EQUISOLID = 4;
+PX_CONST uint PANORAMA_FISHEYE_LENS_POLYNOMIAL = 5;
+PX_CONST uint PANORAMA_CENTRAL_CYLINDRICAL = 6;
 
 PX_CONST uint NO_INDEX = 0xffffffffu;
 
@@ -267,9 +277,22 @@ PX_CONST uint CONTACT_BOX_MAX = 8u;  // SceneInfo.contact_lo/hi
 
 struct SceneInfo {
     vec4 camera_to_world[3];  // rows; camera looks down -Z with +Y up (Blender)
-    vec4 camera_window;       // left, right, bottom, top at distance 1 (persp) or world (ortho)
+    vec4 camera_window;       // left, right, bottom, top at distance 1 (persp), in world units
+                              // (ortho) or of the panorama's (u, v) square (panorama)
     vec2 clip;                // clip start, clip end
     uint camera_type;
+    // Thin lens (Cycles' depth of field): aperture radius in world units (0: a pinhole), focus
+    // distance, blades (below 3: a round aperture), blade rotation (radians), aspect ratio.
+    float aperture_radius;
+    float focus_distance;
+    float aperture_blades;
+    float aperture_rotation;
+    float aperture_ratio;
+    uint panorama_type;       // PANORAMA_*
+    vec4 panorama_range;      // equirectangular: longitude min, max, latitude min, max;
+                              // central cylindrical: angle min, max, height min, max / radius
+    vec4 fisheye;             // field of view, lens (mm), sensor width, height (mm, as fitted)
+    float fisheye_polynomial[5];  // k0..k4: theta = -(k0 + k1 r + ... + k4 r^4), r in mm
     uint light_count;         // entries in the light table (env included)
     vec3 env_color;           // constant world radiance (used when env_width == 0)
     uint env_light;           // index of the env entry in the light table, or NO_INDEX
@@ -375,6 +398,9 @@ PX_CONST uint PRINCIPLED_TEST_VEC4S = 6;
 // The path sampler (shaders/lib/rng.glsl): sample i of pixel test_params.x in stream seed;
 // out (rnd2, rnd) of slots test_param0 and test_param0 + 1, then (rnd2, rnd) of the next two.
 PX_CONST uint TEST_RNG = 12;
+// The camera's aperture (shaders/lib/sampling.glsl, aperture_sample): test_params = (blades,
+// rotation, ratio, 0); out io[2i].xy, a point on the aperture of radius 1.
+PX_CONST uint TEST_APERTURE = 13;
 
 #include "techniques.h"
 

@@ -290,8 +290,9 @@ vec3 guiding_lobes_pass(uvec2 pixel, vec3 origin, vec3 dir, float first_t) {
     if (pixel.x < iw && pixel.y >= params.height - ih) {
         vec3 o, d;
         float t0, t1, c;
-        camera_ray(vec2(px, py) + 0.5, o, d, t0, t1, c);
-        traceRayEXT(tlas, gl_RayFlagsOpaqueEXT, 0xff, 0, 0, MISS_SCENE, o, t0, d, t1, 0);
+        bool seen = camera_ray(vec2(px, py) + 0.5, vec2(0.0), o, d, t0, t1, c);  // the lens' centre
+        if (seen) traceRayEXT(tlas, gl_RayFlagsOpaqueEXT, 0xff, 0, 0, MISS_SCENE, o, t0, d, t1, 0);
+        else hit.t = -1.0;
         vec2 uv = vec2((float(pixel.x) + 0.5) / float(iw), (float(pixel.y - (params.height - ih)) + 0.5) / float(ih));
         return guiding_inset_colour(o + hit.t * d, hit.t >= 0.0, uv);
     }

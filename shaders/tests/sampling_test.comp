@@ -104,6 +104,12 @@ void main() {
         io[2u * i + 1u] = vec4(rnd2(r), rnd(r), 0.0);
         return;
     }
+    if (routine == TEST_APERTURE) {  // test_params = (blades, rotation, ratio, 0)
+        vec4 t = params.test_params;
+        io[2u * i] = vec4(aperture_sample(rnd2(rng), t.x, t.y, t.z), 0.0, 0.0);
+        io[2u * i + 1u] = vec4(0.0);
+        return;
+    }
     if (routine == TEST_ADRRS) {  // test_params = (r = v/C, s, rr_min, splitting)
         vec4 t = params.test_params;
         float q = adrrs_window_factor(t.x, t.y, t.z, t.w != 0.0);

@@ -314,6 +314,44 @@ def test_viewport_camera_from_view_and_projection_matrices(fresh, bpy, kind):
         np.testing.assert_allclose(np.cross(offset, forward), 0.0, atol=1e-4)
 
 
+def _camera_view_context(bpy, scene, width, height):
+    """What a 3D viewport looking through the scene camera gives viewport_camera, with the
+    camera frame filling the region (the frame's own projection)."""
+    from types import SimpleNamespace
+
+    cam = scene.camera
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    rv3d = SimpleNamespace(view_matrix=cam.matrix_world.inverted(), is_perspective=True, view_perspective="CAMERA",
+                           window_matrix=cam.calc_matrix_camera(depsgraph, x=width, y=height))
+    return SimpleNamespace(region_data=rv3d, space_data=SimpleNamespace(use_local_camera=False, camera=None),
+                           scene=scene), depsgraph
+
+
+def test_viewport_through_the_camera_has_its_depth_of_field_and_panorama(fresh, bpy):
+    """Looking through the scene camera the viewport renders what F12 does (Cycles does too):
+    its depth of field, and its panorama's image square over the camera frame."""
+    from addon.sync.camera import viewport_camera
+
+    fresh.render.resolution_x, fresh.render.resolution_y = 64, 40
+    cam = fresh.camera.data
+    cam.dof.use_dof, cam.dof.aperture_fstop, cam.dof.focus_distance, cam.dof.aperture_blades = True, 1.4, 3.0, 7
+    context, depsgraph = _camera_view_context(bpy, fresh, 64, 40)
+    data, _ = export_current(bpy)
+    view = viewport_camera(context, depsgraph)
+    assert view.aperture_radius == pytest.approx(cam.lens * 1e-3 / 2.8) == pytest.approx(data.camera.aperture_radius)
+    assert (view.focus_distance, view.aperture_blades) == (3.0, 7)
+    context.region_data.view_perspective = "PERSP"  # a free view: no depth of field
+    assert viewport_camera(context, depsgraph).aperture_radius == 0.0
+    cam.type, cam.panorama_type, cam.shift_x = "PANO", "FISHEYE_EQUIDISTANT", 0.1
+    context, depsgraph = _camera_view_context(bpy, fresh, 64, 40)
+    data, _ = export_current(bpy)
+    view = viewport_camera(context, depsgraph)
+    assert (view.type, view.panorama_type) == ("panorama", "FISHEYE_EQUIDISTANT") == (data.camera.type,
+                                                                                      data.camera.panorama_type)
+    np.testing.assert_allclose(view.window, data.camera.window, atol=1e-4)
+    np.testing.assert_allclose(view.window, (0.1, 1.1, 0.0, 1.0), atol=1e-4)
+
+
 def test_mix_shader_keeps_principled_in_its_chain(fresh, bpy):
     material = bpy.data.materials.new("Blend")
     tree = material.node_tree

@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 
 import copy
+import dataclasses
 
 import parallax_core as pc
 from parallax_core import scenes
@@ -161,3 +162,47 @@ def test_lights_hidden_from_the_camera_still_light_the_scene(kind):
     changed = np.abs(images[True] - images[False]).max(axis=-1) > 1e-6
     if kind != "sun":  # away from the light, the lit floor is the same image
         assert not changed[-3:].any() and images[False][-3:].mean() > 0.01
+
+
+# ---- the thin lens and panoramas (issue 37; their parity with Cycles: tests/addon/test_parity_camera.py) ----
+
+def combined(scene, samples=16):
+    s = pc.Session(scene.width, scene.height)
+    s.set_params(method="mis", samples_per_frame=samples, **pc.UNBIASED_LIGHT_PATHS)
+    s.update(scene)
+    s.render(1)
+    return s.read("combined"), s.read("depth")
+
+
+def test_a_pinhole_ignores_the_lens_settings_and_depth_of_field_keeps_the_focus_plane():
+    scene = scenes.cornell_box(width=24, height=24)
+    pinhole, _ = combined(scene)
+    scene.camera = dataclasses.replace(scene.camera, focus_distance=1.0, aperture_blades=5, aperture_ratio=2.0)
+    again, _ = combined(scene)
+    assert np.array_equal(pinhole, again)  # a pinhole draws no lens sample: the same paths
+    # Looking straight at a textured quad 5 m away, focused on it: the albedo keeps its texels
+    # whatever the aperture (every lens point sees the same point of the focus plane).
+    tex = np.zeros((4, 4, 3), np.uint8)
+    tex[:2, :2], tex[2:, 2:] = 255, 128
+    quad = textured_quad(tex)
+    m = np.eye(4)
+    m[:3, 3] = (0, 0, 5)
+    quad.camera = Camera.from_blender(m, 32, 32, lens=180.0, sensor_width=36.0)  # 2 m wide at 5 m
+    sharp, depth = albedo(quad)
+    quad.camera = dataclasses.replace(quad.camera, aperture_radius=0.5, focus_distance=5.0)
+    focused, focused_depth = albedo(quad)
+    np.testing.assert_allclose(focused, sharp, atol=1e-3)
+    np.testing.assert_allclose(focused_depth, depth, rtol=1e-4)
+    quad.camera = dataclasses.replace(quad.camera, focus_distance=2.0)
+    assert np.abs(albedo(quad)[0] - sharp).max() > 0.3  # out of focus: the texel edges blur
+
+
+def test_a_fisheye_renders_nothing_outside_its_image_circle():
+    scene = scenes.cornell_box(width=32, height=32)
+    scene.camera = dataclasses.replace(scene.camera, type="panorama", window=(0.0, 1.0, 0.0, 1.0),
+                                panorama_type="FISHEYE_EQUIDISTANT", fisheye_fov=np.pi)
+    image, depth = combined(scene)
+    y, x = np.mgrid[:32, :32]
+    r = np.hypot((x + 0.5) / 16 - 1, (y + 0.5) / 16 - 1)
+    assert np.all(image[r > 1.05, :3] == 0) and np.all(depth[r > 1.05] == 0)
+    assert image[r < 0.3, :3].mean() > 0.05

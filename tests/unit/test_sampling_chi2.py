@@ -39,7 +39,7 @@ IC_THETA, IC_PHI = 10, 20  # shaders/shared/techniques.h
 EVAL = 16                 # routine + EVAL: evaluate at given directions
 N = 300_000               # samples per chi-square test
 DISTANT = 1e29            # sample distance at or above this: a light at infinity
-CHI2_TESTS = 63           # upper bound on the chi-square tests below (Sidak correction)
+CHI2_TESTS = 66           # upper bound on the chi-square tests below (Sidak correction)
 ALPHA = 1.0 - (1.0 - 0.01) ** (1.0 / CHI2_TESTS)
 # Added to every seed; set PARALLAX_CHI2_SEED to check the p-values are uniform over seeds.
 SEED = int(os.environ.get("PARALLAX_CHI2_SEED", "0"))
@@ -1199,3 +1199,58 @@ def test_pixel_filter_table_is_as_wide_as_its_filter(kind, width, tolerance):
     assert abs(offsets.std() / exact - 1.0) < tolerance, offsets.std() / exact
     with pytest.raises(ValueError, match="CATMULL"):
         pc.pixel_filter_table("CATMULL", 1.0)
+
+
+# ---- the camera's aperture (shaders/lib/sampling.glsl, aperture_sample) -------------------
+
+TEST_APERTURE = 13
+
+
+def aperture_corners(blades, rotation, ratio):
+    """The aperture's outline, counter-clockwise: a 720-gon for a round one (area within 2e-5
+    of the disk's), else the regular polygon with corners at rotation + (2k + 1) pi / blades on
+    the unit circle (Cycles' regular_polygon_sample); x divided by ratio."""
+    n = 720 if blades < 3 else blades
+    angles = rotation + (2 * np.arange(n) + 1) * math.pi / n
+    return np.column_stack([np.cos(angles) / ratio, np.sin(angles)])
+
+
+def clipped_area(corners, x0, x1, y0, y1):
+    """Area of the convex polygon ``corners`` inside the box (Sutherland-Hodgman clipping)."""
+    points = [tuple(p) for p in corners]
+    for axis, bound, above in ((0, x0, True), (0, x1, False), (1, y0, True), (1, y1, False)):
+        inside = (lambda p: p[axis] >= bound) if above else (lambda p: p[axis] <= bound)
+        clipped = []
+        for k, p in enumerate(points):
+            q = points[k - 1]
+            if inside(p) != inside(q):
+                t = (bound - q[axis]) / (p[axis] - q[axis])
+                clipped.append((q[0] + t * (p[0] - q[0]), q[1] + t * (p[1] - q[1])))
+            if inside(p):
+                clipped.append(p)
+        points = clipped
+        if not points:
+            return 0.0
+    x, y = np.array(points).T
+    return 0.5 * abs(float(x @ np.roll(y, -1) - y @ np.roll(x, -1)))
+
+
+@pytest.mark.parametrize("blades,rotation,ratio", [(0, 0.0, 1.0), (5, 0.35, 1.6), (6, 1.0, 0.7)],
+                         ids=["disk", "pentagon_squeezed", "hexagon_stretched"])
+def test_aperture_samples_are_uniform_on_the_aperture(session, blades, rotation, ratio):
+    """Depth of field's lens points: uniform over the disk or the turned regular polygon (as
+    Cycles' camera_sample_aperture draws them), squeezed by the anamorphic ratio; none outside."""
+    r = session.test_sampling(TEST_APERTURE, [blades, rotation, ratio, 0.0, 0.0], N, seed=SEED + 1300 + blades)
+    points = r[:, 0, :2].astype(np.float64)
+    corners = aperture_corners(blades, rotation, ratio)
+    # Inside every edge (counter-clockwise: the point is left of it), up to float rounding.
+    edges = np.roll(corners, -1, axis=0) - corners
+    cross = edges[:, 0] * (points[:, None, 1] - corners[:, 1]) - edges[:, 1] * (points[:, None, 0] - corners[:, 0])
+    slack = 1e-5 if blades >= 3 else 2e-5 + 1.0 - math.cos(math.pi / 720)  # the 720-gon's chords
+    assert cross.min() >= -slack
+    cells = 24
+    xs, ys = np.linspace(-1.0 / ratio, 1.0 / ratio, cells + 1), np.linspace(-1.0, 1.0, cells + 1)
+    counts, _, _ = np.histogram2d(points[:, 0], points[:, 1], bins=[xs, ys])
+    areas = np.array([[clipped_area(corners, xs[i], xs[i + 1], ys[j], ys[j + 1]) for j in range(cells)]
+                      for i in range(cells)])
+    check_multinomial(f"aperture blades={blades} rotation={rotation} ratio={ratio}", counts, areas)

@@ -516,8 +516,42 @@ def test_blender_pixel_aspect_matrix_and_clip():
     cam = Camera.from_blender(m, 64, 64, clip_start=0.5, clip_end=50.0)
     np.testing.assert_allclose(cam.camera_to_world, np.column_stack([np.eye(3), [1, 2, 3]]))
     assert (cam.clip_start, cam.clip_end) == (0.5, 50.0)
-    with pytest.raises(ValueError):
-        Camera.from_blender(np.eye(4), 64, 64, type="PANO")
+    with pytest.raises(ValueError, match="CUSTOM"):
+        Camera.from_blender(np.eye(4), 64, 64, type="CUSTOM")
+
+
+def test_blender_panorama_and_depth_of_field():
+    # A panorama's image is the (u, v) square, shifted (Cycles); the fisheye sensor is fitted
+    # to the image's aspect, here the width (36 mm) to 300 px of 300 x 200.
+    cam = Camera.from_blender(np.eye(4), 300, 200, type="PANO", panorama_type="fisheye_equisolid", shift_x=0.1,
+                              fisheye_lens=8.0, aperture_radius=0.02, focus_distance=3.0, aperture_blades=5)
+    assert (cam.type, cam.panorama_type) == ("panorama", "FISHEYE_EQUISOLID")
+    np.testing.assert_allclose(window(cam), [0.1, 1.1, 0.0, 1.0])
+    np.testing.assert_allclose(cam.fisheye_sensor, [36.0, 24.0])
+    assert (cam.fisheye_lens, cam.aperture_radius, cam.focus_distance, cam.aperture_blades) == (8.0, 0.02, 3.0, 5)
+    cam = Camera.from_blender(np.eye(4), 200, 300, type="PANO", sensor_fit="AUTO")
+    np.testing.assert_allclose(cam.fisheye_sensor, [24.0, 36.0])
+    with pytest.raises(ValueError, match="unknown settings"):
+        Camera.from_blender(np.eye(4), 64, 64, fstop=2.0)
+
+
+def test_camera_lens_round_trip_and_older_files(tmp_path):
+    s = scenes.cornell_box(width=32, height=24)
+    s.camera = Camera(s.camera.camera_to_world, "panorama", (0.0, 1.0, 0.0, 1.0), 0.1, 100.0,
+                      aperture_radius=0.05, focus_distance=2.5, aperture_blades=6, aperture_rotation=0.3,
+                      aperture_ratio=1.5, panorama_type="FISHEYE_LENS_POLYNOMIAL", panorama_range=(-1, 1, -0.5, 0.5),
+                      fisheye_fov=2.0, fisheye_lens=9.0, fisheye_sensor=(30.0, 20.0),
+                      fisheye_polynomial=(0.0, -0.02, 0.0, 1e-6, 0.0))
+    s.save(tmp_path / "lens.npz")
+    loaded = SceneData.load(tmp_path / "lens.npz")
+    assert_flat_equal(s.flatten(), loaded.flatten())
+    assert (loaded.camera.panorama_type, loaded.camera.aperture_blades) == ("FISHEYE_LENS_POLYNOMIAL", 6)
+    # Files from before the thin lens and panoramas: a pinhole.
+    flat = scenes.cornell_box(width=32, height=24).flatten()
+    for key in ("camera_aperture", "camera_panorama_type", "camera_panorama_range", "camera_fisheye"):
+        del flat[key]
+    old = SceneData.from_flat(flat).camera
+    assert (old.aperture_radius, old.type, old.panorama_type) == (0.0, "perspective", "EQUIRECTANGULAR")
 
 
 def test_look_at():

@@ -24,7 +24,11 @@ __all__ = [
 MATERIAL_TYPES = {"diffuse": 0, "conductor": 1, "dielectric": 2, "emission": 3, "principled": 4}
 LIGHT_TYPES = {"point": 1, "spot": 2, "sun": 3, "area": 4}
 AREA_SHAPES = {"square": 4, "rectangle": 4, "disk": 5, "ellipse": 5}
-CAMERA_TYPES = {"perspective": 0, "orthographic": 1}
+CAMERA_TYPES = {"perspective": 0, "orthographic": 1, "panorama": 2}
+# Camera.panorama_type (Blender's Camera.panorama_type) -> px PANORAMA_* (types.h).
+PANORAMA_TYPES = {"EQUIRECTANGULAR": 0, "EQUIANGULAR_CUBEMAP_FACE": 1, "MIRRORBALL": 2,
+                  "FISHEYE_EQUIDISTANT": 3, "FISHEYE_EQUISOLID": 4, "FISHEYE_LENS_POLYNOMIAL": 5,
+                  "CENTRAL_CYLINDRICAL": 6}
 # Texture.interpolation -> its texture_flags bit (Blender's Image Texture node: Linear, Closest).
 TEXTURE_INTERPOLATIONS = {"linear": 0, "closest": 1}
 # texture_flags bits (px TEXTURE_FLAG_* in shaders/shared/types.h).
@@ -78,6 +82,10 @@ FLAT_KEYS = {
     "camera_type": (np.uint32, "(1,)"),
     "camera_window": (np.float32, "(4,)"),
     "camera_clip": (np.float32, "(2,)"),
+    "camera_aperture": (np.float32, "(5,)"),        # radius, focus distance, blades, rotation, ratio
+    "camera_panorama_type": (np.uint32, "(1,)"),
+    "camera_panorama_range": (np.float32, "(4,)"),  # Camera.panorama_range
+    "camera_fisheye": (np.float32, "(9,)"),         # fov, lens, sensor width, height, k0..k4
 }
 
 # The parts of a scene that an update can replace on its own (Session.update(parts=...)),
@@ -370,43 +378,88 @@ class World:
 class Camera:
     """Camera looking down its local -Z with +Y up (Blender).
 
-    window = (left, right, bottom, top) of the image plane at distance 1 (perspective) or in
-    world units (orthographic). Default: 50 mm lens on a 36 mm sensor, square image.
+    window = (left, right, bottom, top) of the image plane at distance 1 (perspective), in
+    world units (orthographic), or of the panorama's (u, v) square (panorama: (0, 1, 0, 1) is
+    the whole image, as Cycles maps it). Default: 50 mm lens on a 36 mm sensor, square image.
     Pixel (x, y) of a W x H image (row 0 at the top) has camera-space point
     sx = left + (x + 0.5) / W * (right - left), sy = top - (y + 0.5) / H * (top - bottom):
     perspective rays go from the origin along (sx, sy, -1); orthographic ones start at
-    (sx, sy, 0) and go along (0, 0, -1).
+    (sx, sy, 0) and go along (0, 0, -1); panoramas look along panorama_type's projection of
+    (u, v) = (sx, sy).
+
+    Depth of field (Cycles' thin lens): aperture_radius in world units (0: a pinhole), focused
+    on the plane at focus_distance (along the view direction for panoramas); aperture_blades
+    below 3 make a round aperture, else a polygon turned by aperture_rotation (radians);
+    aperture_ratio squeezes it horizontally (anamorphic bokeh).
+
+    Panoramas (Blender's and Cycles' definitions): panorama_range = (longitude min, max,
+    latitude min, max) in radians for EQUIRECTANGULAR; (angle min, max, height min / radius,
+    max / radius) for CENTRAL_CYLINDRICAL. Fisheyes: fisheye_fov (radians), fisheye_lens (mm),
+    fisheye_sensor = (width, height) in mm as fitted to the image, and fisheye_polynomial =
+    (k0..k4) for FISHEYE_LENS_POLYNOMIAL.
     """
     camera_to_world: np.ndarray = field(default_factory=lambda: np.eye(4)[:3].copy())
     type: str = "perspective"
     window: tuple = (-0.36, 0.36, -0.36, 0.36)
     clip_start: float = 0.1
     clip_end: float = 1000.0
+    aperture_radius: float = 0.0
+    focus_distance: float = 10.0
+    aperture_blades: int = 0
+    aperture_rotation: float = 0.0
+    aperture_ratio: float = 1.0
+    panorama_type: str = "EQUIRECTANGULAR"
+    panorama_range: tuple = (-math.pi, math.pi, -math.pi / 2, math.pi / 2)
+    fisheye_fov: float = math.pi
+    fisheye_lens: float = 10.5
+    fisheye_sensor: tuple = (36.0, 24.0)
+    fisheye_polynomial: tuple = (0.0, 0.0, 0.0, 0.0, 0.0)
 
     @classmethod
     def from_blender(cls, matrix_world, width, height, type="PERSP", lens=50.0,
                      sensor_width=36.0, sensor_height=24.0, sensor_fit="AUTO",
                      ortho_scale=7.0, shift_x=0.0, shift_y=0.0, clip_start=0.1,
-                     clip_end=1000.0, pixel_aspect=1.0):
-        """Blender camera data -> Camera (``BKE_camera_params_compute_viewplane``).
+                     clip_end=1000.0, pixel_aspect=1.0, panorama_type="EQUIRECTANGULAR", **lens_settings):
+        """Blender camera data -> Camera (``BKE_camera_params_compute_viewplane``; panoramas as
+        Cycles' Blender sync maps them).
 
         AUTO fits sensor_width to the larger of width*pixel_aspect and height; HORIZONTAL
         fits sensor_width to the width; VERTICAL fits sensor_height to the height. Shift is
-        in units of the fitted dimension. pixel_aspect = pixel_aspect_x / pixel_aspect_y.
-        Scale in matrix_world is removed (as Cycles does).
+        in units of the fitted dimension (of the image square for panoramas). pixel_aspect =
+        pixel_aspect_x / pixel_aspect_y. Scale in matrix_world is removed (as Cycles does).
+        ``lens_settings``: the Camera fields of depth of field and of the panorama
+        (aperture_radius, focus_distance, ..., panorama_range, fisheye_fov, fisheye_lens,
+        fisheye_polynomial); fisheye_sensor is fitted here.
         """
-        kind = {"PERSP": "perspective", "ORTHO": "orthographic"}.get(str(type).upper())
+        kind = {"PERSP": "perspective", "ORTHO": "orthographic", "PANO": "panorama"}.get(str(type).upper())
         if kind is None:
             raise ValueError(f"camera: unsupported Blender camera type '{type}'")
         fit = str(sensor_fit).upper()
         if fit not in ("AUTO", "HORIZONTAL", "VERTICAL"):
             raise ValueError(f"camera: unknown sensor_fit '{sensor_fit}'")
+        unknown = set(lens_settings) - {"aperture_radius", "focus_distance", "aperture_blades", "aperture_rotation",
+                                        "aperture_ratio", "panorama_range", "fisheye_fov", "fisheye_lens",
+                                        "fisheye_polynomial"}
+        if unknown:
+            raise ValueError(f"camera: unknown settings {sorted(unknown)}")
         xratio, yratio = float(width) * float(pixel_aspect), float(height)
         if fit == "AUTO":
             fit = "HORIZONTAL" if xratio >= yratio else "VERTICAL"
             sensor = sensor_width
         else:
             sensor = sensor_width if fit == "HORIZONTAL" else sensor_height
+        m = _transform_3x4(matrix_world)
+        if m is None:
+            raise ValueError("camera: matrix_world must be (4,4) or (3,4)")
+        lengths = np.linalg.norm(m[:, :3], axis=0)
+        m[:, :3] /= np.where(lengths > 0, lengths, 1.0)
+        if kind == "panorama":
+            # Cycles: the image is the (u, v) square, shifted; the fisheye sensor is fitted to the
+            # image's aspect.
+            fitted = (sensor, sensor * yratio / xratio) if fit == "HORIZONTAL" else (sensor * xratio / yratio, sensor)
+            window = (shift_x, 1.0 + shift_x, shift_y, 1.0 + shift_y)
+            return cls(m, kind, window, float(clip_start), float(clip_end), panorama_type=str(panorama_type).upper(),
+                       fisheye_sensor=fitted, **lens_settings)
         # Extent of the fitted dimension: at distance 1 (perspective) or in world units.
         extent = ortho_scale if kind == "orthographic" else sensor / lens
         if fit == "HORIZONTAL":
@@ -414,13 +467,8 @@ class Camera:
         else:
             half_x, half_y = 0.5 * extent * xratio / yratio, 0.5 * extent
         dx, dy = shift_x * extent, shift_y * extent
-        m = _transform_3x4(matrix_world)
-        if m is None:
-            raise ValueError("camera: matrix_world must be (4,4) or (3,4)")
-        lengths = np.linalg.norm(m[:, :3], axis=0)
-        m[:, :3] /= np.where(lengths > 0, lengths, 1.0)
         return cls(m, kind, (dx - half_x, dx + half_x, dy - half_y, dy + half_y),
-                   float(clip_start), float(clip_end))
+                   float(clip_start), float(clip_end), **lens_settings)
 
     @classmethod
     def look_at(cls, eye, target, up=(0.0, 0.0, 1.0), fov_y_degrees=40.0, width=1, height=1,
@@ -608,6 +656,18 @@ class SceneData:
         clip = _floats((cam.clip_start, cam.clip_end), "camera: clip_start/clip_end", (2,))
         if not _finite(clip) or not 0 <= clip[0] < clip[1]:
             raise ValueError(f"camera: bad clip range ({cam.clip_start}, {cam.clip_end})")
+        if cam.panorama_type not in PANORAMA_TYPES:
+            raise ValueError(f"camera: unknown panorama_type {cam.panorama_type!r} "
+                             f"(choose from {', '.join(PANORAMA_TYPES)})")
+        aperture = _floats(_camera_aperture(cam), "camera: aperture settings", (5,))
+        if not _finite(aperture) or aperture[0] < 0 or aperture[1] < 0 or aperture[2] < 0 or aperture[4] <= 0:
+            raise ValueError("camera: aperture_radius, focus_distance and aperture_blades must be finite and "
+                             f"not negative, aperture_ratio positive (got {tuple(aperture.tolist())})")
+        fisheye = _floats(_camera_fisheye(cam), "camera: fisheye settings", (9,))
+        rng = _floats(cam.panorama_range, "camera: panorama_range", (4,))
+        if not _finite(fisheye, rng) or np.any(fisheye[:4] <= 0):
+            raise ValueError("camera: panorama_range and fisheye settings must be finite, fisheye_fov, "
+                             "fisheye_lens and fisheye_sensor positive")
 
     # -- flat arrays --
 
@@ -651,6 +711,10 @@ class SceneData:
             out["camera_type"] = np.array([CAMERA_TYPES[cam.type]], dtype=np.uint32)
             out["camera_window"] = np.array(cam.window, dtype=np.float32)
             out["camera_clip"] = np.array([cam.clip_start, cam.clip_end], dtype=np.float32)
+            out["camera_aperture"] = np.array(_camera_aperture(cam), dtype=np.float32)
+            out["camera_panorama_type"] = np.array([PANORAMA_TYPES[cam.panorama_type]], dtype=np.uint32)
+            out["camera_panorama_range"] = np.array(cam.panorama_range, dtype=np.float32)
+            out["camera_fisheye"] = np.array(_camera_fisheye(cam), dtype=np.float32)
         flat = {k: np.ascontiguousarray(out[k], dtype=FLAT_KEYS[k][0])
                 for k in FLAT_KEYS if _part_of_key(k) in parts}
         return flat, warns
@@ -871,10 +935,16 @@ class SceneData:
         wm = a["world_map"]
         world = World(color=tuple(a["world_color"].tolist()), strength=1.0,
                       map=wm.copy() if wm.size else None)
+        ap, fish = a["camera_aperture"].tolist(), a["camera_fisheye"].tolist()
         camera = Camera(a["camera_to_world"].astype(np.float64),
                         {v: k for k, v in CAMERA_TYPES.items()}[int(a["camera_type"][0])],
                         tuple(a["camera_window"].tolist()),
-                        float(a["camera_clip"][0]), float(a["camera_clip"][1]))
+                        float(a["camera_clip"][0]), float(a["camera_clip"][1]),
+                        aperture_radius=ap[0], focus_distance=ap[1], aperture_blades=int(ap[2]),
+                        aperture_rotation=ap[3], aperture_ratio=ap[4],
+                        panorama_type={v: k for k, v in PANORAMA_TYPES.items()}[int(a["camera_panorama_type"][0])],
+                        panorama_range=tuple(a["camera_panorama_range"].tolist()), fisheye_fov=fish[0],
+                        fisheye_lens=fish[1], fisheye_sensor=tuple(fish[2:4]), fisheye_polynomial=tuple(fish[4:9]))
         return cls(meshes, instances, materials, textures, lights, world, camera,
                    meta.get("width"), meta.get("height"))
 
@@ -983,7 +1053,8 @@ def _check_flat(flat, meta):
         if len(a[k]) not in (0, T):
             raise ValueError(f"array '{k}' has {len(a[k])} rows, expected 0 or {T}")
     for k, n in (("world_color", 3), ("camera_to_world", 3), ("camera_type", 1), ("camera_window", 4),
-                 ("camera_clip", 2)):
+                 ("camera_clip", 2), ("camera_aperture", 5), ("camera_panorama_type", 1),
+                 ("camera_panorama_range", 4), ("camera_fisheye", 9)):
         if len(a[k]) != n:
             raise ValueError(f"array '{k}' has shape {a[k].shape}, expected {n} rows")
 
@@ -995,6 +1066,7 @@ def _check_flat(flat, meta):
     ids("material_type", set(MATERIAL_TYPES.values()))
     ids("light_type", set(LIGHT_TYPES.values()) | set(AREA_SHAPES.values()))
     ids("camera_type", set(CAMERA_TYPES.values()))
+    ids("camera_panorama_type", set(PANORAMA_TYPES.values()))
     if np.any(a["indices"] < 0) or np.any(a["indices"] >= V):
         raise ValueError(f"array 'indices' refers to vertices outside 0..{V - 1}")
     first, count = a["mesh_first_triangle"].astype(np.int64), a["mesh_triangle_count"].astype(np.int64)
@@ -1031,9 +1103,24 @@ def _check_flat(flat, meta):
     return a
 
 
+def _camera_aperture(cam):
+    """camera_aperture's row: radius, focus distance, blades, rotation, ratio."""
+    return (cam.aperture_radius, cam.focus_distance, cam.aperture_blades, cam.aperture_rotation, cam.aperture_ratio)
+
+
+def _camera_fisheye(cam):
+    """camera_fisheye's row: fov, lens, sensor width, height, k0..k4."""
+    return (cam.fisheye_fov, cam.fisheye_lens, *cam.fisheye_sensor, *cam.fisheye_polynomial)
+
+
 def _with_optional_defaults(flat):
-    """``flat`` with the keys newer than its file filled in (no mixes), as a new dict."""
+    """``flat`` with the keys newer than its file filled in (no mixes; a pinhole camera), as a
+    new dict."""
     flat = dict(flat)
+    pinhole = Camera()
+    for k, row in (("camera_aperture", _camera_aperture(pinhole)), ("camera_panorama_type", (0,)),
+                   ("camera_panorama_range", pinhole.panorama_range), ("camera_fisheye", _camera_fisheye(pinhole))):
+        flat.setdefault(k, np.array(row, dtype=FLAT_KEYS[k][0]))
     for k, default in _OPTIONAL_KEY_DEFAULTS.items():
         if k not in flat:
             like = {"light": "light_type", "material": "material_type", "texture": "texture_info"}[k.split("_")[0]]

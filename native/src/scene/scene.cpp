@@ -780,6 +780,50 @@ void prepare_lights(const SceneArrays& a, bool new_environment, bool light_tree,
     s.lights = std::move(out);
 }
 
+// The thin lens and the panorama (optional arrays; without them a pinhole and an equirectangular
+// panorama of the whole sphere), checked as Blender's ranges allow.
+void prepare_lens(const SceneArrays& a, SceneInfo& info) {
+    auto aperture = get<float>(a, "camera_aperture", 'f', {}, true);
+    auto panorama_type = get<uint32_t>(a, "camera_panorama_type", 'u', {}, true);
+    auto range = get<float>(a, "camera_panorama_range", 'f', {}, true);
+    auto fisheye = get<float>(a, "camera_fisheye", 'f', {}, true);
+    if ((aperture.data && aperture.rows != 5) || (panorama_type.data && panorama_type.rows != 1) ||
+        (range.data && range.rows != 4) || (fisheye.data && fisheye.rows != 9))
+        bad("camera lens arrays have wrong sizes (camera_aperture 5, camera_panorama_type 1, "
+            "camera_panorama_range 4, camera_fisheye 9)");
+    const float pi = 3.14159265358979f;
+    const float no_aperture[5] = {0.0f, 10.0f, 0.0f, 0.0f, 1.0f};
+    const float whole_sphere[4] = {-pi, pi, -0.5f * pi, 0.5f * pi};
+    const float fisheye_default[9] = {pi, 10.5f, 36.0f, 24.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
+    const float* ap = aperture.data ? aperture.data : no_aperture;
+    const float* r = range.data ? range.data : whole_sphere;
+    const float* f = fisheye.data ? fisheye.data : fisheye_default;
+    for (int k = 0; k < 5; ++k)
+        if (!std::isfinite(ap[k])) bad("camera_aperture holds NaN or infinity");
+    for (int k = 0; k < 4; ++k)
+        if (!std::isfinite(r[k])) bad("camera_panorama_range holds NaN or infinity");
+    for (int k = 0; k < 9; ++k)
+        if (!std::isfinite(f[k])) bad("camera_fisheye holds NaN or infinity");
+    if (!(ap[0] >= 0 && ap[0] <= SceneLimits::camera_scale))
+        bad("camera aperture radius " + num(ap[0]) + " must be in 0.." + num(SceneLimits::camera_scale));
+    if (!(ap[1] >= 0 && ap[1] <= SceneLimits::coordinate)) bad("camera focus distance " + num(ap[1]) + " is negative or absurd");
+    if (!(ap[2] >= 0 && ap[2] <= 1000)) bad("camera aperture blades " + num(ap[2]) + " must be in 0..1000");
+    if (!(ap[4] >= 1e-3f && ap[4] <= 1e3f)) bad("camera aperture ratio " + num(ap[4]) + " must be in 0.001..1000");
+    const uint32_t pano = panorama_type.data ? panorama_type.data[0] : PANORAMA_EQUIRECTANGULAR;
+    if (pano > PANORAMA_CENTRAL_CYLINDRICAL) bad("unknown camera_panorama_type " + std::to_string(pano));
+    if (!(f[0] > 0) || !(f[1] > 0) || !(f[2] > 0) || !(f[3] > 0))
+        bad("camera_fisheye: field of view, lens and sensor size must be positive");
+    info.aperture_radius = ap[0];
+    info.focus_distance = std::max(ap[1], 1e-5f);  // as Cycles: a zero distance focuses just ahead
+    info.aperture_blades = ap[2] < 3 ? 0.0f : std::floor(ap[2]);
+    info.aperture_rotation = ap[3];
+    info.aperture_ratio = ap[4];
+    info.panorama_type = pano;
+    info.panorama_range = {r[0], r[1], r[2], r[3]};
+    info.fisheye = {f[0], f[1], f[2], f[3]};
+    for (int k = 0; k < 5; ++k) info.fisheye_polynomial[k] = f[4 + k];
+}
+
 // The camera: a finite, non-singular basis of sensible scale, a window within
 // SceneLimits::camera_scale and a clip range 0 <= start < end.
 void prepare_camera(const SceneArrays& a, SceneInfo& info) {
@@ -790,7 +834,7 @@ void prepare_camera(const SceneArrays& a, SceneInfo& info) {
     if (cam.rows != 3 || cam_type.rows != 1 || window.rows != 4 || clip.rows != 2) bad("camera arrays have wrong sizes");
     for (int k = 0; k < 12; ++k)
         if (!std::isfinite(cam.data[k])) bad("camera_to_world is NaN or infinite");
-    if (cam_type.data[0] > CAMERA_ORTHOGRAPHIC) bad("unknown camera_type " + std::to_string(cam_type.data[0]));
+    if (cam_type.data[0] > CAMERA_PANORAMA) bad("unknown camera_type " + std::to_string(cam_type.data[0]));
     // The columns of the 3x3 part are the camera's right, up and backward axes.
     const float* m = cam.data;
     dvec3 axes[3];
@@ -816,6 +860,7 @@ void prepare_camera(const SceneArrays& a, SceneInfo& info) {
     info.camera_type = cam_type.data[0];
     info.camera_window = {window.data[0], window.data[1], window.data[2], window.data[3]};
     info.clip = {clip.data[0], clip.data[1]};
+    prepare_lens(a, info);
 }
 
 }  // namespace
