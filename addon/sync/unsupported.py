@@ -1,6 +1,6 @@
 """Scene features Parallax does not render, each named in one warning rather than dropped
-silently: motion blur, holdout, indirect only, volume shaders and hair (curves objects and
-hair particle systems)."""
+silently: motion blur, holdout, indirect only, volume shaders, hair (curves objects and
+hair particle systems) and point clouds."""
 from .materials import node_tree
 from .meshes import GEOMETRY_TYPES
 
@@ -13,7 +13,7 @@ def warn_unsupported(depsgraph, warnings):
 
     holdout, indirect = [], []
     _flagged_collections(depsgraph.view_layer.layer_collection, holdout, indirect)
-    hair = []
+    hair, points = [], []
     objects, materials = set(), {}
     for inst in depsgraph.object_instances:
         obj = inst.object
@@ -30,6 +30,8 @@ def warn_unsupported(depsgraph, warnings):
             holdout.append(f"object '{obj.name}'")
         if obj.type == "CURVES" and len(obj.data.curves):  # empty when modifiers made a mesh
             hair.append(f"curves object '{obj.name}'")
+        if obj.type == "POINTCLOUD" and len(obj.data.points):
+            points.append(f"object '{obj.name}'")
         if obj.type in GEOMETRY_TYPES or obj.type == "VOLUME":
             materials.update((slot.material.name_full, slot.material)
                              for slot in obj.material_slots if slot.material is not None)
@@ -48,6 +50,8 @@ def warn_unsupported(depsgraph, warnings):
                      "if the Volume output were unlinked")
     if hair:
         warnings.add(f"hair curves are not supported: {_some(hair)} not rendered")
+    if points:
+        warnings.add(f"point clouds are not supported: {_some(points)} not rendered")
 
 
 def _some(items):

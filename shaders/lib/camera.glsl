@@ -77,9 +77,9 @@ vec2 camera_lens_point(vec2 u) {
 
 // The camera ray through image position (x, y) in pixels (row 0 = top) and through `lens`, a
 // point on the aperture (camera_lens_point; (0, 0): its centre, and a pinhole's only point),
-// focused at the focus distance; t_min, t_max from the
-// clip distances, depth_per_t: the Depth pass per unit of t (along the view axis; 1 for
-// panoramas, as Cycles). False where a fisheye or mirror ball has no image: no ray.
+// focused at the focus distance. t_min, t_max: the clip distances; depth_per_t: the Depth pass
+// per unit of t (along the view axis; 1 for panoramas, as Cycles). False where a fisheye or
+// mirror ball has no image: no ray.
 bool camera_ray(vec2 xy, vec2 lens, out vec3 origin, out vec3 dir, out float t_min, out float t_max,
                 out float depth_per_t) {
     vec4 window = scene.camera_window;
@@ -87,7 +87,13 @@ bool camera_ray(vec2 xy, vec2 lens, out vec3 origin, out vec3 dir, out float t_m
     float sy = mix(window.w, window.z, xy.y / float(params.height));
     vec3 origin_cam, dir_cam;
     float clip_scale;  // t per unit of clip distance
-    if (scene.camera_type == CAMERA_PERSPECTIVE) {
+    if (!HAS(FEATURE_LENS)) {  // a pinhole: perspective or orthographic
+        bool ortho = scene.camera_type == CAMERA_ORTHOGRAPHIC;
+        origin_cam = ortho ? vec3(sx, sy, 0.0) : vec3(0.0);
+        dir_cam = ortho ? vec3(0.0, 0.0, -1.0) : normalize(vec3(sx, sy, -1.0));
+        depth_per_t = -dir_cam.z;
+        clip_scale = 1.0 / depth_per_t;
+    } else if (scene.camera_type == CAMERA_PERSPECTIVE) {
         // Cycles' thin lens: every ray through the pinhole ray's point on the plane of focus.
         vec3 pinhole = vec3(sx, sy, -1.0);
         origin_cam = vec3(lens, 0.0);

@@ -87,6 +87,18 @@ def _panorama(kind, **settings):
     return build
 
 
+def _with_depth_of_field(build):
+    """The panorama ``build`` makes, with a pentagonal aperture of 0.3 m focused at 1.5 m."""
+    def with_dof(b):
+        import bpy
+
+        build(b)
+        dof = bpy.context.scene.camera.data.dof
+        dof.use_dof, dof.focus_distance, dof.aperture_fstop, dof.aperture_blades = True, 1.5, 0.05, 5
+    with_dof.__name__ = build.__name__ + "_dof"
+    return with_dof
+
+
 PANORAMAS = [
     _panorama("EQUIRECTANGULAR", latitude_min=-1.2, latitude_max=1.4, longitude_min=-2.5, longitude_max=2.9),
     _panorama("EQUIANGULAR_CUBEMAP_FACE"),
@@ -98,6 +110,7 @@ PANORAMAS = [
               central_cylindrical_range_v_min=-0.8, central_cylindrical_range_v_max=1.0,
               central_cylindrical_radius=1.3),
 ]
+PANORAMAS += [_with_depth_of_field(PANORAMAS[0]), _with_depth_of_field(PANORAMAS[4])]
 
 
 def compare(bpy, tmp_path, builder, samples=SAMPLES, size=(WIDTH, HEIGHT), block=BLOCK):

@@ -112,3 +112,17 @@ def test_hair_particles(fresh, bpy, render_type, warned):
     assert _feature_warnings(bpy, "hair curves") == [
         f"hair curves are not supported: hair particles '{name}' on object 'Cube' not rendered"
     ] * warned
+
+
+def test_point_cloud(fresh, bpy):
+    cube = _cube(bpy)
+    # Geometry nodes turn the cube's vertices into points (a point cloud Cycles renders as spheres).
+    tree = bpy.data.node_groups.new("ToPoints", "GeometryNodeTree")
+    tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    source, sink = tree.nodes.new("NodeGroupInput"), tree.nodes.new("NodeGroupOutput")
+    to_points = tree.nodes.new("GeometryNodeMeshToPoints")
+    tree.links.new(source.outputs[0], to_points.inputs["Mesh"])
+    tree.links.new(to_points.outputs["Points"], sink.inputs[0])
+    cube.modifiers.new("Points", "NODES").node_group = tree
+    assert _feature_warnings(bpy, "point clouds") == ["point clouds are not supported: object 'Cube' not rendered"]

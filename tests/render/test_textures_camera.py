@@ -188,13 +188,20 @@ def test_a_pinhole_ignores_the_lens_settings_and_depth_of_field_keeps_the_focus_
     m = np.eye(4)
     m[:3, 3] = (0, 0, 5)
     quad.camera = Camera.from_blender(m, 32, 32, lens=180.0, sensor_width=36.0)  # 2 m wide at 5 m
-    sharp, depth = albedo(quad)
-    quad.camera = dataclasses.replace(quad.camera, aperture_radius=0.5, focus_distance=5.0)
-    focused, focused_depth = albedo(quad)
+    session = pc.Session(32, 32)
+    sharp, depth = albedo(quad, session)
+
+    def camera_update(**lens):  # the camera alone, as the viewport sends it: the lens switches on
+        quad.camera = dataclasses.replace(quad.camera, **lens)
+        session.update(quad, parts={"camera"})
+        session.render(1)
+        return session.read("albedo"), session.read("depth")
+
+    focused, focused_depth = camera_update(aperture_radius=0.5, focus_distance=5.0)
     np.testing.assert_allclose(focused, sharp, atol=1e-3)
     np.testing.assert_allclose(focused_depth, depth, rtol=1e-4)
-    quad.camera = dataclasses.replace(quad.camera, focus_distance=2.0)
-    assert np.abs(albedo(quad)[0] - sharp).max() > 0.3  # out of focus: the texel edges blur
+    assert np.abs(camera_update(focus_distance=2.0)[0] - sharp).max() > 0.3  # out of focus: texel edges blur
+    np.testing.assert_allclose(camera_update(aperture_radius=0.0)[0], sharp, atol=1e-3)  # and off again
 
 
 def test_a_fisheye_renders_nothing_outside_its_image_circle():

@@ -222,6 +222,11 @@ void mark_transmission_contacts(const SceneGeometry& g, const std::vector<Materi
     }
 }
 
+// FEATURE_LENS: the camera has depth of field or is a panorama.
+bool camera_has_lens(const SceneInfo& info) {
+    return info.aperture_radius > 0 || info.camera_type == CAMERA_PANORAMA;
+}
+
 // What the uploaded scene uses, for pipeline specialization.
 uint scene_features(const SceneHost& s) {
     const SceneGeometry& g = *s.geometry;
@@ -254,6 +259,7 @@ uint scene_features(const SceneHost& s) {
         if (material_transmits(m)) f |= FEATURE_TRANSMISSION;
         if (m.base_color_texture >= 0) f |= FEATURE_TEXTURES;
     }
+    if (camera_has_lens(s.info)) f |= FEATURE_LENS;
     for (const auto& l : s.lights->lights) {
         switch (l.type) {
             case LIGHT_TRIANGLE: f |= FEATURE_TRIANGLE_LIGHTS; break;
@@ -1009,13 +1015,16 @@ SceneHost update_scene(const SceneHost& previous, const SceneArrays& a, bool spa
         s.info.scene_center = s.placement->center;
         s.info.scene_radius = s.placement->radius;
     }
+    if (parts & PART_CAMERA) {
+        prepare_camera(a, s.info);
+        s.features = (s.features & ~FEATURE_LENS) | (camera_has_lens(s.info) ? FEATURE_LENS : 0u);
+    }
     // The light table holds the emissive instances' triangles (with their materials'
     // emission) as well as the analytic lights and the world.
     if (parts & (PART_INSTANCES | PART_MATERIALS | PART_LIGHTS)) {
         prepare_lights(a, (parts & PART_LIGHTS) != 0, light_tree, s);
         s.features = scene_features(s);
     }
-    if (parts & PART_CAMERA) prepare_camera(a, s.info);
     return s;
 }
 
