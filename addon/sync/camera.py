@@ -40,17 +40,19 @@ def lens_settings(obj, depsgraph):
     """Camera.from_blender's depth of field and panorama keywords for camera object ``obj``,
     as Cycles' Blender sync reads them (intern/cycles/blender/camera.cpp)."""
     cam = obj.data
-    out = {"panorama_type": _panorama(cam, "panorama_type")}
-    if out["panorama_type"] == "CENTRAL_CYLINDRICAL":
-        radius = cam.central_cylindrical_radius
-        out["panorama_range"] = (cam.central_cylindrical_range_u_min, cam.central_cylindrical_range_u_max,
-                                 cam.central_cylindrical_range_v_min / radius,
-                                 cam.central_cylindrical_range_v_max / radius)
-    else:
-        out["panorama_range"] = tuple(_panorama(cam, k) for k in
-                                      ("longitude_min", "longitude_max", "latitude_min", "latitude_max"))
-    out["fisheye_fov"], out["fisheye_lens"] = _panorama(cam, "fisheye_fov"), _panorama(cam, "fisheye_lens")
-    out["fisheye_polynomial"] = tuple(_panorama(cam, f"fisheye_polynomial_k{k}") for k in range(5))
+    out = {}
+    if cam.type == "PANO":
+        out["panorama_type"] = _panorama(cam, "panorama_type")
+        if out["panorama_type"] == "CENTRAL_CYLINDRICAL":
+            radius = cam.central_cylindrical_radius
+            out["panorama_range"] = (cam.central_cylindrical_range_u_min, cam.central_cylindrical_range_u_max,
+                                     cam.central_cylindrical_range_v_min / radius,
+                                     cam.central_cylindrical_range_v_max / radius)
+        else:
+            out["panorama_range"] = tuple(_panorama(cam, k) for k in
+                                          ("longitude_min", "longitude_max", "latitude_min", "latitude_max"))
+        out["fisheye_fov"], out["fisheye_lens"] = _panorama(cam, "fisheye_fov"), _panorama(cam, "fisheye_lens")
+        out["fisheye_polynomial"] = tuple(_panorama(cam, f"fisheye_polynomial_k{k}") for k in range(5))
     dof = cam.dof
     if dof.use_dof:
         # Cycles: the aperture radius from the f-number (the focal length in metres over twice
