@@ -211,6 +211,12 @@ CASES = [
          r"camera: bad clip range"),
     Case("camera-position-1e20", "flat", lambda _t: flat(set_("camera_to_world", (0, 3), 1e20)), E,
          r"camera position is beyond the coordinate limit"),
+    # -- node programs (issue 37; every check: tests/render/test_node_programs.py) --
+    Case("node-program-offset-past-end", "flat", lambda _t: flat(set_("material_node_program", 0, 5)), E,
+         r"material 0: node program at word 5 runs past the end"),
+    Case("node-program-unknown-op", "flat",
+         lambda _t: flat(lambda a: (replace("material_node_programs", np.array([77, 0, 0], np.uint32))(a),
+                                    set_("material_node_program", 0, 0)(a))), E, r"unknown operation 77"),
     # -- the thin lens and panoramas (issue 37) --
     Case("camera-aperture-nan", "flat", lambda _t: flat(set_("camera_aperture", 0, np.nan)), E,
          r"camera_aperture holds NaN"),

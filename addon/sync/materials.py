@@ -7,7 +7,10 @@ A node tree is reduced to weighted BSDF lobes plus one emission colour:
       metal, glass, specular layer and diffuse base; shaders/lib/principled.glsl), plus
       emission colour * strength;
   Mix Shader (constant factor) and Add Shader -> weighted sums of their inputs;
-  Image Texture (UV mapped) into a colour input -> that lobe's sRGB base-colour texture.
+  Image Texture (UV mapped) into a colour input -> that lobe's sRGB base-colour texture;
+  any other graph of texture and maths nodes into a colour or factor input (node_graph.py) ->
+  a node program the core runs at each hit, as Cycles' SVM does (also for a Mix Shader's
+  factor: the chain's selection weights follow it).
 Several lobes become a chain of core materials picked stochastically per hit with
 probability weight / total (``Material.mix_next``/``mix_weight``); the total weight scales the
 lobes' colours. Multiscatter GGX (the default of Glossy, Glass and Principled) is GGX with
@@ -15,11 +18,13 @@ Cycles' energy compensation. Documented approximations, each warned about once: 
 rendered as single-scatter GGX; Principled's sheen is a Charlie sheen lobe (Cycles' is a
 fitted microfibre LTC), its subsurface renders as diffuse, its anisotropy, thin film, normal
 inputs and alpha are ignored, and its emission is not dimmed by coat and sheen; linked factors and colours other than an Image Texture use the
-socket's own value; any other shader node renders as a diffuse surface of its colour.
+socket's own value where node_graph.py cannot compile them; any other shader node renders as a
+diffuse surface of its colour.
 """
 import numpy as np
 
 from .images import image_rgb
+from .node_graph import GraphCompiler, Unsupported
 
 DEFAULT_COLOR = (0.8, 0.8, 0.8)  # Cycles' surface for objects without a material
 
@@ -66,6 +71,7 @@ class MaterialTable:
 
     def _read(self, material):
         """(name, [(weight, lobe)], emission) of a Blender material."""
+        self._program = self._scene_nodes().Program()
         if material is None:
             return "", [(1.0, _lobe("diffuse", DEFAULT_COLOR))], np.zeros(3)
         tree = node_tree(material)
@@ -74,16 +80,27 @@ class MaterialTable:
             return material.name, [(1.0, _lobe("diffuse", tuple(material.diffuse_color[:3])))], np.zeros(3)
         reader = _NodeReader(material.name, self._warnings, self._texture)
         lobes, emission = reader.shader(output.inputs.get("Surface"))
+        self._program = reader.program
         return material.name, lobes, emission
+
+    def _scene_nodes(self):
+        from ..core import load
+
+        return load().nodes
 
     def _add_chain(self, head, name, lobes, emission):
         """Puts the head material (which carries the emission) at ``head`` and appends the
-        rest of its lobe chain."""
-        lobes = [(w, lobe) for w, lobe in lobes if w > 0.0]
-        total = sum(w for w, _ in lobes)
+        rest of its lobe chain. Weights and inputs the node graph drives (registers of the
+        material's node program) are set per hit by each link's program."""
+        program = self._program
+        constant = program.is_constant
+        lobes = [(w, lobe) for w, lobe in lobes if not constant(w) or w > 0.0]
+        total = 0.0
+        for w, _ in lobes:
+            total = program.math("ADD", total, w)
         if np.any(emission > 0):
             self.has_emission = True
-        if abs(total - 1.0) > 1e-6 and any(lobe["type"] == "principled" for _, lobe in lobes):
+        if constant(total) and abs(total - 1.0) > 1e-6 and any(lobe["type"] == "principled" for _, lobe in lobes):
             self._warnings.add(f"material '{name}': shaders adding up to a weight of {total:.3g} "
                                "scale a Principled BSDF's base colour only")
         Material = self._scene.Material
@@ -92,25 +109,42 @@ class MaterialTable:
             materials[head] = Material(type="emission", base_color=(0.0, 0.0, 0.0),
                                        emission=tuple(emission), name=name)
             return
-        remaining = 1.0
         for i, (w, lobe) in enumerate(lobes):
-            p = w / total
             last = i == len(lobes) - 1
+            link = program.fork()
+
+            def field(key, value, neutral):
+                """The Material's constant for ``value``, or ``neutral`` and a store."""
+                if constant(value):
+                    return value
+                link.store(key, value)
+                return neutral
+
+            # This link's share of what is left of the chain: w_i / sum_{j >= i} w_j.
+            remaining = 0.0
+            for w_later, _ in lobes[i:]:
+                remaining = link.math("ADD", remaining, w_later)
+            weight = 1.0 if last else link.math("DIVIDE", w, remaining)
+            color = lobe["base_color"]
+            if not (constant(total) and total == 1.0):
+                color = link.mix("MULTIPLY", 1.0, color, link.to_color(total))  # the lobes' weights add up to total
+            principled = {k: field(k, v, 1.0 if k == "transmission" else 0.0) for k, v in lobe["principled"].items()}
             # The next lobe is appended after this one (after the head: at the end).
             next_index = len(materials) + (0 if i == 0 else 1)
             material = Material(
-                type=lobe["type"], base_color=tuple(np.asarray(lobe["base_color"]) * total),
-                roughness=lobe["roughness"], ior=lobe["ior"],
+                type=lobe["type"], base_color=tuple(np.asarray(field("base_color", color, (1.0, 1.0, 1.0)))[:3]),
+                roughness=field("roughness", lobe["roughness"], 0.0), ior=lobe["ior"],
                 emission=tuple(emission) if i == 0 else (0.0, 0.0, 0.0),
                 base_color_texture=lobe["texture"], name=name if i == 0 else f"{name} (lobe {i})",
-                multiscatter=lobe["multiscatter"], **lobe["principled"],
+                multiscatter=lobe["multiscatter"], **principled,
                 mix_next=None if last else next_index,
-                mix_weight=1.0 if last else min(1.0, p / remaining))
+                mix_weight=1.0 if last else min(1.0, float(field("mix_weight", weight, 1.0))))
+            if link.words != program.words:
+                material.node_program = tuple(link.finish())
             if i == 0:
                 materials[head] = material
             else:
                 materials.append(material)
-            remaining -= p
 
     def _texture(self, image, node_label, interpolation="linear"):
         """Index of ``image`` with ``interpolation`` ("linear" or "closest") in data.textures
@@ -149,8 +183,12 @@ def node_tree(id_block):
 
 
 def _lobe(type, base_color, roughness=0.5, ior=1.45, texture=None, multiscatter=False, principled=None):
-    return dict(type=type, base_color=np.asarray(base_color[:3], dtype=np.float64),
-                roughness=float(roughness), ior=float(ior), texture=texture,
+    from ..core import load
+
+    driven = not load().nodes.Program.is_constant(base_color)
+    return dict(type=type, base_color=base_color if driven else np.asarray(base_color[:3], dtype=np.float64),
+                roughness=roughness if not load().nodes.Program.is_constant(roughness) else float(roughness),
+                ior=float(ior), texture=texture,
                 multiscatter=bool(multiscatter) and type in ("conductor", "dielectric", "principled"),
                 principled=principled or {})
 
@@ -159,9 +197,30 @@ class _NodeReader:
     """Walks one material's node tree from its output's Surface socket."""
 
     def __init__(self, material_name, warnings, texture_loader):
+        from ..core import load
+
         self.name = material_name
         self.warnings = warnings
         self.texture_loader = texture_loader
+        self.program = load().nodes.Program()
+        self.graph = GraphCompiler(self.program, texture_loader, material_name)
+
+    def driven(self, node, name, default, kind="float"):
+        """The value at input ``name``: a constant, or a register of the material's node
+        program when texture and maths nodes drive it. A graph the compiler cannot translate
+        is named in a warning, and the socket's own value used (as before programs)."""
+        socket = node.inputs.get(name)
+        if socket is None:
+            return default
+        if self._source(socket) is None:
+            return float(socket.default_value) if kind == "float" else np.asarray(socket.default_value[:3], np.float64)
+        try:
+            return self.graph.socket(socket, kind)
+        except (Unsupported, ValueError) as e:  # ValueError: the program needs too many registers
+            own = socket.default_value if kind == "float" else tuple(socket.default_value[:3])
+            self.warn(f"'{node.name}' {name} is driven by {e}, which is not supported; using its value "
+                      f"{own if kind != 'float' else f'{own:.3g}'}")
+            return float(socket.default_value) if kind == "float" else np.asarray(socket.default_value[:3], np.float64)
 
     def warn(self, text):
         self.warnings.add(f"material '{self.name}': {text}")
@@ -228,9 +287,7 @@ class _NodeReader:
             if texture is not None:
                 return np.ones(3), texture
             return constant, None
-        self.warn(f"'{node.name}' {name} is driven by a '{src.bl_label}' node (not supported); "
-                  "using its colour value")
-        return constant, None
+        return self.driven(node, name, constant, "color"), None
 
     # -- shaders --
 
@@ -246,10 +303,19 @@ class _NodeReader:
         return handler(node)
 
     def _mix_shader(self, node):
-        f = min(max(self.value(node, node.inputs[0].name, 0.5), 0.0), 1.0)
+        p = self.program
+        f = p.math("CLAMP", self.driven(node, node.inputs[0].name, 0.5), 0.0, 1.0)
         a_lobes, a_emission = self.shader(node.inputs[1])
         b_lobes, b_emission = self.shader(node.inputs[2])
-        lobes = [((1.0 - f) * w, l) for w, l in a_lobes] + [(f * w, l) for w, l in b_lobes]
+        if not p.is_constant(f) and (np.any(a_emission > 0) or np.any(b_emission > 0)):
+            # Emission stays a constant (the light table samples emitters by it).
+            f = min(max(float(node.inputs[0].default_value), 0.0), 1.0)
+            self.warn(f"'{node.name}': a Mix Shader factor driven by nodes over emission is not supported; "
+                      f"using its value {f:.3g}")
+        g = p.math("SUBTRACT", 1.0, f)
+        lobes = [(p.math("MULTIPLY", g, w), l) for w, l in a_lobes] + [(p.math("MULTIPLY", f, w), l) for w, l in b_lobes]
+        if not p.is_constant(f):
+            return lobes, a_emission  # both zero
         return lobes, (1.0 - f) * a_emission + f * b_emission
 
     def _add_shader(self, node):
@@ -257,10 +323,21 @@ class _NodeReader:
         b_lobes, b_emission = self.shader(node.inputs[1])
         return a_lobes + b_lobes, a_emission + b_emission
 
+    def constant_color(self, node, name, color, texture, default):
+        """An input only a constant may drive (emission, tints): the texture's or graph's
+        colour is named in a warning and ``default`` (texture) or the socket's value used."""
+        if texture is not None:
+            self.warn(f"'{node.name}': a texture on {name} is not supported; using {tuple(default)}")
+            return np.asarray(default, np.float64)
+        if not self.program.is_constant(color):
+            own = np.asarray(node.inputs[name].default_value[:3], np.float64)
+            self.warn(f"'{node.name}': nodes driving {name} are not supported; using its value {tuple(own.round(3))}")
+            return own
+        return np.asarray(color, np.float64)[:3]
+
     def _emission(self, node):
         color, texture = self.color(node, "Color", (1.0, 1.0, 1.0))
-        if texture is not None:
-            self.warn(f"'{node.name}': textured emission is not supported; using white")
+        color = self.constant_color(node, "Color", color, texture, (1.0, 1.0, 1.0))
         return [], color * self.value(node, "Strength", 1.0)
 
     def _bsdf_diffuse(self, node):
@@ -272,13 +349,14 @@ class _NodeReader:
     def _distribution(self, node, roughness):
         """(roughness, multiscatter) of a microfacet node's distribution."""
         distribution = getattr(node, "distribution", "GGX")
-        if roughness > 0.0 and distribution not in ("GGX", "SHARP", "MULTI_GGX"):
+        rough = not self.program.is_constant(roughness) or roughness > 0.0
+        if rough and distribution not in ("GGX", "SHARP", "MULTI_GGX"):
             self.warn(f"'{node.name}': {distribution} is rendered as single-scatter GGX")
         return (0.0 if distribution == "SHARP" else roughness), distribution == "MULTI_GGX"
 
     def _bsdf_glossy(self, node):
         color, texture = self.color(node, "Color")
-        roughness, ms = self._distribution(node, self.value(node, "Roughness", 0.5))
+        roughness, ms = self._distribution(node, self.driven(node, "Roughness", 0.5))
         if abs(self.value(node, "Anisotropy", 0.0)) > 0.0:
             self.warn(f"'{node.name}': anisotropy is ignored")
         return [(1.0, _lobe("conductor", color, roughness, texture=texture, multiscatter=ms))], np.zeros(3)
@@ -293,7 +371,7 @@ class _NodeReader:
 
     def _bsdf_glass(self, node):
         color, texture = self.color(node, "Color", (1.0, 1.0, 1.0))
-        roughness, ms = self._distribution(node, self.value(node, "Roughness", 0.0))
+        roughness, ms = self._distribution(node, self.driven(node, "Roughness", 0.0))
         ior = self.ior(node, 1.5)
         return [(1.0, _lobe("dielectric", color, roughness, ior, texture, ms))], np.zeros(3)
 
@@ -307,30 +385,28 @@ class _NodeReader:
             if getattr(node.inputs.get(name), "type", None) != "RGBA":
                 return (1.0, 1.0, 1.0)
             rgb, texture = self.color(node, name, (1.0, 1.0, 1.0))
-            if texture is not None:
-                self.warn(f"'{node.name}': a texture on {name} is not supported; using white")
-            return tuple(float(x) for x in rgb)
+            return tuple(float(x) for x in self.constant_color(node, name, rgb, texture, (1.0, 1.0, 1.0)))
 
         color, texture = self.color(node, "Base Color")
-        roughness, ms = self._distribution(node, self.value(node, "Roughness", 0.5))
+        roughness, ms = self._distribution(node, self.driven(node, "Roughness", 0.5))
         ior = self.ior(node, 1.5)
         if "Specular IOR Level" not in node.inputs:
             self.warn(f"'{node.name}': a Principled BSDF older than Blender 4.0; only its base "
                       "colour, metallic, roughness, IOR and transmission are read")
         principled = dict(
-            metallic=self.value(node, "Metallic", 0.0),
-            transmission=self.value(node, first("Transmission Weight", "Transmission"), 0.0),
-            specular_ior_level=self.value(node, "Specular IOR Level", 0.5),
+            metallic=self.driven(node, "Metallic", 0.0),
+            transmission=self.driven(node, first("Transmission Weight", "Transmission"), 0.0),
+            specular_ior_level=self.driven(node, "Specular IOR Level", 0.5),
             specular_tint=tint("Specular Tint"),
-            coat_weight=self.value(node, "Coat Weight", 0.0),
-            coat_roughness=self.value(node, "Coat Roughness", 0.03),
+            coat_weight=self.driven(node, "Coat Weight", 0.0),
+            coat_roughness=self.driven(node, "Coat Roughness", 0.03),
             coat_ior=self.value(node, "Coat IOR", 1.5),
             coat_tint=tint("Coat Tint"),
-            sheen_weight=self.value(node, "Sheen Weight", 0.0),
+            sheen_weight=self.driven(node, "Sheen Weight", 0.0),
             sheen_roughness=self.value(node, "Sheen Roughness", 0.5),
             sheen_tint=tint("Sheen Tint"),
         )
-        if principled["sheen_weight"] > 0.0:
+        if not self.program.is_constant(principled["sheen_weight"]) or principled["sheen_weight"] > 0.0:
             self.warn(f"'{node.name}': Sheen is approximated (a Charlie sheen lobe, not Cycles' "
                       "microfibre LTC)")
         for name in ("Subsurface Weight", "Subsurface"):
@@ -346,9 +422,9 @@ class _NodeReader:
         if self.value(node, "Alpha", 1.0) < 1.0:
             self.warn(f"'{node.name}': Alpha is ignored (rendered opaque)")
         lobes = [(1.0, _lobe("principled", color, roughness, ior, texture, ms, principled))]
-        emission_color, emission_texture = self.color(node, first("Emission Color", "Emission"), (0.0, 0.0, 0.0))
-        if emission_texture is not None:
-            self.warn(f"'{node.name}': textured emission is not supported; using white")
+        emission_name = first("Emission Color", "Emission")
+        emission_color, emission_texture = self.color(node, emission_name, (0.0, 0.0, 0.0))
+        emission_color = self.constant_color(node, emission_name, emission_color, emission_texture, (1.0, 1.0, 1.0))
         emission = emission_color * self.value(node, "Emission Strength", 1.0)
         return lobes, emission
 

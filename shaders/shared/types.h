@@ -67,7 +67,9 @@ PX_CONST uint BINDING_ADAPTIVE_AUX = 39;
 PX_CONST uint BINDING_ADAPTIVE_PIXELS = 40;
 // float[PIXEL_FILTER_TABLE_SIZE]: the pixel filter's inverted CDF (render/pixel_filter.h)
 PX_CONST uint BINDING_PIXEL_FILTER = 41;
-PX_CONST uint BINDING_COUNT = 42;
+// uint words: the materials' node programs (Material.program; shaders/lib/nodes.glsl)
+PX_CONST uint BINDING_NODE_PROGRAMS = 42;
+PX_CONST uint BINDING_COUNT = 43;
 
 // ---- shader binding table: miss shaders and hit groups (RayTracingPipeline group order) -
 PX_CONST uint MISS_SCENE = 0;         // miss.rmiss: the world
@@ -161,6 +163,7 @@ PX_CONST uint FEATURE_TRANSMISSION = 1u << 13;
 // The camera has depth of field or is a panorama (camera.glsl); without it the camera code
 // is the pinhole's alone, which lavapipe runs 1.5-2% faster (bench/results/camera_lens).
 PX_CONST uint FEATURE_LENS = 1u << 14;
+PX_CONST uint FEATURE_NODES = 1u << 15;  // some used material has a node program (nodes.glsl)
 PX_CONST uint FEATURE_ALL = 0xffffffffu;
 
 // The light-path limits a pipeline carries (LIGHT_PATH_LIMITS, tested by LIMITS()): only where
@@ -216,8 +219,38 @@ struct Material {
     float coat_roughness;
     float coat_ior;
     float sheen_roughness;
-    uint pad0, pad1, pad2;
+    uint program;  // first word of its node program in BINDING_NODE_PROGRAMS; NO_INDEX: none
+    uint pad1, pad2;
 };
+
+// Node programs (parallax_core/nodes.py builds them; shaders/lib/nodes.glsl runs them at each
+// hit): instructions op | dst << 8 | a << 16 | b << 24 over vec4 registers, each followed by
+// one word or more of its own, up to NODE_END.
+PX_CONST uint NODE_END = 0;
+PX_CONST uint NODE_CONST = 1;      // dst = 4 float words
+PX_CONST uint NODE_UV = 2;         // dst = (uv, 0, 0); word unused
+PX_CONST uint NODE_TEXTURE = 3;    // dst = texture[word] at a.xy (Image Texture, Linear/Closest, repeat)
+PX_CONST uint NODE_AFFINE = 4;     // dst.xyz = 3x4 matrix (12 words) * (a.xyz, 1) (Mapping)
+PX_CONST uint NODE_MATH = 5;       // dst.x = MATH op (word & 0xff) of a.x, b.x, c.x (c: word >> 16)
+PX_CONST uint NODE_MIX = 6;        // dst = blend (word & 0xff) of b over a by reg (word >> 8 & 0xff).x;
+                                   // word bit 16: clamp the result to 0..1
+PX_CONST uint NODE_INVERT = 7;     // dst = mix(a, 1 - a, b.x); word unused
+PX_CONST uint NODE_MAP_RANGE = 8;  // dst.x = a.x mapped linearly; word: registers of from min, max,
+                                   // to min, max (a byte each); next word: clamp
+PX_CONST uint NODE_RAMP = 9;       // dst = table of (word & 0xffff) rgba rows at a.x, interpolated
+                                   // if word >> 16 (ColorRamp as Cycles' lookup table)
+PX_CONST uint NODE_SEPARATE = 10;  // dst.x = a[word]
+PX_CONST uint NODE_COMBINE = 11;   // dst = (a.x, b.x, reg[word].x, 1)
+PX_CONST uint NODE_STORE = 12;     // Material field (word: parallax_core.nodes.FIELDS) = a
+PX_CONST uint NODE_CONVERT = 13;   // word 0: dst.x = luminance of a.rgb; 1: mean of a.xyz; 2: dst = a.xxx
+PX_CONST uint NODE_OPS = 14;
+PX_CONST uint NODE_REGISTERS = 32;
+PX_CONST uint NODE_MATH_OPS = 22;   // parallax_core.nodes.MATH_OPS, in that order
+PX_CONST uint NODE_BLEND_MODES = 10;  // parallax_core.nodes.BLEND_MODES
+PX_CONST uint NODE_FIELDS = 9;      // parallax_core.nodes.FIELDS: base_color, roughness, metallic,
+                                    // transmission, coat_weight, specular_ior_level, mix_weight,
+                                    // coat_roughness, sheen_weight (emission stays constant: the
+                                    // light table samples emitters by it)
 
 // Conductor/dielectric: Cycles' Multiscatter GGX, the single-scatter lobe scaled by
 // 1/E(mu_o) (and the Fresnel-coloured multi-bounce term) from shaders/shared/ggx_tables.h.

@@ -164,12 +164,12 @@ def test_nan_vertex_and_empty_mesh_render_with_warnings(fresh, bpy, tmp_path):
 def test_unsupported_camera_is_a_clear_error_and_bpy_goes_on(fresh, bpy, tmp_path):
     _add_mesh(bpy, fresh, "Quad", QUAD, [(0, 1, 2, 3)])
     _add_light(bpy, fresh)
-    fresh.camera.data.type = "PANO"
+    fresh.camera.data.type = "CUSTOM"  # an OSL camera (Blender 5)
     # Blender turns the engine's error report into an exception of the render operator.
-    with pytest.raises(RuntimeError, match="panoramic cameras are not supported"):
+    with pytest.raises(RuntimeError, match="custom cameras are not supported"):
         bpy.ops.render.render()
     assert final.last_report.errors == [
-        "camera 'Camera': panoramic cameras are not supported (perspective and orthographic are)"]
+        "camera 'Camera': custom cameras are not supported (perspective, orthographic and panoramic are)"]
     fresh.camera.data.type = "PERSP"
     render(bpy, tmp_path / "again.exr")
     assert not final.last_report.errors and final.last_report.samples == fresh.parallax.samples

@@ -175,6 +175,32 @@ def test_image_texture_into_base_color(fresh, bpy):
     assert (texels[0, :, 0] == 255).all() and (texels[1, :, 0] == 0).all()  # row 0 = top
 
 
+def test_node_graphs_become_node_programs_and_the_rest_is_named(fresh, bpy):
+    """Texture and maths nodes into an input compile to the material's node program (their
+    parity with Cycles: test_parity_nodes.py); a node the compiler does not know is named in a
+    warning and the input keeps its own value."""
+    from parallax_core import nodes
+
+    material, bsdf = _material(bpy, "Ramped", "ShaderNodeBsdfPrincipled", Roughness=0.4)
+    tree = material.node_tree
+    ramp, coords = tree.nodes.new("ShaderNodeValToRGB"), tree.nodes.new("ShaderNodeTexCoord")
+    separate = tree.nodes.new("ShaderNodeSeparateXYZ")
+    tree.links.new(coords.outputs["UV"], separate.inputs[0])
+    tree.links.new(separate.outputs["X"], ramp.inputs["Fac"])
+    tree.links.new(ramp.outputs["Color"], bsdf.inputs["Base Color"])
+    noise = tree.nodes.new("ShaderNodeTexNoise")
+    tree.links.new(noise.outputs["Fac"], bsdf.inputs["Roughness"])
+    _cube(bpy, fresh, material=material)
+    data, warnings = export_current(bpy)
+    m = data.materials[data.meshes[0].material_indices[0]]
+    words = m.node_program
+    assert words and words[-1] == nodes.NODE_END
+    stores = [nodes.FIELDS[extra[0]] for op, _, _, _, extra in nodes.instructions(words) if op == nodes.NODE_STORE]
+    assert stores == ["base_color"]
+    assert m.roughness == pytest.approx(0.4)  # the noise is not compiled: the socket's value
+    assert any("'Noise Texture' node 'Noise Texture'" in w and "Roughness" in w for w in warnings), warnings
+
+
 def test_float_image_and_interpolation_reach_the_texture(fresh, bpy):
     """A float image stays linear floats (values above 1 kept); the node's Closest travels
     with the texture; Cubic renders as Linear with a warning."""

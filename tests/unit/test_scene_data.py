@@ -535,6 +535,25 @@ def test_blender_panorama_and_depth_of_field():
         Camera.from_blender(np.eye(4), 64, 64, fstop=2.0)
 
 
+def test_node_programs_round_trip(tmp_path):
+    nodes = importlib.import_module(f"{_PKG}.nodes")
+    s = scenes.cornell_box(width=32, height=24)
+    programs = []
+    for k in (0, 2):
+        p = nodes.Program()
+        p.store("roughness", p.math("MULTIPLY", p.separate(p.uv(), k % 2), 0.5 + k))
+        programs.append(tuple(p.finish()))
+    s.materials[0].node_program, s.materials[2].node_program = programs
+    flat = s.flatten()
+    assert list(flat["material_node_program"][:3]) == [0, -1, len(programs[0])]
+    s.save(tmp_path / "nodes.npz")
+    loaded = SceneData.load(tmp_path / "nodes.npz")
+    assert [m.node_program for m in loaded.materials[:3]] == [programs[0], (), programs[1]]
+    assert_flat_equal(flat, loaded.flatten())
+    del flat["material_node_program"], flat["material_node_programs"]  # files before node programs
+    assert all(m.node_program == () for m in SceneData.from_flat(flat).materials)
+
+
 def test_camera_lens_round_trip_and_older_files(tmp_path):
     s = scenes.cornell_box(width=32, height=24)
     s.camera = Camera(s.camera.camera_to_world, "panorama", (0.0, 1.0, 0.0, 1.0), 0.1, 100.0,

@@ -22,6 +22,7 @@ from ._native import (LIMITS, DeviceMemoryError, background_compiles, devices, l
 from ._native import Session as _NativeSession
 from ._native import _PASSES, _SETTINGS, _make_params, _setting_index
 from . import denoise  # noqa: F401  (OIDN: parallax_core.denoise)
+from . import nodes  # noqa: F401  (material node programs: parallax_core.nodes)
 from .scene import PART_KEYS, PARTS, parts_set
 
 __all__ = ["Session", "RenderParams", "UNBIASED_LIGHT_PATHS", "SETTINGS", "PASSES", "setting", "devices", "METHODS",

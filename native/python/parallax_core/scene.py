@@ -60,6 +60,8 @@ FLAT_KEYS = {
     "material_mix_weight": (np.float32, "(K,)"),
     "material_multiscatter": (np.uint32, "(K,)"),
     "material_principled": (np.float32, "(K,17)"),  # PRINCIPLED_FIELDS, in that order
+    "material_node_program": (np.int32, "(K,)"),     # first word of its node program, -1: none
+    "material_node_programs": (np.uint32, "(P,)"),   # the programs' words (parallax_core.nodes)
     "texture_texels": (np.uint8, "(N,4)"),
     "texture_info": (np.uint32, "(X,3)"),           # first texel, width, height
     "texture_flags": (np.uint32, "(X,)"),           # TEXTURE_FLAG_* bits
@@ -123,6 +125,7 @@ def parts_set(parts):
 # Keys newer than some saved files, with their defaults (and the array they follow in length).
 _OPTIONAL_KEY_DEFAULTS = {"material_mix_next": -1, "material_mix_weight": 1.0, "material_multiscatter": 0,
                           "material_principled": 0.0,
+                          "material_node_program": -1, "material_node_programs": 0,
                           "light_camera_visible": 1, "light_soft_falloff": 0,
                           "texture_flags": 0, "texture_half_texels": 0}
 
@@ -289,6 +292,9 @@ class Material:
     roughness, ior and the fields from ``metallic`` on are the node's inputs of those names
     (transmission = Transmission Weight, coat_* = Coat *, sheen_* = Sheen *), clamped as
     Cycles clamps them; other types ignore them.
+
+    node_program: the words of a node program (parallax_core.nodes.Program.finish()) that sets
+    the fields a node graph drives at each hit; empty: none.
     """
     type: str = "diffuse"
     base_color: tuple = (0.8, 0.8, 0.8)
@@ -312,6 +318,7 @@ class Material:
     sheen_weight: float = 0.0
     sheen_roughness: float = 0.5
     sheen_tint: tuple = (1.0, 1.0, 1.0)
+    node_program: tuple = ()
 
 
 @dataclass
@@ -603,6 +610,9 @@ class SceneData:
                 raise ValueError(f"{lbl}: base_color_texture {t} out of range ({X} textures)")
             if np.ndim(_floats(mat.mix_weight, f"{lbl}: mix_weight")) != 0 or not _finite(mat.mix_weight):
                 raise ValueError(f"{lbl}: mix_weight is NaN/Inf or not a number")
+            words = np.asarray(mat.node_program)
+            if words.size and (words.ndim != 1 or words.dtype.kind not in "iu" or words.min() < 0 or words.max() >= 2**32):
+                raise ValueError(f"{lbl}: node_program must be uint32 words (parallax_core.nodes.Program)")
             n = mat.mix_next
             if n is not None:
                 if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)):
@@ -779,6 +789,12 @@ class SceneData:
             [1.0 if m.mix_next is None else min(max(float(m.mix_weight), 0.0), 1.0)
              for m in mats], np.float32)
         out["material_multiscatter"] = np.array([int(bool(m.multiscatter)) for m in mats], np.uint32)
+        offsets, words = [], []
+        for m in mats:
+            offsets.append(len(words) if len(m.node_program) else -1)
+            words.extend(int(w) for w in m.node_program)
+        out["material_node_program"] = np.array(offsets, np.int32)
+        out["material_node_programs"] = np.array(words, np.uint32)
         out["material_principled"] = np.array(
             [np.concatenate([np.clip(np.asarray(getattr(m, a), np.float64).reshape(n), lo, hi)
                              for a, n, lo, hi in PRINCIPLED_FIELDS]) for m in mats],
@@ -920,6 +936,7 @@ class SceneData:
                                else int(a["material_mix_next"][k])),
                      mix_weight=float(a["material_mix_weight"][k]),
                      multiscatter=bool(a["material_multiscatter"][k]),
+                     node_program=_node_program(a, k),
                      **_principled_fields(a["material_principled"][k]))
             for k in range(len(a["material_type"]))]
         tnames = meta.get("texture_names") or [""] * len(a["texture_info"])
@@ -1042,7 +1059,7 @@ def _check_flat(flat, meta):
             raise ValueError(f"array '{k}' must hold integers, got {v.dtype}")
     groups = {"T": ("indices", "triangle_material"), "M": [k for k in FLAT_KEYS if k.startswith("mesh_")],
               "I": ("instance_transform", "instance_mesh"),
-              "K": [k for k in FLAT_KEYS if k.startswith("material_")],
+              "K": [k for k in FLAT_KEYS if k.startswith("material_") and k != "material_node_programs"],
               "L": [k for k in FLAT_KEYS if k.startswith("light_")]}
     for keys in groups.values():
         lengths = {k: len(a[k]) for k in keys}
@@ -1103,6 +1120,17 @@ def _check_flat(flat, meta):
     return a
 
 
+def _node_program(a, k):
+    """Material k's node program words: from its offset to the next program's (they are
+    stored in material order)."""
+    offsets = a["material_node_program"]
+    if offsets[k] < 0:
+        return ()
+    later = [int(o) for o in offsets[k + 1:] if o >= 0]
+    end = later[0] if later else len(a["material_node_programs"])
+    return tuple(int(w) for w in a["material_node_programs"][int(offsets[k]):end])
+
+
 def _camera_aperture(cam):
     """camera_aperture's row: radius, focus distance, blades, rotation, ratio."""
     return (cam.aperture_radius, cam.focus_distance, cam.aperture_blades, cam.aperture_rotation, cam.aperture_ratio)
@@ -1125,8 +1153,8 @@ def _with_optional_defaults(flat):
         if k not in flat:
             like = {"light": "light_type", "material": "material_type", "texture": "texture_info"}[k.split("_")[0]]
             n = len(flat[like]) if like in flat and np.ndim(flat[like]) >= 1 else 0
-            if k == "texture_half_texels":
-                n = 0  # files without float textures
+            if k in ("texture_half_texels", "material_node_programs"):
+                n = 0  # files without float textures or node programs
             trailing = tuple(int(d) for d in FLAT_KEYS[k][1].strip("()").split(",")[1:] if d)
             flat[k] = np.full((n,) + trailing, default, dtype=FLAT_KEYS[k][0])
     return flat

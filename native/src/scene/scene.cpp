@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <numeric>
 #include <stdexcept>
 
@@ -258,6 +259,7 @@ uint scene_features(const SceneHost& s) {
         if (m.type == MATERIAL_PRINCIPLED) f |= FEATURE_PRINCIPLED;
         if (material_transmits(m)) f |= FEATURE_TRANSMISSION;
         if (m.base_color_texture >= 0) f |= FEATURE_TEXTURES;
+        if (m.program != NO_INDEX) f |= FEATURE_NODES;
     }
     if (camera_has_lens(s.info)) f |= FEATURE_LENS;
     for (const auto& l : s.lights->lights) {
@@ -369,6 +371,69 @@ std::shared_ptr<const SceneGeometry> prepare_geometry(const SceneArrays& a, bool
 }
 
 // Materials and textures; the triangles' material indices must stay in range.
+// A node program (types.h NODE_*) from word `start`: known operations, registers written
+// before they are read, finite constants, textures that exist, and NODE_END before the end.
+void check_node_program(const std::vector<uint>& words, uint32_t start, size_t textures, const std::string& id) {
+    const std::string where = id + ": node program at word " + std::to_string(start);
+    uint64_t written = 0;  // registers set so far, a bit each
+    auto reg = [&](uint r) {
+        if (r >= NODE_REGISTERS || !(written >> r & 1u)) bad(where + " reads register " + std::to_string(r) + " before it is set");
+    };
+    auto finite_words = [&](size_t at, size_t n) {
+        for (size_t k = at; k < at + n; ++k) {
+            float f;
+            std::memcpy(&f, &words[k], 4);
+            if (!std::isfinite(f)) bad(where + " holds a NaN or infinite constant");
+        }
+    };
+    for (size_t pc = start;;) {
+        if (pc >= words.size()) bad(where + " runs past the end of material_node_programs");
+        const uint word = words[pc], op = word & 0xffu, dst = (word >> 8) & 0xffu, a = (word >> 16) & 0xffu, b = word >> 24;
+        if (op == NODE_END) return;
+        if (op >= NODE_OPS) bad(where + ": unknown operation " + std::to_string(op));
+        size_t size = 2;  // the instruction and its word
+        if (op == NODE_CONST) size = 5;
+        if (op == NODE_AFFINE) size = 13;
+        if (op == NODE_MAP_RANGE) size = 3;
+        if (op == NODE_RAMP && pc + 1 < words.size()) size = 2 + 4 * size_t(words[pc + 1] & 0xffffu);
+        if (pc + size >= words.size()) bad(where + " runs past the end of material_node_programs");
+        const uint arg = words[pc + 1];
+        switch (op) {
+            case NODE_CONST: finite_words(pc + 1, 4); break;
+            case NODE_UV: break;
+            case NODE_TEXTURE:
+                reg(a);
+                if (arg >= textures) bad(where + " samples texture " + std::to_string(arg) + " of " + std::to_string(textures));
+                break;
+            case NODE_AFFINE: reg(a); finite_words(pc + 1, 12); break;
+            case NODE_MATH:
+                reg(a), reg(b), reg(arg >> 16);
+                if ((arg & 0xffu) >= NODE_MATH_OPS) bad(where + ": unknown math operation " + std::to_string(arg & 0xffu));
+                break;
+            case NODE_MIX:
+                reg(a), reg(b), reg((arg >> 8) & 0xffu);
+                if ((arg & 0xffu) >= NODE_BLEND_MODES) bad(where + ": unknown blend mode " + std::to_string(arg & 0xffu));
+                break;
+            case NODE_INVERT: reg(a), reg(b); break;
+            case NODE_MAP_RANGE: reg(a); for (int k = 0; k < 4; ++k) reg((arg >> (8 * k)) & 0xffu); break;
+            case NODE_RAMP:
+                reg(a);
+                if ((arg & 0xffffu) < 2) bad(where + ": a ramp needs 2 rows at least");
+                finite_words(pc + 2, size - 2);
+                break;
+            case NODE_SEPARATE: reg(a); if (arg > 3) bad(where + ": component " + std::to_string(arg)); break;
+            case NODE_COMBINE: reg(a), reg(b), reg(arg); break;
+            case NODE_STORE: reg(a); if (arg >= NODE_FIELDS) bad(where + ": unknown field " + std::to_string(arg)); break;
+            case NODE_CONVERT: reg(a); if (arg > 2) bad(where + ": unknown conversion " + std::to_string(arg)); break;
+        }
+        if (op != NODE_STORE) {
+            if (dst >= NODE_REGISTERS) bad(where + " writes register " + std::to_string(dst));
+            written |= uint64_t(1) << dst;
+        }
+        pc += size;
+    }
+}
+
 std::shared_ptr<const SceneMaterials> prepare_materials(const SceneArrays& a, const SceneGeometry& g) {
     auto out = std::make_shared<SceneMaterials>();
     SceneMaterials& s = *out;
@@ -388,6 +453,11 @@ std::shared_ptr<const SceneMaterials> prepare_materials(const SceneArrays& a, co
     auto multiscatter = get<uint32_t>(a, "material_multiscatter", 'u', {}, true);  // optional: off
     // Principled inputs (Material from specular_tint on, in struct order); optional: none.
     auto principled = get<float>(a, "material_principled", 'f', {17}, true);
+    // Node programs (optional: none): each material's first word or -1, and the words.
+    auto program = get<int32_t>(a, "material_node_program", 'i', {}, true);
+    auto program_words = get<uint32_t>(a, "material_node_programs", 'u', {}, true);
+    if (program.data && program.rows != K) bad("material_node_program differs in length from material_type");
+    s.node_programs.assign(program_words.data, program_words.data + program_words.rows);
     auto texels = get<uint8_t>(a, "texture_texels", 'u', {4});
     auto tex_info = get<uint32_t>(a, "texture_info", 'u', {3});
     auto tex_flags = get<uint32_t>(a, "texture_flags", 'u', {}, true);                  // optional: 0
@@ -448,6 +518,11 @@ std::shared_ptr<const SceneMaterials> prepare_materials(const SceneArrays& a, co
         m.base_color_texture = std::max(texture.data[k], -1);
         m.mix_next = -1;
         m.mix_weight = 1.0f;
+        m.program = NO_INDEX;
+        if (program.data && program.data[k] >= 0) {
+            check_node_program(s.node_programs, uint32_t(program.data[k]), s.textures.size(), id);
+            m.program = uint32_t(program.data[k]);
+        }
         m.flags = (multiscatter.data && multiscatter.data[k] != 0) ? MATERIAL_FLAG_MULTISCATTER : 0u;
         if (m.type == MATERIAL_PRINCIPLED && !principled.data) bad(id + ": principled material without material_principled");
         if (principled.data) {
@@ -1062,11 +1137,12 @@ Scene::Scene(Context& ctx, SceneHost host, const Scene* previous) : host_(std::m
         put(BINDING_MESHES, g.meshes);
     }
     if (old && old->materials == host_.materials) {
-        reuse({BINDING_MATERIALS, BINDING_TEXTURE_INFO, BINDING_TEXELS});
+        reuse({BINDING_MATERIALS, BINDING_TEXTURE_INFO, BINDING_TEXELS, BINDING_NODE_PROGRAMS});
     } else {
         put(BINDING_MATERIALS, host_.materials->materials);
         put(BINDING_TEXTURE_INFO, host_.materials->textures);
         put(BINDING_TEXELS, host_.materials->texels);
+        put(BINDING_NODE_PROGRAMS, host_.materials->node_programs);
     }
     if (old && old->lights == host_.lights) {
         reuse({BINDING_INSTANCES, BINDING_LIGHTS, BINDING_LIGHT_CDF, BINDING_LIGHT_TREE});

@@ -93,6 +93,7 @@ struct SceneMaterials {  // "materials"
     std::vector<Material> materials;
     std::vector<TextureInfo> textures;
     std::vector<uint> texels;
+    std::vector<uint> node_programs;  // the materials' node programs (Material.program)
 };
 struct ScenePlacement {  // "instances": the TLAS contents
     std::vector<InstanceInfo> instances;  // in TLAS order; light_offset = NO_INDEX

@@ -1,0 +1,224 @@
+"""Cycles node graphs into a material's node program (parallax_core.nodes): the texture and
+maths nodes that drive a shader's inputs, evaluated per hit on the device as Cycles' SVM does.
+
+``GraphCompiler.socket(socket, kind)`` gives the value arriving at a shader input: a constant
+(folded on the host) or a register of the program. Nodes it cannot compile raise
+``Unsupported``; the caller then names the node in a warning and uses the socket's own value.
+Supported: Value, RGB, Image Texture (Color; flat, repeating, the active UV map), Texture
+Coordinate (UV), UV Map, Mapping (point, texture, vector), Math, Clamp, Mix and MixRGB (the
+blend modes of parallax_core.nodes.BLEND_MODES), Invert, Map Range (linear), ColorRamp (any
+interpolation, as Cycles: a 256-entry table), Separate/Combine Color (RGB) and XYZ, Reroute
+and node groups (flattened).
+"""
+import numpy as np
+
+
+class Unsupported(Exception):
+    """A node (or a setting of one) the compiler does not translate; its message names it."""
+
+
+# Blender socket types -> value kinds.
+_KINDS = {"VALUE": "float", "INT": "float", "BOOLEAN": "float", "RGBA": "color", "VECTOR": "vector"}
+
+
+class GraphCompiler:
+    def __init__(self, program, texture_loader, material_name):
+        from ..core import load
+
+        self.nodes = load().nodes
+        self.program = program
+        self.texture_loader = texture_loader
+        self.material_name = material_name
+        self._memo = {}
+
+    # -- sockets --
+
+    def socket(self, socket, kind, groups=()):
+        """The value at input ``socket`` as ``kind`` ("float", "color", "vector")."""
+        link = next((l for l in socket.links if not getattr(l, "is_muted", False)), None) if socket.is_linked else None
+        if link is None:
+            if socket.type in ("RGBA", "VECTOR"):
+                return self.convert(np.array(socket.default_value[:], np.float64), _KINDS[socket.type], kind)
+            return self.convert(float(socket.default_value), "float", kind)
+        node, output = link.from_node, link.from_socket
+        if node.type == "REROUTE":
+            return self.socket(node.inputs[0], kind, groups)
+        if node.type == "GROUP_INPUT":  # the group node's own input, one level out
+            if not groups:
+                raise Unsupported(f"a Group Input outside a group ('{node.name}')")
+            outer = groups[-1]
+            return self.socket(outer.inputs[output.identifier], kind, groups[:-1])
+        key = (tuple(g.name for g in groups), node.name, output.identifier)
+        if key not in self._memo:
+            self._memo[key] = self._output(node, output, groups)
+        value, produced = self._memo[key]
+        return self.convert(value, produced, kind)
+
+    def convert(self, value, have, want):
+        """As Blender converts between sockets: colour -> float is its luminance, vector ->
+        float the mean of its components, float -> colour or vector grey."""
+        p = self.program
+        if have == want or {have, want} == {"color", "vector"}:
+            return value
+        if want == "float":
+            return p.to_float(value, have)
+        return p.to_color(value)
+
+    def _in(self, node, index_or_name, kind, groups):
+        return self.socket(node.inputs[index_or_name], kind, groups)
+
+    # -- nodes --
+
+    def _output(self, node, output, groups):
+        """(value, kind) of ``output`` of ``node``."""
+        handler = getattr(self, "_" + node.type.lower(), None)
+        if handler is None:
+            raise Unsupported(f"'{node.bl_label}' node '{node.name}'")
+        return handler(node, output, groups)
+
+    def _value(self, node, output, groups):
+        return float(output.default_value), "float"
+
+    def _rgb(self, node, output, groups):
+        return np.array(output.default_value[:], np.float64), "color"
+
+    def _group(self, node, output, groups):
+        tree = node.node_tree
+        out = next((n for n in tree.nodes if n.type == "GROUP_OUTPUT" and n.is_active_output), None) if tree else None
+        if out is None:
+            raise Unsupported(f"node group '{node.name}' without an output")
+        inner = next(s for s in out.inputs if s.identifier == output.identifier)
+        kind = _KINDS.get(output.type, "float")
+        return self.socket(inner, kind, groups + (node,)), kind
+
+    def _tex_coord(self, node, output, groups):
+        if output.name != "UV":
+            raise Unsupported(f"Texture Coordinate '{node.name}' output {output.name} (UV is supported)")
+        return self.program.uv(), "vector"
+
+    def _uvmap(self, node, output, groups):
+        if node.uv_map:
+            raise Unsupported(f"UV Map '{node.name}' naming the map '{node.uv_map}' (the active one is supported)")
+        return self.program.uv(), "vector"
+
+    def _tex_image(self, node, output, groups):
+        if output.name != "Color":
+            raise Unsupported(f"Image Texture '{node.name}' output {output.name}")
+        if node.image is None:
+            return np.zeros(4), "color"
+        if node.projection != "FLAT" or node.extension != "REPEAT":
+            raise Unsupported(f"Image Texture '{node.name}' with {node.projection} projection / {node.extension} extension")
+        interpolation = "closest" if node.interpolation == "Closest" else "linear"
+        texture = self.texture_loader(node.image, f"material '{self.material_name}'", interpolation)
+        if texture is None:
+            raise Unsupported(f"Image Texture '{node.name}' without pixels")
+        vector = self._in(node, "Vector", "vector", groups) if node.inputs["Vector"].is_linked else self.program.uv()
+        return self.program.texture(vector, texture), "color"
+
+    def _mapping(self, node, output, groups):
+        from mathutils import Euler, Matrix, Vector
+
+        if node.vector_type not in ("POINT", "TEXTURE", "VECTOR"):
+            raise Unsupported(f"Mapping '{node.name}' of type {node.vector_type}")
+        names = [n for n in ("Location", "Rotation", "Scale") if n in node.inputs]
+        if any(node.inputs[n].is_linked for n in names):
+            raise Unsupported(f"Mapping '{node.name}' with linked location, rotation or scale")
+        location = node.inputs["Location"].default_value if "Location" in node.inputs else (0.0, 0.0, 0.0)
+        rotation = Euler(node.inputs["Rotation"].default_value, "XYZ").to_matrix().to_4x4()
+        scale = Matrix.Diagonal((*node.inputs["Scale"].default_value, 1.0))
+        # Cycles' mapping: point R (S v) + L; texture its inverse; vector without L.
+        m = rotation @ scale
+        if node.vector_type == "POINT":
+            m = Matrix.Translation(location) @ m
+        elif node.vector_type == "TEXTURE":
+            m = m.inverted_safe() @ Matrix.Translation(-Vector(location))
+        matrix = np.array(m, np.float64)[:3]
+        return self.program.affine(self._in(node, "Vector", "vector", groups), matrix), "vector"
+
+    def _math(self, node, output, groups):
+        op = node.operation
+        if op not in self.nodes.MATH_OPS:
+            raise Unsupported(f"Math '{node.name}' operation {op}")
+        a, b, c = (self._in(node, k, "float", groups) for k in range(3))
+        value = self.program.math(op, a, b, c)
+        if node.use_clamp:
+            value = self.program.math("CLAMP", value, 0.0, 1.0)
+        return value, "float"
+
+    def _clamp(self, node, output, groups):
+        value, low, high = (self._in(node, k, "float", groups) for k in range(3))
+        p = self.program
+        if node.clamp_type == "RANGE":  # either order
+            low, high = p.math("MINIMUM", low, high), p.math("MAXIMUM", low, high)
+        return p.math("CLAMP", value, low, high), "float"
+
+    def _blend(self, node, mode, fac, a, b, clamp_factor, clamp_result):
+        if mode not in self.nodes.BLEND_MODES:
+            raise Unsupported(f"Mix '{node.name}' blend mode {mode}")
+        if clamp_factor:
+            fac = self.program.math("CLAMP", fac, 0.0, 1.0)
+        return self.program.mix(mode, fac, a, b, clamp_result)
+
+    def _mix(self, node, output, groups):
+        sockets = {s.identifier: s for s in node.inputs}
+        fac = self.socket(sockets["Factor_Float"], "float", groups)
+        if node.data_type == "FLOAT":
+            a, b = (self.socket(sockets[k], "float", groups) for k in ("A_Float", "B_Float"))
+            return self._blend(node, "MIX", fac, a, b, node.clamp_factor, False), "float"
+        if node.data_type != "RGBA":
+            raise Unsupported(f"Mix '{node.name}' of {node.data_type.lower()} values")
+        a, b = (self.socket(sockets[k], "color", groups) for k in ("A_Color", "B_Color"))
+        return self._blend(node, node.blend_type, fac, a, b, node.clamp_factor, node.clamp_result), "color"
+
+    def _mix_rgb(self, node, output, groups):
+        fac, a, b = self._in(node, 0, "float", groups), self._in(node, 1, "color", groups), self._in(node, 2, "color", groups)
+        return self._blend(node, node.blend_type, fac, a, b, True, node.use_clamp), "color"
+
+    def _invert(self, node, output, groups):
+        return self.program.invert(self._in(node, 0, "float", groups), self._in(node, 1, "color", groups)), "color"
+
+    def _map_range(self, node, output, groups):
+        if getattr(node, "data_type", "FLOAT") != "FLOAT" or node.interpolation_type != "LINEAR":
+            raise Unsupported(f"Map Range '{node.name}' ({node.interpolation_type.lower()})")
+        args = [self._in(node, k, "float", groups) for k in range(5)]
+        return self.program.map_range(*args, node.clamp), "float"
+
+    def _valtorgb(self, node, output, groups):
+        ramp = node.color_ramp
+        size = self.nodes.NODE_RAMP_SIZE
+        table = np.array([ramp.evaluate(i / (size - 1)) for i in range(size)], np.float64)
+        value = self.program.ramp(self._in(node, "Fac", "float", groups), table, ramp.interpolation != "CONSTANT")
+        if output.name == "Alpha":
+            return self.program.separate(value, 3), "float"
+        return value, "color"
+
+    def _separate(self, node, output, groups, kind):
+        value = self._in(node, 0, kind, groups)
+        component = [s.identifier for s in node.outputs].index(output.identifier)
+        return self.program.separate(value, component), "float"
+
+    def _separate_color(self, node, output, groups):
+        if node.mode != "RGB":
+            raise Unsupported(f"Separate Color '{node.name}' in {node.mode}")
+        return self._separate(node, output, groups, "color")
+
+    def _seprgb(self, node, output, groups):
+        return self._separate(node, output, groups, "color")
+
+    def _sepxyz(self, node, output, groups):
+        return self._separate(node, output, groups, "vector")
+
+    def _combine(self, node, groups, kind):
+        x, y, z = (self._in(node, k, "float", groups) for k in range(3))
+        return self.program.combine(x, y, z), kind
+
+    def _combine_color(self, node, output, groups):
+        if node.mode != "RGB":
+            raise Unsupported(f"Combine Color '{node.name}' in {node.mode}")
+        return self._combine(node, groups, "color")
+
+    def _combrgb(self, node, output, groups):
+        return self._combine(node, groups, "color")
+
+    def _combxyz(self, node, output, groups):
+        return self._combine(node, groups, "vector")

@@ -1,0 +1,263 @@
+"""Material node programs: Cycles shader node graphs compiled to a small register machine that
+the shaders run at every hit (shaders/lib/nodes.glsl; Cycles evaluates its graphs with an
+interpreter too, the SVM in intern/cycles/kernel/svm/).
+
+A program is a list of uint32 words: instructions ``op | dst << 8 | a << 16 | b << 24`` (a
+register each; registers hold vec4) followed by their own words (constants as float bits).
+It ends with NODE_END. ``Program`` builds one, folding every operation whose inputs are
+constants on the host: an operand is a ``Register`` or a constant (a number or a sequence of
+up to 4 floats). The ``*_reference`` functions are the operations in numpy, as the shaders do
+them (tests compare the two).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+# shaders/shared/types.h NODE_* (tests/unit/test_nodes.py checks they agree).
+NODE_END, NODE_CONST, NODE_UV, NODE_TEXTURE, NODE_AFFINE, NODE_MATH, NODE_MIX = 0, 1, 2, 3, 4, 5, 6
+NODE_INVERT, NODE_MAP_RANGE, NODE_RAMP, NODE_SEPARATE, NODE_COMBINE, NODE_STORE, NODE_CONVERT = 7, 8, 9, 10, 11, 12, 13
+NODE_REGISTERS = 32
+NODE_RAMP_SIZE = 256  # Cycles' RAMP_TABLE_SIZE: a ColorRamp is a table of its colours
+
+# Blender's Math node operations (the enum names) -> NODE_MATH's operation ids.
+MATH_OPS = ("ADD", "SUBTRACT", "MULTIPLY", "DIVIDE", "POWER", "MINIMUM", "MAXIMUM", "LESS_THAN",
+            "GREATER_THAN", "ABSOLUTE", "SQRT", "MULTIPLY_ADD", "FLOOR", "CEIL", "FRACT", "MODULO",
+            "SINE", "COSINE", "ROUND", "SIGN", "EXPONENT", "CLAMP")
+_BINARY_MATH = {"ADD", "SUBTRACT", "MULTIPLY", "DIVIDE", "POWER", "MINIMUM", "MAXIMUM", "LESS_THAN",
+                "GREATER_THAN", "MULTIPLY_ADD", "MODULO", "CLAMP"}
+# Blender's Mix node blend types (MixRGB's blend_type, Mix's blend_type for colours).
+BLEND_MODES = ("MIX", "ADD", "MULTIPLY", "SUBTRACT", "SCREEN", "DIFFERENCE", "DARKEN", "LIGHTEN", "OVERLAY",
+               "DIVIDE")
+# Material fields a program may set (NODE_STORE), clamped as Cycles clamps the inputs.
+FIELDS = ("base_color", "roughness", "metallic", "transmission", "coat_weight", "specular_ior_level",
+          "mix_weight", "coat_roughness", "sheen_weight")
+
+
+def _f32(x):
+    return int(np.float32(x).view(np.uint32))
+
+
+def math_reference(op, a, b=0.0, c=0.0):
+    """Blender's Math node as Cycles computes it (svm_math_float: safe division, power, ...)."""
+    a, b, c = np.float64(a), np.float64(b), np.float64(c)
+    with np.errstate(all="ignore"):
+        return {
+            "ADD": lambda: a + b, "SUBTRACT": lambda: a - b, "MULTIPLY": lambda: a * b,
+            "DIVIDE": lambda: a / b if b != 0 else 0.0,
+            "POWER": lambda: 0.0 if a < 0 and b != math.floor(b) else float(np.power(a, b)),
+            "MINIMUM": lambda: min(a, b), "MAXIMUM": lambda: max(a, b),
+            "LESS_THAN": lambda: float(a < b), "GREATER_THAN": lambda: float(a > b),
+            "ABSOLUTE": lambda: abs(a), "SQRT": lambda: math.sqrt(a) if a > 0 else 0.0,
+            "MULTIPLY_ADD": lambda: a * b + c, "FLOOR": lambda: math.floor(a), "CEIL": lambda: math.ceil(a),
+            "FRACT": lambda: a - math.floor(a), "MODULO": lambda: math.fmod(a, b) if b != 0 else 0.0,
+            "SINE": lambda: math.sin(a), "COSINE": lambda: math.cos(a), "ROUND": lambda: math.floor(a + 0.5),
+            "SIGN": lambda: float(np.sign(a)), "EXPONENT": lambda: math.exp(a),
+            "CLAMP": lambda: min(max(a, b), c),
+        }[op]()
+
+
+def blend_reference(mode, t, c1, c2):
+    """Blender's Mix (colour) blend types as Cycles computes them (svm_mix), factor t."""
+    c1, c2, tm = np.asarray(c1, np.float64)[:3], np.asarray(c2, np.float64)[:3], 1.0 - t
+    if mode == "MIX":
+        return tm * c1 + t * c2
+    if mode == "ADD":
+        return c1 + t * c2
+    if mode == "MULTIPLY":
+        return c1 * (tm + t * c2)
+    if mode == "SUBTRACT":
+        return c1 - t * c2
+    if mode == "SCREEN":
+        return 1.0 - (tm + t * (1.0 - c2)) * (1.0 - c1)
+    if mode == "DIFFERENCE":
+        return tm * c1 + t * np.abs(c1 - c2)
+    if mode == "DARKEN":
+        return tm * c1 + t * np.minimum(c1, c2)
+    if mode == "LIGHTEN":
+        return tm * c1 + t * np.maximum(c1, c2)
+    if mode == "OVERLAY":
+        return np.where(c1 < 0.5, c1 * (tm + 2.0 * t * c2), 1.0 - (tm + 2.0 * t * (1.0 - c2)) * (1.0 - c1))
+    if mode == "DIVIDE":
+        with np.errstate(all="ignore"):
+            return np.where(c2 != 0.0, tm * c1 + t * c1 / np.where(c2 != 0.0, c2, 1.0), c1)
+    raise ValueError(f"unknown blend mode {mode!r}")
+
+
+def map_range_reference(value, from_min, from_max, to_min, to_max, clamp):
+    """Blender's Map Range (linear), as Cycles: 0 where the input range is empty."""
+    if from_max == from_min:
+        return 0.0
+    out = to_min + (value - from_min) / (from_max - from_min) * (to_max - to_min)
+    if clamp:
+        out = min(max(out, min(to_min, to_max)), max(to_min, to_max))
+    return out
+
+
+def ramp_reference(table, fac, interpolate):
+    """Cycles' rgb_ramp_lookup: the table at fac (clamped to 0..1), interpolated or not."""
+    table = np.asarray(table, np.float64)
+    f = min(max(float(fac), 0.0), 1.0) * (len(table) - 1)
+    i = min(max(int(f), 0), len(table) - 1)
+    t = f - i
+    out = table[i]
+    if interpolate and t > 0.0:
+        out = (1.0 - t) * out + t * table[i + 1]
+    return out
+
+
+def _vec4(value):
+    v = np.zeros(4, np.float64)
+    flat = np.atleast_1d(np.asarray(value, np.float64)).ravel()[:4]
+    v[:len(flat)] = flat
+    if len(flat) == 1:
+        v[:3] = flat[0]  # a float into a colour: grey, as Blender converts it
+    return v
+
+
+def instructions(words):
+    """(op, dst, a, b, its words) of each instruction of a finished program, NODE_END excluded."""
+    pc = 0
+    while words[pc] & 0xFF != NODE_END:
+        word, op = words[pc], words[pc] & 0xFF
+        size = {NODE_CONST: 4, NODE_AFFINE: 12, NODE_MAP_RANGE: 2}.get(op, 1)
+        if op == NODE_RAMP:
+            size = 1 + 4 * (words[pc + 1] & 0xFFFF)
+        yield op, (word >> 8) & 0xFF, (word >> 16) & 0xFF, word >> 24, tuple(words[pc + 1:pc + 1 + size])
+        pc += 1 + size
+
+
+class Register(int):
+    """A register of a Program (an operand that is not a constant)."""
+
+
+class ProgramTooLong(ValueError):
+    """The graph needs more registers than NODE_REGISTERS."""
+
+
+class Program:
+    """One material's node program. Operands: a Register or a constant (floats)."""
+
+    def __init__(self):
+        self.words = []
+        self._next = 0
+        self._constants = {}  # a constant's register: each is loaded once
+
+    @staticmethod
+    def is_constant(value):
+        return not isinstance(value, Register)
+
+    def _register(self):
+        if self._next >= NODE_REGISTERS:
+            raise ProgramTooLong(f"the node graph needs more than {NODE_REGISTERS} registers")
+        self._next += 1
+        return Register(self._next - 1)
+
+    def _in(self, value):
+        """A register holding ``value`` (a constant is loaded into one)."""
+        if not self.is_constant(value):
+            return value
+        words = tuple(_f32(x) for x in _vec4(value))
+        if words not in self._constants:
+            r = self._register()
+            self.words += [NODE_CONST | r << 8, *words]
+            self._constants[words] = r
+        return self._constants[words]
+
+    def _op(self, op, a=0, b=0, extra=(0,)):
+        r = self._register()
+        self.words += [op | r << 8 | a << 16 | b << 24, *extra]
+        return r
+
+    def uv(self):
+        return self._op(NODE_UV)
+
+    def to_float(self, value, kind):
+        """A colour (its luminance, Rec. 709) or a vector (its mean) as a float, as Blender
+        converts sockets."""
+        if self.is_constant(value):
+            v = _vec4(value)
+            return float(v[:3] @ (0.2126, 0.7152, 0.0722)) if kind == "color" else float(v[:3].mean())
+        return self._op(NODE_CONVERT, value, 0, [0 if kind == "color" else 1])
+
+    def to_color(self, value):
+        """A float as grey (x, x, x)."""
+        if self.is_constant(value):
+            return np.full(4, _vec4(value)[0])
+        return self._op(NODE_CONVERT, value, 0, [2])
+
+    def texture(self, vector, texture):
+        return self._op(NODE_TEXTURE, self._in(vector), 0, [int(texture)])
+
+    def affine(self, vector, matrix):
+        """matrix (3, 4) applied to the point vector.xyz."""
+        m = np.asarray(matrix, np.float64).reshape(3, 4)
+        if self.is_constant(vector):
+            return m @ np.append(_vec4(vector)[:3], 1.0)
+        return self._op(NODE_AFFINE, vector, 0, [_f32(x) for x in m.ravel()])
+
+    def math(self, op, a, b=0.0, c=0.0):
+        if all(self.is_constant(x) for x in (a, b, c)):
+            return math_reference(op, _vec4(a)[0], _vec4(b)[0], _vec4(c)[0])
+        a = self._in(a)
+        b = self._in(b) if op in _BINARY_MATH else a  # an operand the operation ignores: any register
+        c = self._in(c) if op in ("MULTIPLY_ADD", "CLAMP") else a
+        return self._op(NODE_MATH, a, b, [MATH_OPS.index(op) | c << 16])
+
+    def mix(self, mode, fac, a, b, clamp_result=False):
+        """Blend ``b`` over ``a`` by ``fac`` (clamp it first where Blender does)."""
+        if all(self.is_constant(x) for x in (fac, a, b)):
+            out = blend_reference(mode, _vec4(fac)[0], _vec4(a), _vec4(b))
+            return np.clip(out, 0.0, 1.0) if clamp_result else out
+        fac, a, b = self._in(fac), self._in(a), self._in(b)
+        return self._op(NODE_MIX, a, b, [BLEND_MODES.index(mode) | fac << 8 | int(bool(clamp_result)) << 16])
+
+    def invert(self, fac, color):
+        if self.is_constant(fac) and self.is_constant(color):
+            c = _vec4(color)[:3]
+            return (1.0 - _vec4(fac)[0]) * c + _vec4(fac)[0] * (1.0 - c)
+        color, fac = self._in(color), self._in(fac)
+        return self._op(NODE_INVERT, color, fac)
+
+    def map_range(self, value, from_min, from_max, to_min, to_max, clamp):
+        args = (value, from_min, from_max, to_min, to_max)
+        if all(self.is_constant(x) for x in args):
+            return map_range_reference(*(_vec4(x)[0] for x in args), clamp)
+        value, fmin, fmax, tmin, tmax = (self._in(x) for x in args)
+        return self._op(NODE_MAP_RANGE, value, 0, [fmin | fmax << 8 | tmin << 16 | tmax << 24, int(bool(clamp))])
+
+    def ramp(self, fac, table, interpolate):
+        table = np.asarray(table, np.float64).reshape(-1, 4)
+        if self.is_constant(fac):
+            return ramp_reference(table, _vec4(fac)[0], interpolate)
+        return self._op(NODE_RAMP, fac, 0, [len(table) | int(bool(interpolate)) << 16] +
+                        [_f32(x) for x in table.ravel()])
+
+    def separate(self, value, component):
+        if self.is_constant(value):
+            return _vec4(value)[component]
+        return self._op(NODE_SEPARATE, value, 0, [int(component)])
+
+    def combine(self, x, y, z):
+        if all(self.is_constant(v) for v in (x, y, z)):
+            return np.array([_vec4(x)[0], _vec4(y)[0], _vec4(z)[0], 1.0])
+        x, y, z = self._in(x), self._in(y), self._in(z)
+        return self._op(NODE_COMBINE, x, y, [z])
+
+    def store(self, field, register):
+        """Sets a Material field (FIELDS) at the hit from a register (the host sets constant
+        fields itself)."""
+        if self.is_constant(register):
+            raise ValueError("store takes a register; set a constant field on the Material")
+        self.words += [NODE_STORE | register << 16, FIELDS.index(field)]
+
+    def fork(self):
+        """A copy to add one material's stores to (the computations are shared)."""
+        other = Program()
+        other.words, other._next, other._constants = list(self.words), self._next, dict(self._constants)
+        return other
+
+    def finish(self):
+        """The words, NODE_END included."""
+        return self.words + [NODE_END]

@@ -1,0 +1,152 @@
+// Material node programs (types.h NODE_*): Cycles shader node graphs compiled on the host
+// (parallax_core/nodes.py) into a register machine run at every hit, as Cycles runs its graphs
+// in the SVM (intern/cycles/kernel/svm/). A program sets the Material fields its graph drives.
+#ifndef PARALLAX_NODES_GLSL
+#define PARALLAX_NODES_GLSL
+
+layout(set = 0, binding = BINDING_NODE_PROGRAMS, scalar) readonly buffer NodeProgramBuffer { uint node_words[]; };
+
+float node_float(uint at) { return uintBitsToFloat(node_words[at]); }
+
+// Blender's Math node as Cycles computes it (svm_math_float: division, root, power and modulo
+// are safe).
+float node_math(uint op, float a, float b, float c) {
+    switch (op) {
+    case 0u: return a + b;
+    case 1u: return a - b;
+    case 2u: return a * b;
+    case 3u: return b != 0.0 ? a / b : 0.0;
+    case 4u: return a < 0.0 && b != floor(b) ? 0.0 : (a < 0.0 ? (mod(b, 2.0) == 0.0 ? 1.0 : -1.0) * pow(-a, b) : pow(a, b));
+    case 5u: return min(a, b);
+    case 6u: return max(a, b);
+    case 7u: return a < b ? 1.0 : 0.0;
+    case 8u: return a > b ? 1.0 : 0.0;
+    case 9u: return abs(a);
+    case 10u: return a > 0.0 ? sqrt(a) : 0.0;
+    case 11u: return a * b + c;
+    case 12u: return floor(a);
+    case 13u: return ceil(a);
+    case 14u: return a - floor(a);
+    case 15u: return b != 0.0 ? a - b * trunc(a / b) : 0.0;  // fmod
+    case 16u: return sin(a);
+    case 17u: return cos(a);
+    case 18u: return floor(a + 0.5);
+    case 19u: return sign(a);
+    case 20u: return exp(a);
+    default: return min(max(a, b), c);  // 21: Clamp (min max)
+    }
+}
+
+// Blender's Mix blend types as Cycles computes them (svm_mix), factor t.
+vec3 node_blend(uint mode, float t, vec3 c1, vec3 c2) {
+    float tm = 1.0 - t;
+    switch (mode) {
+    case 0u: return tm * c1 + t * c2;
+    case 1u: return c1 + t * c2;
+    case 2u: return c1 * (tm + t * c2);
+    case 3u: return c1 - t * c2;
+    case 4u: return 1.0 - (tm + t * (1.0 - c2)) * (1.0 - c1);
+    case 5u: return tm * c1 + t * abs(c1 - c2);
+    case 6u: return tm * c1 + t * min(c1, c2);
+    case 7u: return tm * c1 + t * max(c1, c2);
+    case 8u: return mix(1.0 - (tm + 2.0 * t * (1.0 - c2)) * (1.0 - c1), c1 * (tm + 2.0 * t * c2), lessThan(c1, vec3(0.5)));
+    default: {  // 9: Divide, where the divisor is not 0
+        vec3 safe = mix(c2, vec3(1.0), equal(c2, vec3(0.0)));
+        return mix(tm * c1 + t * c1 / safe, c1, equal(c2, vec3(0.0)));
+    }
+    }
+}
+
+// Sets the fields `m`'s program drives at a hit with texture coordinates uv, clamped as
+// Cycles clamps those inputs of its closures.
+void run_node_program(inout Material m, vec2 uv) {
+    if (!HAS(FEATURE_NODES) || m.program == NO_INDEX) return;
+    vec4 reg[NODE_REGISTERS];
+    uint pc = m.program;
+    for (;;) {
+        uint word = node_words[pc];
+        uint op = word & 0xffu, dst = (word >> 8) & 0xffu, a = (word >> 16) & 0xffu, b = word >> 24;
+        if (op == NODE_END) break;
+        uint arg = node_words[pc + 1u];  // every instruction has one word at least
+        pc += 2u;
+        switch (op) {
+        case NODE_CONST:
+            reg[dst] = vec4(uintBitsToFloat(arg), node_float(pc), node_float(pc + 1u), node_float(pc + 2u));
+            pc += 3u;
+            break;
+        case NODE_UV:
+            reg[dst] = vec4(uv, 0.0, 0.0);
+            break;
+        case NODE_TEXTURE:
+            reg[dst] = vec4(sample_texture(int(arg), reg[a].xy), 1.0);
+            break;
+        case NODE_AFFINE: {
+            vec4 p = vec4(reg[a].xyz, 1.0);
+            reg[dst].xyz = vec3(dot(vec4(uintBitsToFloat(arg), node_float(pc), node_float(pc + 1u), node_float(pc + 2u)), p),
+                                dot(vec4(node_float(pc + 3u), node_float(pc + 4u), node_float(pc + 5u), node_float(pc + 6u)), p),
+                                dot(vec4(node_float(pc + 7u), node_float(pc + 8u), node_float(pc + 9u), node_float(pc + 10u)), p));
+            pc += 11u;
+            break;
+        }
+        case NODE_MATH:
+            reg[dst].x = node_math(arg & 0xffu, reg[a].x, reg[b].x, reg[arg >> 16].x);
+            break;
+        case NODE_MIX: {
+            vec3 c = node_blend(arg & 0xffu, reg[(arg >> 8) & 0xffu].x, reg[a].rgb, reg[b].rgb);
+            reg[dst].rgb = (arg & 0x10000u) != 0u ? clamp(c, 0.0, 1.0) : c;
+            break;
+        }
+        case NODE_INVERT:
+            reg[dst].rgb = mix(reg[a].rgb, 1.0 - reg[a].rgb, reg[b].x);
+            break;
+        case NODE_CONVERT:  // as Blender converts sockets: colour -> luminance, vector -> mean, float -> grey
+            if (arg == 0u) reg[dst].x = dot(reg[a].rgb, vec3(0.2126, 0.7152, 0.0722));
+            else if (arg == 1u) reg[dst].x = (reg[a].x + reg[a].y + reg[a].z) / 3.0;
+            else reg[dst] = vec4(reg[a].xxx, 1.0);
+            break;
+        case NODE_MAP_RANGE: {
+            float from_min = reg[arg & 0xffu].x, from_max = reg[(arg >> 8) & 0xffu].x;
+            float to_min = reg[(arg >> 16) & 0xffu].x, to_max = reg[arg >> 24].x;
+            float v = from_max != from_min ? to_min + (reg[a].x - from_min) / (from_max - from_min) * (to_max - to_min) : 0.0;
+            if (node_words[pc] != 0u) v = clamp(v, min(to_min, to_max), max(to_min, to_max));
+            reg[dst].x = v;
+            pc += 1u;
+            break;
+        }
+        case NODE_RAMP: {  // Cycles' rgb_ramp_lookup
+            uint size = arg & 0xffffu;
+            float f = clamp(reg[a].x, 0.0, 1.0) * float(size - 1u);
+            uint i = min(uint(f), size - 1u);
+            float t = f - float(i);
+            uint row = pc + 4u * i;
+            vec4 c = vec4(node_float(row), node_float(row + 1u), node_float(row + 2u), node_float(row + 3u));
+            if ((arg >> 16) != 0u && t > 0.0)
+                c = mix(c, vec4(node_float(row + 4u), node_float(row + 5u), node_float(row + 6u), node_float(row + 7u)), t);
+            reg[dst] = c;
+            pc += 4u * size;
+            break;
+        }
+        case NODE_SEPARATE:
+            reg[dst].x = reg[a][arg];
+            break;
+        case NODE_COMBINE:
+            reg[dst] = vec4(reg[a].x, reg[b].x, reg[arg].x, 1.0);
+            break;
+        default: {  // NODE_STORE
+            vec4 v = reg[a];
+            switch (arg) {
+            case 0u: m.base_color = max(v.rgb, vec3(0.0)); break;
+            case 1u: m.roughness = clamp(v.x, 0.0, 1.0); break;
+            case 2u: m.metallic = clamp(v.x, 0.0, 1.0); break;
+            case 3u: m.transmission = clamp(v.x, 0.0, 1.0); break;
+            case 4u: m.coat_weight = max(v.x, 0.0); break;
+            case 5u: m.specular_ior_level = max(v.x, 0.0); break;
+            case 6u: m.mix_weight = clamp(v.x, 0.0, 1.0); break;
+            case 7u: m.coat_roughness = clamp(v.x, 0.0, 1.0); break;
+            default: m.sheen_weight = max(v.x, 0.0); break;
+            }
+        }
+        }
+    }
+}
+#endif

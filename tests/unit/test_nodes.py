@@ -1,0 +1,51 @@
+"""parallax_core.nodes (the node program builder) against shaders/shared/types.h, and its
+constant folding against the references."""
+import os
+import re
+
+import numpy as np
+import pytest
+
+from parallax_core import nodes
+
+TYPES_H = os.path.join(os.path.dirname(__file__), "..", "..", "shaders", "shared", "types.h")
+
+
+def header_constants():
+    text = open(TYPES_H).read()
+    return {name: int(value) for name, value in re.findall(r"PX_CONST uint (NODE_\w+) = (\d+);", text)}
+
+
+def test_the_python_mirror_matches_the_header():
+    header = header_constants()
+    for name, value in header.items():
+        if hasattr(nodes, name):
+            assert getattr(nodes, name) == value, name
+    assert header["NODE_MATH_OPS"] == len(nodes.MATH_OPS)
+    assert header["NODE_BLEND_MODES"] == len(nodes.BLEND_MODES)
+    assert header["NODE_FIELDS"] == len(nodes.FIELDS)
+    assert header["NODE_OPS"] == 1 + max(v for k, v in header.items() if k.startswith("NODE_") and
+                                         k not in ("NODE_OPS", "NODE_REGISTERS", "NODE_MATH_OPS",
+                                                   "NODE_BLEND_MODES", "NODE_FIELDS"))
+
+
+def test_constants_fold_on_the_host_and_load_once():
+    p = nodes.Program()
+    assert p.math("MULTIPLY", 3.0, 2.0) == 6.0 and p.words == []  # nothing to run at a hit
+    np.testing.assert_allclose(p.mix("SCREEN", 0.5, (0.2, 0.4, 0.6), (0.5, 0.5, 0.5)),
+                               nodes.blend_reference("SCREEN", 0.5, (0.2, 0.4, 0.6), (0.5, 0.5, 0.5)))
+    u = p.separate(p.uv(), 0)
+    a, b = p.math("ADD", u, 0.25), p.math("MULTIPLY", u, 0.25)
+    assert isinstance(a, nodes.Register) and isinstance(b, nodes.Register)
+    loads = [w for w in p.words if w & 0xFF == nodes.NODE_CONST and w >> 16 == 0]
+    assert len(loads) == 1  # 0.25 once
+    with pytest.raises(ValueError, match="register"):
+        p.store("roughness", 0.5)
+
+
+def test_a_graph_past_the_registers_says_so():
+    p = nodes.Program()
+    value = p.separate(p.uv(), 0)
+    with pytest.raises(nodes.ProgramTooLong):
+        for k in range(nodes.NODE_REGISTERS):
+            value = p.math("ADD", value, float(k + 1))
