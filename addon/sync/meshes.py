@@ -118,8 +118,11 @@ def _mesh_arrays(mesh, name, slots, material_table, warnings):
         indices, normals, material_indices = indices[keep], normals[keep], material_indices[keep]
         uvs = uvs[keep] if uvs is not None else None
         positions = np.where(bad_vertex[:, None], 0.0, positions).astype(np.float32)
+    # Generated texture coordinates' space (Blender keeps the automatic one at the bounds).
+    location, size = getattr(mesh, "texspace_location", None), getattr(mesh, "texspace_size", None)
+    texspace = (*location, *size) if location is not None and size is not None else None
     return dict(positions=positions, indices=indices, normals=normals, uvs=uvs,
-                material_indices=material_indices, name=name)
+                material_indices=material_indices, name=name, texspace=texspace)
 
 
 def _get(collection, attribute, count, dtype):

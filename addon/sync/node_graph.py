@@ -4,8 +4,8 @@ maths nodes that drive a shader's inputs, evaluated per hit on the device as Cyc
 ``GraphCompiler.socket(socket, kind)`` gives the value arriving at a shader input: a constant
 (folded on the host) or a register of the program. Nodes it cannot compile raise
 ``Unsupported``; the caller then names the node in a warning and uses the socket's own value.
-Supported: Value, RGB, Image Texture (Color; flat, repeating, the active UV map), Texture
-Coordinate (UV), UV Map, Mapping (point, texture, vector), Math, Clamp, Mix and MixRGB (the
+Supported: Value, RGB, Image Texture (Color; flat, repeating, the active UV map), Noise
+Texture (3D fBm, as Cycles: same hash, same noise), Texture Coordinate (UV, Generated), UV Map, Mapping (point, texture, vector), Math, Clamp, Mix and MixRGB (the
 blend modes of parallax_core.nodes.BLEND_MODES), Invert, Map Range (linear), ColorRamp (any
 interpolation, as Cycles: a 256-entry table), Separate/Combine Color (RGB) and XYZ, Reroute
 and node groups (flattened).
@@ -92,8 +92,10 @@ class GraphCompiler:
         return self.socket(inner, kind, groups + (node,)), kind
 
     def _tex_coord(self, node, output, groups):
+        if output.name == "Generated":
+            return self.program.generated(), "vector"
         if output.name != "UV":
-            raise Unsupported(f"Texture Coordinate '{node.name}' output {output.name} (UV is supported)")
+            raise Unsupported(f"Texture Coordinate '{node.name}' output {output.name} (UV and Generated are supported)")
         return self.program.uv(), "vector"
 
     def _uvmap(self, node, output, groups):
@@ -114,6 +116,32 @@ class GraphCompiler:
             raise Unsupported(f"Image Texture '{node.name}' without pixels")
         vector = self._in(node, "Vector", "vector", groups) if node.inputs["Vector"].is_linked else self.program.uv()
         return self.program.texture(vector, texture), "color"
+
+    def _offset(self, vector, seed):
+        """vector + Cycles' random_float3_offset(seed): a noise's own seed."""
+        offset = [self.nodes.random_offset(seed, k) for k in range(3)]
+        return self.program.mix("ADD", 1.0, vector, offset)
+
+    def _tex_noise(self, node, output, groups):
+        """Cycles' Noise Texture, 3D fBm: distortion, then the noise and, for Color, two more
+        at seeded offsets (kernel/svm/noisetex.h)."""
+        if node.noise_dimensions != "3D" or getattr(node, "noise_type", "FBM") != "FBM":
+            raise Unsupported(f"Noise Texture '{node.name}' ({node.noise_dimensions}, "
+                              f"{getattr(node, 'noise_type', 'FBM')}; 3D fBm is supported)")
+        p = self.program
+        vector = self._in(node, "Vector", "vector", groups) if node.inputs["Vector"].is_linked else p.generated()
+        vector = p.mix("MULTIPLY", 1.0, vector, p.to_color(self._in(node, "Scale", "float", groups)))
+        detail, roughness, lacunarity = (self._in(node, k, "float", groups) for k in ("Detail", "Roughness", "Lacunarity"))
+        normalize = getattr(node, "normalize", True)
+        distortion = self._in(node, "Distortion", "float", groups)
+        if not (p.is_constant(distortion) and distortion == 0.0):
+            shift = p.combine(*(p.noise(self._offset(vector, float(k)), 0.0, 0.0, 2.0, False) for k in range(3)))
+            vector = p.mix("ADD", 1.0, vector, p.mix("MULTIPLY", 1.0, shift, p.to_color(distortion)))
+        value = p.noise(vector, detail, roughness, lacunarity, normalize)
+        if output.name == "Fac":
+            return value, "float"
+        return p.combine(value, *(p.noise(self._offset(vector, seed), detail, roughness, lacunarity, normalize)
+                                  for seed in (3.0, 4.0))), "color"
 
     def _mapping(self, node, output, groups):
         from mathutils import Euler, Matrix, Vector

@@ -8,6 +8,74 @@ layout(set = 0, binding = BINDING_NODE_PROGRAMS, scalar) readonly buffer NodePro
 
 float node_float(uint at) { return uintBitsToFloat(node_words[at]); }
 
+// Bob Jenkins' lookup3 final mix of three words, as Cycles hashes lattice points (hash_uint3).
+uint hash_rotate(uint x, uint k) { return (x << k) | (x >> (32u - k)); }
+
+uint hash_uint3(uint x, uint y, uint z) {
+    uint a = 0xdeadbeefu + (3u << 2) + 13u, b = a, c = a;
+    c += z;
+    b += y;
+    a += x;
+    c ^= b; c -= hash_rotate(b, 14u);
+    a ^= c; a -= hash_rotate(c, 11u);
+    b ^= a; b -= hash_rotate(a, 25u);
+    c ^= b; c -= hash_rotate(b, 16u);
+    a ^= c; a -= hash_rotate(c, 4u);
+    b ^= a; b -= hash_rotate(a, 14u);
+    c ^= b; c -= hash_rotate(b, 24u);
+    return c;
+}
+
+// Perlin's improved noise in 3D with Cycles' gradients and hash (kernel/svm/noise.h).
+float perlin_gradient(uint hash, vec3 p) {
+    uint h = hash & 15u;
+    float u = h < 8u ? p.x : p.y;
+    float v = h < 4u ? p.y : (h == 12u || h == 14u ? p.x : p.z);
+    return ((h & 1u) != 0u ? -u : u) + ((h & 2u) != 0u ? -v : v);
+}
+
+float perlin_3d(vec3 p) {
+    vec3 cell = floor(p), f = p - cell;
+    uvec3 i = uvec3(ivec3(cell));
+    vec3 w = f * f * f * (f * (f * 6.0 - 15.0) + 10.0);  // fade
+    float corner[8];
+    for (uint k = 0u; k < 8u; ++k) {
+        uvec3 o = uvec3(k & 1u, (k >> 1) & 1u, k >> 2);
+        corner[k] = perlin_gradient(hash_uint3(i.x + o.x, i.y + o.y, i.z + o.z), f - vec3(o));
+    }
+    float x0 = mix(corner[0], corner[1], w.x), x1 = mix(corner[2], corner[3], w.x);
+    float x2 = mix(corner[4], corner[5], w.x), x3 = mix(corner[6], corner[7], w.x);
+    return mix(mix(x0, x1, w.y), mix(x2, x3, w.y), w.z);
+}
+
+// Signed noise: repeats every 100000 (float precision), scaled to about -1..1 (Cycles' snoise_3d).
+float signed_noise_3d(vec3 p) {
+    vec3 correction = 0.5 * vec3(greaterThanEqual(abs(p), vec3(1000000.0)));
+    p = p - 100000.0 * trunc(p / 100000.0) + correction;  // fmod
+    return 0.9820 * perlin_3d(p);
+}
+
+// Fractal Brownian motion of that noise (Cycles' noise_fbm): detail octaves (and a fraction of
+// one more), each `lacunarity` times finer and `roughness` times weaker.
+float noise_fbm(vec3 p, float detail, float roughness, float lacunarity, bool normalize) {
+    detail = clamp(detail, 0.0, 15.0);
+    roughness = max(roughness, 0.0);
+    float scale = 1.0, amplitude = 1.0, max_amplitude = 0.0, sum = 0.0;
+    for (int k = 0; k <= int(detail); ++k) {
+        sum += signed_noise_3d(scale * p) * amplitude;
+        max_amplitude += amplitude;
+        amplitude *= roughness;
+        scale *= lacunarity;
+    }
+    float remainder = detail - floor(detail);
+    float value = normalize ? 0.5 * sum / max_amplitude + 0.5 : sum;
+    if (remainder != 0.0) {
+        float sum2 = sum + signed_noise_3d(scale * p) * amplitude;
+        value = mix(value, normalize ? 0.5 * sum2 / (max_amplitude + amplitude) + 0.5 : sum2, remainder);
+    }
+    return value;
+}
+
 // Blender's Math node as Cycles computes it (svm_math_float: division, root, power and modulo
 // are safe).
 float node_math(uint op, float a, float b, float c) {
@@ -59,7 +127,7 @@ vec3 node_blend(uint mode, float t, vec3 c1, vec3 c2) {
 
 // Sets the fields `m`'s program drives at a hit with texture coordinates uv, clamped as
 // Cycles clamps those inputs of its closures.
-void run_node_program(inout Material m, vec2 uv) {
+void run_node_program(inout Material m, SurfaceHit sh) {
     if (!HAS(FEATURE_NODES) || m.program == NO_INDEX) return;
     vec4 reg[NODE_REGISTERS];
     uint pc = m.program;
@@ -75,7 +143,14 @@ void run_node_program(inout Material m, vec2 uv) {
             pc += 3u;
             break;
         case NODE_UV:
-            reg[dst] = vec4(uv, 0.0, 0.0);
+            reg[dst] = vec4(sh.uv, 0.0, 0.0);
+            break;
+        case NODE_GENERATED:
+            reg[dst] = vec4(sh.generated, 0.0);
+            break;
+        case NODE_NOISE:
+            reg[dst].x = noise_fbm(reg[a].xyz, reg[arg & 0xffu].x, reg[(arg >> 8) & 0xffu].x, reg[(arg >> 16) & 0xffu].x,
+                                   (arg >> 24) != 0u);
             break;
         case NODE_TEXTURE:
             reg[dst] = vec4(sample_texture(int(arg), reg[a].xy), 1.0);

@@ -2,6 +2,7 @@
 
 struct SurfaceHit {
     vec3 p;
+    vec3 generated;  // Generated texture coordinates (node programs only: FEATURE_NODES)
     vec3 ng;  // geometric normal, unit, world space (winding order side)
     vec3 ns;  // shading normal, unit, on the same side as ng
     vec2 uv;
@@ -18,7 +19,9 @@ SurfaceHit fetch_surface(uint instance_index, uint primitive, vec2 bary) {
     uvec3 idx = indices[tri];
     vec3 p0 = positions[idx.x], p1 = positions[idx.y], p2 = positions[idx.z];
     vec3 b = vec3(1.0 - bary.x - bary.y, bary.x, bary.y);
-    h.p = transform_point(inst.object_to_world, b.x * p0 + b.y * p1 + b.z * p2);
+    vec3 p_object = b.x * p0 + b.y * p1 + b.z * p2;
+    h.p = transform_point(inst.object_to_world, p_object);
+    h.generated = HAS(FEATURE_NODES) ? p_object * mesh.texspace_scale + mesh.texspace_offset : vec3(0.0);
     vec3 ng_obj = cross(p1 - p0, p2 - p0);
     h.ng = normalize(transform_vector(inst.normal_to_world, ng_obj));
     h.ns = h.ng;

@@ -180,6 +180,10 @@ struct MeshInfo {
     uint triangle_count;
     uint has_normals;  // corner normals at the same triangle index
     uint has_uvs;      // corner uvs at the same triangle index
+    // Blender's Generated texture coordinates: object-space position * scale + offset maps the
+    // mesh's texture space (its bounds by default) to 0..1.
+    vec3 texspace_scale;
+    vec3 texspace_offset;
 };
 
 struct InstanceInfo {
@@ -243,7 +247,10 @@ PX_CONST uint NODE_SEPARATE = 10;  // dst.x = a[word]
 PX_CONST uint NODE_COMBINE = 11;   // dst = (a.x, b.x, reg[word].x, 1)
 PX_CONST uint NODE_STORE = 12;     // Material field (word: parallax_core.nodes.FIELDS) = a
 PX_CONST uint NODE_CONVERT = 13;   // word 0: dst.x = luminance of a.rgb; 1: mean of a.xyz; 2: dst = a.xxx
-PX_CONST uint NODE_OPS = 14;
+PX_CONST uint NODE_GENERATED = 14; // dst = Generated texture coordinates; word unused
+PX_CONST uint NODE_NOISE = 15;     // dst.x = Cycles' 3D fBm Perlin noise at a.xyz; word: registers of
+                                   // detail, roughness, lacunarity (a byte each), bit 24: normalize
+PX_CONST uint NODE_OPS = 16;
 PX_CONST uint NODE_REGISTERS = 32;
 PX_CONST uint NODE_MATH_OPS = 22;   // parallax_core.nodes.MATH_OPS, in that order
 PX_CONST uint NODE_BLEND_MODES = 10;  // parallax_core.nodes.BLEND_MODES

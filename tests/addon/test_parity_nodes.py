@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from blender_helpers import load_scene_builder, parity_ratio, render_engine
 
-WIDTH, HEIGHT, BLOCK = 96, 48, 4
+WIDTH, HEIGHT, BLOCK = 128, 64, 4
 SAMPLES = 128
 
 
@@ -138,24 +138,33 @@ def materials(bpy):
         links.new(node.outputs[0], bsdf.inputs["Color"])
         links.new(bsdf.outputs[0], surface)
 
+    def noise(nodes, links, surface):  # Noise Texture (3D fBm, Generated coordinates) colour and factor
+        bsdf = nodes.new("ShaderNodeBsdfPrincipled")
+        noise = nodes.new("ShaderNodeTexNoise")
+        noise.inputs["Scale"].default_value, noise.inputs["Detail"].default_value = 5.0, 3.5
+        noise.inputs["Distortion"].default_value = 0.4
+        links.new(noise.outputs["Color"], bsdf.inputs["Base Color"])
+        links.new(noise.outputs["Fac"], bsdf.inputs["Metallic"])
+        links.new(bsdf.outputs[0], surface)
+
     builders = [textured_roughness, color_ramp, mix_by_texture, mix_multiply_mapping, map_range_metallic,
-                group_invert]
+                group_invert, noise]
     return [_material(bpy, b.__name__, b) for b in builders]
 
 
 def node_grid(b):
-    """Six 1 m patches (UVs -0.5..0.5 each) in a 3 x 2 grid facing the camera, lit by an area light
+    """Seven 1 m patches (UVs -0.5..0.5 each) in a 4 x 2 grid facing the camera, lit by an area light
     from the front and a grey world."""
     import bpy
 
     for k, material in enumerate(materials(bpy)):
-        x, z = (k % 3 - 1) * 1.1, 1.65 - (k // 3) * 1.1
+        x, z = (k % 4 - 1.5) * 1.1, 1.65 - (k // 4) * 1.1
         patch = b.add_rect(f"Patch{k}", 1.0, 1.0, material, (x, 0.0, z), (math.pi / 2, 0.0, 0.0))
         b.box_project_uvs(patch.data)  # u, v = the quad's own x, y: -0.5..0.5
     light = bpy.data.lights.new("Key", "AREA")
     light.energy, light.size = 400.0, 2.0
     b.add_object("Key", light, (1.5, -3.0, 2.5), (math.radians(55), 0.0, math.radians(25)))
-    b.add_camera((0.0, -4.5, 1.1), (0.0, 0.0, 1.1), 40.0)
+    b.add_camera((0.0, -5.5, 1.1), (0.0, 0.0, 1.1), 45.0)
     b.set_world((0.2, 0.2, 0.2), 1.0)
 
 

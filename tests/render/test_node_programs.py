@@ -125,3 +125,16 @@ def test_programs_are_checked_before_they_run(device):
         scene.materials = [Material("diffuse", node_program=tuple(words))]
         with pytest.raises(ValueError, match=message):
             session.update(scene)
+
+
+def test_noise_and_generated_coordinates(device):
+    u, v = grid()
+    got = run(device, lambda p, u, v: p.to_color(p.noise(p.combine(p.math("MULTIPLY", u, 7.0), p.math(
+        "MULTIPLY", v, 7.0), 0.3), 2.5, 0.6, 2.1, True)))
+    want = np.vectorize(lambda a, b: nodes.noise_reference((7 * a, 7 * b, 0.3), 2.5, 0.6, 2.1, True))(u, v)
+    np.testing.assert_allclose(got[..., 0], want, atol=1e-4)
+    assert want.std() > 0.05  # a pattern, not a constant
+    # The quad spans -1..1 in x and y and is flat in z: Generated maps its bounds to 0..1 (as
+    # its UVs do, sample by sample), the flat axis to 0.5 (Cycles keeps scale 1 there).
+    got = run(device, lambda p, u, v: p.mix("ADD", 1.0, p.mix("SUBTRACT", 1.0, p.generated(), p.uv()), 0.25))
+    np.testing.assert_allclose(got, np.broadcast_to([0.25, 0.25, 0.75], got.shape), atol=1e-5)

@@ -43,9 +43,21 @@ def test_constants_fold_on_the_host_and_load_once():
         p.store("roughness", 0.5)
 
 
-def test_a_graph_past_the_registers_says_so():
+def test_registers_are_reused_and_too_many_live_values_say_so():
     p = nodes.Program()
     value = p.separate(p.uv(), 0)
+    for k in range(100):  # a long chain: two or three values live at a time
+        value = p.math("ADD", value, float(k + 1))
+    p.store("roughness", value)
+    words = p.finish()
+    used = {dst for op, dst, _, _, _ in nodes.instructions(words) if op != nodes.NODE_STORE}
+    assert max(used) < 4
+    p = nodes.Program()
+    u = p.separate(p.uv(), 0)
+    values = [p.math("ADD", u, float(k)) for k in range(nodes.NODE_REGISTERS + 8)]  # all live at once
+    total = values[0]
+    for v in values[1:]:
+        total = p.math("ADD", total, v)
+    p.store("roughness", total)
     with pytest.raises(nodes.ProgramTooLong):
-        for k in range(nodes.NODE_REGISTERS):
-            value = p.math("ADD", value, float(k + 1))
+        p.finish()

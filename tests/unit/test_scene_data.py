@@ -544,14 +544,20 @@ def test_node_programs_round_trip(tmp_path):
         p.store("roughness", p.math("MULTIPLY", p.separate(p.uv(), k % 2), 0.5 + k))
         programs.append(tuple(p.finish()))
     s.materials[0].node_program, s.materials[2].node_program = programs
+    s.meshes[0].texspace = (0.0, 1.0, 0.5, 2.0, 2.0, 1.0)  # Generated coordinates' space
     flat = s.flatten()
     assert list(flat["material_node_program"][:3]) == [0, -1, len(programs[0])]
     s.save(tmp_path / "nodes.npz")
     loaded = SceneData.load(tmp_path / "nodes.npz")
     assert [m.node_program for m in loaded.materials[:3]] == [programs[0], (), programs[1]]
+    assert loaded.meshes[0].texspace == (0.0, 1.0, 0.5, 2.0, 2.0, 1.0) and loaded.meshes[1].texspace is None
     assert_flat_equal(flat, loaded.flatten())
-    del flat["material_node_program"], flat["material_node_programs"]  # files before node programs
-    assert all(m.node_program == () for m in SceneData.from_flat(flat).materials)
+    del flat["material_node_program"], flat["material_node_programs"], flat["mesh_texspace"]  # older files
+    older = SceneData.from_flat(flat)
+    assert all(m.node_program == () for m in older.materials) and all(m.texspace is None for m in older.meshes)
+    s.meshes[0].texspace = (0.0, 1.0, np.nan, 2.0, 2.0, 1.0)
+    with pytest.raises(ValueError, match="texspace"):
+        s.flatten()
 
 
 def test_camera_lens_round_trip_and_older_files(tmp_path):

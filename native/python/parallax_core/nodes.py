@@ -11,6 +11,7 @@ them (tests compare the two).
 """
 from __future__ import annotations
 
+import heapq
 import math
 
 import numpy as np
@@ -18,6 +19,7 @@ import numpy as np
 # shaders/shared/types.h NODE_* (tests/unit/test_nodes.py checks they agree).
 NODE_END, NODE_CONST, NODE_UV, NODE_TEXTURE, NODE_AFFINE, NODE_MATH, NODE_MIX = 0, 1, 2, 3, 4, 5, 6
 NODE_INVERT, NODE_MAP_RANGE, NODE_RAMP, NODE_SEPARATE, NODE_COMBINE, NODE_STORE, NODE_CONVERT = 7, 8, 9, 10, 11, 12, 13
+NODE_GENERATED, NODE_NOISE = 14, 15
 NODE_REGISTERS = 32
 NODE_RAMP_SIZE = 256  # Cycles' RAMP_TABLE_SIZE: a ColorRamp is a table of its colours
 
@@ -107,6 +109,77 @@ def ramp_reference(table, fac, interpolate):
     return out
 
 
+def _rotate(x, k):
+    return ((x << k) | (x >> (32 - k))) & 0xFFFFFFFF
+
+
+def hash_uint(*keys):
+    """Bob Jenkins' lookup3 hash of 1 to 3 words, as Cycles' hash_uint, hash_uint2, hash_uint3."""
+    a = b = c = (0xDEADBEEF + (len(keys) << 2) + 13) & 0xFFFFFFFF
+    a = (a + keys[0]) & 0xFFFFFFFF
+    if len(keys) > 1:
+        b = (b + keys[1]) & 0xFFFFFFFF
+    if len(keys) > 2:
+        c = (c + keys[2]) & 0xFFFFFFFF
+    for x, y, z, k in (("c", "b", "c", 14), ("a", "c", "a", 11), ("b", "a", "b", 25), ("c", "b", "c", 16),
+                       ("a", "c", "a", 4), ("b", "a", "b", 14), ("c", "b", "c", 24)):
+        regs = {"a": a, "b": b, "c": c}
+        value = regs[x] ^ regs[y]
+        value = (value - _rotate(regs[y], k)) & 0xFFFFFFFF
+        regs[x] = value
+        a, b, c = regs["a"], regs["b"], regs["c"]
+    return c
+
+
+def random_offset(seed, k):
+    """Cycles' random_float3_offset component k: 100 + 100 hash(seed, k), the noise's seeds."""
+    bits = lambda f: int(np.float32(f).view(np.uint32))
+    return 100.0 + 100.0 * float(np.float32(hash_uint(bits(seed), bits(k)) * (1.0 / 0xFFFFFFFF)))
+
+
+def perlin_reference(p):
+    """Cycles' perlin_3d at point p (floats)."""
+    p = np.asarray(p, np.float64)
+    cell = np.floor(p)
+    f = p - cell
+    w = f * f * f * (f * (f * 6.0 - 15.0) + 10.0)
+    corners = []
+    for k in range(8):
+        o = np.array([k & 1, (k >> 1) & 1, k >> 2])
+        h = hash_uint(*(int(c) & 0xFFFFFFFF for c in cell.astype(np.int64) + o)) & 15
+        q = f - o
+        u = q[0] if h < 8 else q[1]
+        v = q[1] if h < 4 else (q[0] if h in (12, 14) else q[2])
+        corners.append((-u if h & 1 else u) + (-v if h & 2 else v))
+    lerp = lambda a, b, t: a * (1 - t) + b * t
+    x = [lerp(corners[2 * j], corners[2 * j + 1], w[0]) for j in range(4)]
+    return lerp(lerp(x[0], x[1], w[1]), lerp(x[2], x[3], w[1]), w[2])
+
+
+def noise_reference(p, detail, roughness, lacunarity, normalize):
+    """Cycles' 3D fBm noise_fbm (detail clamped to 0..15, roughness to >= 0)."""
+    detail, roughness = min(max(detail, 0.0), 15.0), max(roughness, 0.0)
+    p = np.asarray(p, np.float64)
+
+    def signed(q):
+        q = np.fmod(q, 100000.0) + 0.5 * (np.abs(q) >= 1000000.0)
+        return 0.9820 * perlin_reference(q)
+
+    scale, amplitude, max_amplitude, total = 1.0, 1.0, 0.0, 0.0
+    for _ in range(int(detail) + 1):
+        total += signed(scale * p) * amplitude
+        max_amplitude += amplitude
+        amplitude *= roughness
+        scale *= lacunarity
+    value = 0.5 * total / max_amplitude + 0.5 if normalize else total
+    remainder = detail - math.floor(detail)
+    if remainder != 0.0:
+        total2 = total + signed(scale * p) * amplitude
+        value2 = 0.5 * total2 / (max_amplitude + amplitude) + 0.5 if normalize else total2
+        value = value * (1 - remainder) + value2 * remainder
+    return value
+
+
 def _vec4(value):
     v = np.zeros(4, np.float64)
     flat = np.atleast_1d(np.asarray(value, np.float64)).ravel()[:4]
@@ -118,13 +191,60 @@ def _vec4(value):
 
 def instructions(words):
     """(op, dst, a, b, its words) of each instruction of a finished program, NODE_END excluded."""
+    starts = [pc for pc, _ in _instruction_starts(words)] + [None]
+    for pc, end in zip(starts, starts[1:]):
+        word = words[pc]
+        end = end if end is not None else len(words) - 1
+        yield word & 0xFF, (word >> 8) & 0xFF, (word >> 16) & 0xFF, word >> 24, tuple(words[pc + 1:end])
+
+
+# The register fields each operation reads: (word after the instruction, 0 for the
+# instruction itself; bit shift), a byte each (NODE_COMBINE's third: the whole word).
+_READS = {NODE_TEXTURE: [(0, 16)], NODE_AFFINE: [(0, 16)], NODE_MATH: [(0, 16), (0, 24), (1, 16)],
+          NODE_MIX: [(0, 16), (0, 24), (1, 8)], NODE_INVERT: [(0, 16), (0, 24)],
+          NODE_MAP_RANGE: [(0, 16), (1, 0), (1, 8), (1, 16), (1, 24)], NODE_RAMP: [(0, 16)],
+          NODE_SEPARATE: [(0, 16)], NODE_COMBINE: [(0, 16), (0, 24), (1, 0)], NODE_STORE: [(0, 16)],
+          NODE_CONVERT: [(0, 16)], NODE_NOISE: [(0, 16), (1, 0), (1, 8), (1, 16)]}
+
+
+def allocate_registers(words):
+    """``words`` (a finished program over up to 256 virtual registers, each written once) with
+    NODE_REGISTERS machine registers: a register is reused once its value is read for the last
+    time (the program is straight-line code). Raises ProgramTooLong if more are live at once."""
+    steps = [(pc, op) for pc, op in _instruction_starts(words)]
+    field = lambda pc, off, shift: (words[pc + off] >> shift) & 0xFF
+    last_read = {}
+    for k, (pc, op) in enumerate(steps):
+        for off, shift in _READS.get(op, []):
+            last_read[field(pc, off, shift)] = k
+    out, free, machine = list(words), list(range(NODE_REGISTERS)), {}
+    for k, (pc, op) in enumerate(steps):
+        released = set()
+        for off, shift in _READS.get(op, []):
+            virtual = field(pc, off, shift)
+            out[pc + off] = out[pc + off] & ~(0xFF << shift) | machine[virtual] << shift
+            if last_read[virtual] == k and virtual not in released:
+                released.add(virtual)
+                heapq.heappush(free, machine[virtual])
+        if op != NODE_STORE:  # writes dst (after reading: an operand's register may take it)
+            virtual = field(pc, 0, 8)
+            if not free:
+                raise ProgramTooLong(f"the node graph needs more than {NODE_REGISTERS} registers at once")
+            machine[virtual] = heapq.heappop(free)  # the lowest free one
+            out[pc] = out[pc] & ~(0xFF << 8) | machine[virtual] << 8
+            if virtual not in last_read:  # never read: free again
+                heapq.heappush(free, machine[virtual])
+    return out
+
+
+def _instruction_starts(words):
     pc = 0
     while words[pc] & 0xFF != NODE_END:
-        word, op = words[pc], words[pc] & 0xFF
-        size = {NODE_CONST: 4, NODE_AFFINE: 12, NODE_MAP_RANGE: 2}.get(op, 1)
+        op = words[pc] & 0xFF
+        yield pc, op
+        size = {NODE_CONST: 4, NODE_AFFINE: 12, NODE_MAP_RANGE: 2}.get(op, 1)  # words after the instruction
         if op == NODE_RAMP:
             size = 1 + 4 * (words[pc + 1] & 0xFFFF)
-        yield op, (word >> 8) & 0xFF, (word >> 16) & 0xFF, word >> 24, tuple(words[pc + 1:pc + 1 + size])
         pc += 1 + size
 
 
@@ -133,7 +253,7 @@ class Register(int):
 
 
 class ProgramTooLong(ValueError):
-    """The graph needs more registers than NODE_REGISTERS."""
+    """The graph needs more registers than NODE_REGISTERS at once (or 256 values)."""
 
 
 class Program:
@@ -148,9 +268,9 @@ class Program:
     def is_constant(value):
         return not isinstance(value, Register)
 
-    def _register(self):
-        if self._next >= NODE_REGISTERS:
-            raise ProgramTooLong(f"the node graph needs more than {NODE_REGISTERS} registers")
+    def _register(self):  # a virtual register, each written once (finish() allocates machine ones)
+        if self._next >= 256:
+            raise ProgramTooLong("the node graph computes more than 256 values")
         self._next += 1
         return Register(self._next - 1)
 
@@ -172,6 +292,18 @@ class Program:
 
     def uv(self):
         return self._op(NODE_UV)
+
+    def generated(self):
+        """Blender's Generated texture coordinates (the mesh's texture space as 0..1)."""
+        return self._op(NODE_GENERATED)
+
+    def noise(self, vector, detail, roughness, lacunarity, normalize):
+        """Cycles' 3D fBm noise at ``vector`` (already scaled)."""
+        args = (detail, roughness, lacunarity)
+        if self.is_constant(vector) and all(self.is_constant(x) for x in args):
+            return noise_reference(_vec4(vector)[:3], *(_vec4(x)[0] for x in args), normalize)
+        vector, detail, roughness, lacunarity = (self._in(x) for x in (vector, *args))
+        return self._op(NODE_NOISE, vector, 0, [detail | roughness << 8 | lacunarity << 16 | int(bool(normalize)) << 24])
 
     def to_float(self, value, kind):
         """A colour (its luminance, Rec. 709) or a vector (its mean) as a float, as Blender
@@ -259,5 +391,5 @@ class Program:
         return other
 
     def finish(self):
-        """The words, NODE_END included."""
-        return self.words + [NODE_END]
+        """The words, NODE_END included, over machine registers."""
+        return allocate_registers(self.words + [NODE_END])

@@ -48,6 +48,7 @@ FLAT_KEYS = {
     "mesh_triangle_count": (np.uint32, "(M,)"),
     "mesh_has_normals": (np.uint32, "(M,)"),
     "mesh_has_uvs": (np.uint32, "(M,)"),
+    "mesh_texspace": (np.float32, "(M,6)"),        # texture space: location, half size; NaN: the bounds
     "instance_transform": (np.float32, "(I,3,4)"),
     "instance_mesh": (np.uint32, "(I,)"),
     "material_type": (np.uint32, "(K,)"),
@@ -125,7 +126,7 @@ def parts_set(parts):
 # Keys newer than some saved files, with their defaults (and the array they follow in length).
 _OPTIONAL_KEY_DEFAULTS = {"material_mix_next": -1, "material_mix_weight": 1.0, "material_multiscatter": 0,
                           "material_principled": 0.0,
-                          "material_node_program": -1, "material_node_programs": 0,
+                          "material_node_program": -1, "material_node_programs": 0, "mesh_texspace": np.nan,
                           "light_camera_visible": 1, "light_soft_falloff": 0,
                           "texture_flags": 0, "texture_half_texels": 0}
 
@@ -258,6 +259,7 @@ class Mesh:
     uvs: np.ndarray | None = None          # (T,3,2), Blender UVs (v = 0 at the bottom)
     material_indices: np.ndarray | None = None  # (T,) int
     name: str = ""
+    texspace: tuple | None = None          # Generated coordinates' space: location, half size (None: bounds)
 
 
 @dataclass
@@ -731,7 +733,7 @@ class SceneData:
 
     def _flatten_meshes(self, keeps, out):
         pos, idx, mat, nrm, uvs = [], [], [], [], []
-        first, count, has_n, has_uv = [], [], [], []
+        first, count, has_n, has_uv, texspace = [], [], [], [], []
         any_n = any(m.normals is not None for m in self.meshes)
         any_uv = any(m.uvs is not None for m in self.meshes)
         v_off = t_off = 0
@@ -753,6 +755,7 @@ class SceneData:
             count.append(T)
             has_n.append(mesh.normals is not None)
             has_uv.append(mesh.uvs is not None)
+            texspace.append(np.full(6, np.nan) if mesh.texspace is None else np.asarray(mesh.texspace, np.float64).ravel())
             v_off += len(p)
             t_off += T
         if v_off >= 2**32 or t_off >= 2**32:
@@ -768,6 +771,7 @@ class SceneData:
         out["mesh_triangle_count"] = np.array(count, dtype=np.uint32)
         out["mesh_has_normals"] = np.array(has_n, dtype=np.uint32)
         out["mesh_has_uvs"] = np.array(has_uv, dtype=np.uint32)
+        out["mesh_texspace"] = np.array(texspace, dtype=np.float32).reshape(-1, 6)
 
     def _flatten_materials(self, out):
         mats = self.effective_materials()
@@ -917,7 +921,8 @@ class SceneData:
                 normals=a["corner_normals"][t0:t1].copy() if a["mesh_has_normals"][m] else None,
                 uvs=a["corner_uvs"][t0:t1].copy() if a["mesh_has_uvs"][m] else None,
                 material_indices=a["triangle_material"][t0:t1].astype(np.int64),
-                name=names[m]))
+                name=names[m],
+                texspace=None if np.isnan(a["mesh_texspace"][m]).any() else tuple(a["mesh_texspace"][m].tolist())))
         instances = [Instance(int(mi), t.astype(np.float64))
                      for mi, t in zip(a["instance_mesh"], a["instance_transform"])]
         types = {v: k for k, v in MATERIAL_TYPES.items()}
@@ -980,6 +985,10 @@ def _check_mesh(mesh, i, K):
     if bad.any():
         raise ValueError(f"{lbl}: vertex {int(np.argmax(bad))} is NaN/Inf")
     _check_f32(p, f"{lbl}: positions")
+    if mesh.texspace is not None:
+        texspace = _floats(mesh.texspace, f"{lbl}: texspace", (6,))
+        if not _finite(texspace):
+            raise ValueError(f"{lbl}: texspace (location, half size) must be 6 finite numbers")
     V = len(p)
     tri = np.asarray(mesh.indices)
     if tri.size == 0:
@@ -1151,7 +1160,8 @@ def _with_optional_defaults(flat):
         flat.setdefault(k, np.array(row, dtype=FLAT_KEYS[k][0]))
     for k, default in _OPTIONAL_KEY_DEFAULTS.items():
         if k not in flat:
-            like = {"light": "light_type", "material": "material_type", "texture": "texture_info"}[k.split("_")[0]]
+            like = {"light": "light_type", "material": "material_type", "texture": "texture_info",
+                    "mesh": "mesh_first_triangle"}[k.split("_")[0]]
             n = len(flat[like]) if like in flat and np.ndim(flat[like]) >= 1 else 0
             if k in ("texture_half_texels", "material_node_programs"):
                 n = 0  # files without float textures or node programs

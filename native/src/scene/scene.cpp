@@ -337,7 +337,7 @@ std::shared_ptr<const SceneGeometry> prepare_geometry(const SceneArrays& a, bool
             bad("mesh " + std::to_string(m) + " covers triangles " + std::to_string(first) + ".." +
                 std::to_string(first + count) + " but there are " + std::to_string(T));
         g.meshes[m] = {uint(first), uint(count), mesh_has_n.data[m] && normals.rows ? 1u : 0u,
-                       mesh_has_uv.data[m] && uvs.rows ? 1u : 0u};
+                       mesh_has_uv.data[m] && uvs.rows ? 1u : 0u, {1, 1, 1}, {0, 0, 0}};
         if (!spatial_order || count < 2) continue;
         // Reorder this mesh's triangles for lavapipe's BVH builder (bvh_order).
         std::vector<vec3> tri_lo(count), tri_hi(count);
@@ -366,6 +366,20 @@ std::shared_ptr<const SceneGeometry> prepare_geometry(const SceneArrays& a, bool
         for (uint t = g.meshes[m].first_triangle; t < g.meshes[m].first_triangle + g.meshes[m].triangle_count; ++t)
             for (uint vi : {g.indices[t].x, g.indices[t].y, g.indices[t].z})
                 g.mesh_lo[m] = vmin(g.mesh_lo[m], g.positions[vi]), g.mesh_hi[m] = vmax(g.mesh_hi[m], g.positions[vi]);
+    // Generated coordinates: the texture space (location, half size) given, else (a NaN row or
+    // none) the bounds, Blender's automatic one; as Cycles, a flat axis keeps scale 1
+    // (mesh_texture_space).
+    auto texspace = get<float>(a, "mesh_texspace", 'f', {6}, true);
+    if (texspace.data && texspace.rows != M) bad("mesh_texspace differs in length from the meshes");
+    for (size_t m = 0; m < M; ++m) {
+        const bool given = texspace.data && finite3(texspace.data + 6 * m) && finite3(texspace.data + 6 * m + 3);
+        vec3 location = given ? v3(texspace.data + 6 * m) : (g.mesh_lo[m] + g.mesh_hi[m]) * 0.5f;
+        vec3 size = given ? v3(texspace.data + 6 * m + 3) : (g.mesh_hi[m] - g.mesh_lo[m]) * 0.5f;
+        if (!finite3(&location.x) || !finite3(&size.x)) location = {0, 0, 0}, size = {1, 1, 1};  // an empty mesh
+        vec3 scale{size.x != 0 ? 0.5f / size.x : 1.0f, size.y != 0 ? 0.5f / size.y : 1.0f, size.z != 0 ? 0.5f / size.z : 1.0f};
+        g.meshes[m].texspace_scale = scale;
+        g.meshes[m].texspace_offset = {0.5f - location.x * scale.x, 0.5f - location.y * scale.y, 0.5f - location.z * scale.z};
+    }
     for (uint k : g.triangle_material) g.materials_needed = std::max(g.materials_needed, k + 1);
     return out;
 }
@@ -425,6 +439,8 @@ void check_node_program(const std::vector<uint>& words, uint32_t start, size_t t
             case NODE_COMBINE: reg(a), reg(b), reg(arg); break;
             case NODE_STORE: reg(a); if (arg >= NODE_FIELDS) bad(where + ": unknown field " + std::to_string(arg)); break;
             case NODE_CONVERT: reg(a); if (arg > 2) bad(where + ": unknown conversion " + std::to_string(arg)); break;
+            case NODE_GENERATED: break;
+            case NODE_NOISE: reg(a), reg(arg & 0xffu), reg((arg >> 8) & 0xffu), reg((arg >> 16) & 0xffu); break;
         }
         if (op != NODE_STORE) {
             if (dst >= NODE_REGISTERS) bad(where + " writes register " + std::to_string(dst));
