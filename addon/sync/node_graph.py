@@ -5,7 +5,8 @@ maths nodes that drive a shader's inputs, evaluated per hit on the device as Cyc
 (folded on the host) or a register of the program. Nodes it cannot compile raise
 ``Unsupported``; the caller then names the node in a warning and uses the socket's own value.
 Supported: Value, RGB, Image Texture (Color; flat, repeating, the active UV map), Noise
-Texture (3D fBm, as Cycles: same hash, same noise), Texture Coordinate (UV, Generated), UV Map, Mapping (point, texture, vector), Math, Clamp, Mix and MixRGB (the
+Texture (3D fBm, as Cycles: same hash, same noise), Checker Texture, Gradient Texture (linear,
+quadratic, easing, diagonal), Texture Coordinate (UV, Generated), UV Map, Mapping (point, texture, vector), Math, Clamp, Mix and MixRGB (the
 blend modes of parallax_core.nodes.BLEND_MODES), Invert, Map Range (linear), ColorRamp (any
 interpolation, as Cycles: a 256-entry table), Separate/Combine Color (RGB) and XYZ, Reroute
 and node groups (flattened).
@@ -129,8 +130,8 @@ class GraphCompiler:
             raise Unsupported(f"Noise Texture '{node.name}' ({node.noise_dimensions}, "
                               f"{getattr(node, 'noise_type', 'FBM')}; 3D fBm is supported)")
         p = self.program
-        vector = self._in(node, "Vector", "vector", groups) if node.inputs["Vector"].is_linked else p.generated()
-        vector = p.mix("MULTIPLY", 1.0, vector, p.to_color(self._in(node, "Scale", "float", groups)))
+        vector = p.mix("MULTIPLY", 1.0, self._texture_vector(node, groups),
+                       p.to_color(self._in(node, "Scale", "float", groups)))
         detail, roughness, lacunarity = (self._in(node, k, "float", groups) for k in ("Detail", "Roughness", "Lacunarity"))
         normalize = getattr(node, "normalize", True)
         distortion = self._in(node, "Distortion", "float", groups)
@@ -142,6 +143,46 @@ class GraphCompiler:
             return value, "float"
         return p.combine(value, *(p.noise(self._offset(vector, seed), detail, roughness, lacunarity, normalize)
                                   for seed in (3.0, 4.0))), "color"
+
+    def _texture_vector(self, node, groups):
+        """A procedural texture's Vector: linked, else Generated coordinates (Blender's default)."""
+        return self._in(node, "Vector", "vector", groups) if node.inputs["Vector"].is_linked else self.program.generated()
+
+    def _tex_checker(self, node, output, groups):
+        """Cycles' svm_checker: cells of the scaled point (nudged off the cell edges), colour 1
+        where the parities of |floor| of x and y agree exactly when z's is odd."""
+        p = self.program
+        point = p.mix("MULTIPLY", 1.0, self._texture_vector(node, groups), p.to_color(self._in(node, "Scale", "float", groups)))
+        parity = []
+        for k in range(3):
+            x = p.math("MULTIPLY", p.math("ADD", p.separate(point, k), 0.000001), 0.999999)
+            parity.append(p.math("MODULO", p.math("ABSOLUTE", p.math("FLOOR", x)), 2.0))
+        same = lambda a, b: p.math("SUBTRACT", 1.0, p.math("ABSOLUTE", p.math("SUBTRACT", a, b)))
+        fac = same(same(parity[0], parity[1]), parity[2])
+        if output.name == "Fac":
+            return fac, "float"
+        return p.mix("MIX", fac, self._in(node, "Color2", "color", groups), self._in(node, "Color1", "color", groups)), "color"
+
+    def _tex_gradient(self, node, output, groups):
+        """Cycles' svm_gradient for the types made of x and y alone (linear, quadratic, easing,
+        diagonal)."""
+        p = self.program
+        kind = node.gradient_type
+        if kind not in ("LINEAR", "QUADRATIC", "EASING", "DIAGONAL"):
+            raise Unsupported(f"Gradient Texture '{node.name}' of type {kind}")
+        vector = self._texture_vector(node, groups)
+        x = p.separate(vector, 0)
+        if kind == "QUADRATIC":
+            x = p.math("MAXIMUM", x, 0.0)
+            x = p.math("MULTIPLY", x, x)
+        elif kind == "EASING":  # 3 r^2 - 2 r^3 of r = x clamped to 0..1
+            r = p.math("CLAMP", x, 0.0, 1.0)
+            t = p.math("MULTIPLY", r, r)
+            x = p.math("SUBTRACT", p.math("MULTIPLY", t, 3.0), p.math("MULTIPLY", p.math("MULTIPLY", t, r), 2.0))
+        elif kind == "DIAGONAL":
+            x = p.math("MULTIPLY", p.math("ADD", x, p.separate(vector, 1)), 0.5)
+        fac = p.math("CLAMP", x, 0.0, 1.0)
+        return (fac, "float") if output.name == "Fac" else (p.to_color(fac), "color")
 
     def _mapping(self, node, output, groups):
         from mathutils import Euler, Matrix, Vector

@@ -147,13 +147,26 @@ def materials(bpy):
         links.new(noise.outputs["Fac"], bsdf.inputs["Metallic"])
         links.new(bsdf.outputs[0], surface)
 
+    def checker_gradient(nodes, links, surface):  # Checker (Generated) colour, an easing Gradient's roughness
+        bsdf = nodes.new("ShaderNodeBsdfPrincipled")
+        bsdf.inputs["Metallic"].default_value = 0.6
+        checker = nodes.new("ShaderNodeTexChecker")
+        checker.inputs["Scale"].default_value = 4.0
+        checker.inputs["Color1"].default_value = (0.9, 0.7, 0.2, 1.0)
+        checker.inputs["Color2"].default_value = (0.1, 0.3, 0.6, 1.0)
+        gradient = nodes.new("ShaderNodeTexGradient")
+        gradient.gradient_type = "EASING"
+        links.new(checker.outputs["Color"], bsdf.inputs["Base Color"])
+        links.new(gradient.outputs["Fac"], bsdf.inputs["Roughness"])
+        links.new(bsdf.outputs[0], surface)
+
     builders = [textured_roughness, color_ramp, mix_by_texture, mix_multiply_mapping, map_range_metallic,
-                group_invert, noise]
+                group_invert, noise, checker_gradient]
     return [_material(bpy, b.__name__, b) for b in builders]
 
 
 def node_grid(b):
-    """Seven 1 m patches (UVs -0.5..0.5 each) in a 4 x 2 grid facing the camera, lit by an area light
+    """Eight 1 m patches (UVs -0.5..0.5 each) in a 4 x 2 grid facing the camera, lit by an area light
     from the front and a grey world."""
     import bpy
 
@@ -189,3 +202,6 @@ def test_node_graphs_match_cycles(bpy, tmp_path):
               f"difference / noise {ratio:.2f}")
         assert ours == pytest.approx(theirs, rel=0.03)
         assert ratio < 3.0
+        # Patch by patch: the image's 4 x 2 cells, each round one patch.
+        cells = lambda img: img.reshape(2, HEIGHT // 2, 4, WIDTH // 4, -1).mean(axis=(1, 3, 4))
+        np.testing.assert_allclose(cells(p0 + p1), cells(c0 + c1), rtol=0.03)
