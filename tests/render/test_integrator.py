@@ -269,11 +269,13 @@ def test_white_furnace_specular(material, expected, tol):
     sc.materials = [material]
     res = {}
     for method in METHODS:
-        mean, _, _, batch_means, _ = batches(sc, method, n_batches=4, spp=64, max_depth=64, depth_leeway=64,
-                                             rr_start_depth=0)
-        res[method] = mean
         # NEE alone samples the sky uniformly and discards BSDF-sampled sky hits: behind narrow
-        # GGX lobes it is heavy-tailed, so it gets 5 standard errors (from the batches) on top.
+        # GGX lobes it is heavy-tailed, so it gets 5 standard errors (from the batches) on top,
+        # and 16 batches (4 gave batch means of 0.86-1.14 for rough glass: too few to estimate
+        # its error, and a shader's rounding changed the seeds' outcome past the bound).
+        mean, _, _, batch_means, _ = batches(sc, method, n_batches=16 if method == "nee" else 4, spp=64,
+                                             max_depth=64, depth_leeway=64, rr_start_depth=0)
+        res[method] = mean
         se = np.std(batch_means, ddof=1) / np.sqrt(len(batch_means)) if method == "nee" else 0.0
         assert abs(mean.mean() - expected) <= tol + 5 * se, (method, mean.mean(), se)
     assert res["pt"].mean() == pytest.approx(res["mis"].mean(), abs=0.01)
