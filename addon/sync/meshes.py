@@ -121,6 +121,8 @@ def _mesh_arrays(mesh, name, slots, material_table, warnings):
     # Generated texture coordinates' space (Blender keeps the automatic one at the bounds).
     location, size = getattr(mesh, "texspace_location", None), getattr(mesh, "texspace_size", None)
     texspace = (*location, *size) if location is not None and size is not None else None
+    if texspace is not None and not np.isfinite(texspace).all():
+        texspace = None  # NaN vertices: the bounds of the ones kept
     return dict(positions=positions, indices=indices, normals=normals, uvs=uvs,
                 material_indices=material_indices, name=name, texspace=texspace)
 

@@ -161,7 +161,7 @@ PX_CONST uint FEATURE_PRINCIPLED = 1u << 12;
 // lavapipe about a third of its speed (contact geometry; integrator.glsl surface_ray_flags).
 PX_CONST uint FEATURE_TRANSMISSION = 1u << 13;
 // The camera has depth of field or is a panorama (camera.glsl); without it the camera code
-// is the pinhole's alone, which lavapipe runs 1.5-2% faster (bench/results/camera_lens).
+// is the pinhole's alone, which lavapipe runs 1.5-2% faster (bench/results/issue37_camera_nodes).
 PX_CONST uint FEATURE_LENS = 1u << 14;
 PX_CONST uint FEATURE_NODES = 1u << 15;  // some used material has a node program (nodes.glsl)
 PX_CONST uint FEATURE_ALL = 0xffffffffu;

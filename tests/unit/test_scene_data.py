@@ -550,11 +550,14 @@ def test_node_programs_round_trip(tmp_path):
     s.save(tmp_path / "nodes.npz")
     loaded = SceneData.load(tmp_path / "nodes.npz")
     assert [m.node_program for m in loaded.materials[:3]] == [programs[0], (), programs[1]]
-    assert loaded.meshes[0].texspace == (0.0, 1.0, 0.5, 2.0, 2.0, 1.0) and loaded.meshes[1].texspace is None
+    assert loaded.meshes[0].texspace == (0.0, 1.0, 0.5, 2.0, 2.0, 1.0)
+    np.testing.assert_allclose(loaded.meshes[1].texspace[3:], (loaded.meshes[1].positions.max(0) -
+                                                               loaded.meshes[1].positions.min(0)) / 2)  # its bounds
     assert_flat_equal(flat, loaded.flatten())
     del flat["material_node_program"], flat["material_node_programs"], flat["mesh_texspace"]  # older files
     older = SceneData.from_flat(flat)
-    assert all(m.node_program == () for m in older.materials) and all(m.texspace is None for m in older.meshes)
+    assert all(m.node_program == () for m in older.materials)
+    np.testing.assert_allclose([m.texspace for m in older.meshes[1:]], [m.texspace for m in loaded.meshes[1:]], atol=1e-6)
     s.meshes[0].texspace = (0.0, 1.0, np.nan, 2.0, 2.0, 1.0)
     with pytest.raises(ValueError, match="texspace"):
         s.flatten()

@@ -48,7 +48,7 @@ FLAT_KEYS = {
     "mesh_triangle_count": (np.uint32, "(M,)"),
     "mesh_has_normals": (np.uint32, "(M,)"),
     "mesh_has_uvs": (np.uint32, "(M,)"),
-    "mesh_texspace": (np.float32, "(M,6)"),        # texture space: location, half size; NaN: the bounds
+    "mesh_texspace": (np.float32, "(M,6)"),        # Generated coordinates' space: location, half size
     "instance_transform": (np.float32, "(I,3,4)"),
     "instance_mesh": (np.uint32, "(I,)"),
     "material_type": (np.uint32, "(K,)"),
@@ -126,7 +126,7 @@ def parts_set(parts):
 # Keys newer than some saved files, with their defaults (and the array they follow in length).
 _OPTIONAL_KEY_DEFAULTS = {"material_mix_next": -1, "material_mix_weight": 1.0, "material_multiscatter": 0,
                           "material_principled": 0.0,
-                          "material_node_program": -1, "material_node_programs": 0, "mesh_texspace": np.nan,
+                          "material_node_program": -1, "material_node_programs": 0,
                           "light_camera_visible": 1, "light_soft_falloff": 0,
                           "texture_flags": 0, "texture_half_texels": 0}
 
@@ -259,7 +259,7 @@ class Mesh:
     uvs: np.ndarray | None = None          # (T,3,2), Blender UVs (v = 0 at the bottom)
     material_indices: np.ndarray | None = None  # (T,) int
     name: str = ""
-    texspace: tuple | None = None          # Generated coordinates' space: location, half size (None: bounds)
+    texspace: tuple | None = None          # Generated coordinates' space: location, half size (None: the bounds)
 
 
 @dataclass
@@ -755,7 +755,7 @@ class SceneData:
             count.append(T)
             has_n.append(mesh.normals is not None)
             has_uv.append(mesh.uvs is not None)
-            texspace.append(np.full(6, np.nan) if mesh.texspace is None else np.asarray(mesh.texspace, np.float64).ravel())
+            texspace.append(_bounds_texspace(p) if mesh.texspace is None else np.asarray(mesh.texspace, np.float64).ravel())
             v_off += len(p)
             t_off += T
         if v_off >= 2**32 or t_off >= 2**32:
@@ -922,7 +922,7 @@ class SceneData:
                 uvs=a["corner_uvs"][t0:t1].copy() if a["mesh_has_uvs"][m] else None,
                 material_indices=a["triangle_material"][t0:t1].astype(np.int64),
                 name=names[m],
-                texspace=None if np.isnan(a["mesh_texspace"][m]).any() else tuple(a["mesh_texspace"][m].tolist())))
+                texspace=tuple(a["mesh_texspace"][m].tolist())))
         instances = [Instance(int(mi), t.astype(np.float64))
                      for mi, t in zip(a["instance_mesh"], a["instance_transform"])]
         types = {v: k for k, v in MATERIAL_TYPES.items()}
@@ -1150,18 +1150,34 @@ def _camera_fisheye(cam):
     return (cam.fisheye_fov, cam.fisheye_lens, *cam.fisheye_sensor, *cam.fisheye_polynomial)
 
 
+def _bounds_texspace(positions):
+    """Blender's automatic texture space of a mesh: (location, half size) of its bounds."""
+    p = np.asarray(positions, np.float64).reshape(-1, 3)
+    if not len(p):
+        return np.array([0.0, 0.0, 0.0, 1.0, 1.0, 1.0])
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    return np.concatenate([(lo + hi) / 2, (hi - lo) / 2])
+
+
 def _with_optional_defaults(flat):
-    """``flat`` with the keys newer than its file filled in (no mixes; a pinhole camera), as a
-    new dict."""
+    """``flat`` with the keys newer than its file filled in (no mixes; a pinhole camera; the
+    meshes' bounds as their texture spaces), as a new dict."""
     flat = dict(flat)
+    if "mesh_texspace" not in flat and all(k in flat for k in ("positions", "indices", "mesh_first_triangle",
+                                                                "mesh_triangle_count")):
+        rows = []
+        for first, count in zip(np.asarray(flat["mesh_first_triangle"], np.int64),
+                                np.asarray(flat["mesh_triangle_count"], np.int64)):
+            used = np.asarray(flat["indices"])[first:first + count].ravel().astype(np.int64)
+            rows.append(_bounds_texspace(np.asarray(flat["positions"])[used]))
+        flat["mesh_texspace"] = np.array(rows, np.float32).reshape(-1, 6)
     pinhole = Camera()
     for k, row in (("camera_aperture", _camera_aperture(pinhole)), ("camera_panorama_type", (0,)),
                    ("camera_panorama_range", pinhole.panorama_range), ("camera_fisheye", _camera_fisheye(pinhole))):
         flat.setdefault(k, np.array(row, dtype=FLAT_KEYS[k][0]))
     for k, default in _OPTIONAL_KEY_DEFAULTS.items():
         if k not in flat:
-            like = {"light": "light_type", "material": "material_type", "texture": "texture_info",
-                    "mesh": "mesh_first_triangle"}[k.split("_")[0]]
+            like = {"light": "light_type", "material": "material_type", "texture": "texture_info"}[k.split("_")[0]]
             n = len(flat[like]) if like in flat and np.ndim(flat[like]) >= 1 else 0
             if k in ("texture_half_texels", "material_node_programs"):
                 n = 0  # files without float textures or node programs

@@ -366,8 +366,8 @@ std::shared_ptr<const SceneGeometry> prepare_geometry(const SceneArrays& a, bool
         for (uint t = g.meshes[m].first_triangle; t < g.meshes[m].first_triangle + g.meshes[m].triangle_count; ++t)
             for (uint vi : {g.indices[t].x, g.indices[t].y, g.indices[t].z})
                 g.mesh_lo[m] = vmin(g.mesh_lo[m], g.positions[vi]), g.mesh_hi[m] = vmax(g.mesh_hi[m], g.positions[vi]);
-    // Generated coordinates: the texture space (location, half size) given, else (a NaN row or
-    // none) the bounds, Blender's automatic one; as Cycles, a flat axis keeps scale 1
+    // Generated coordinates: the texture space (location, half size) given, else (none, or a
+    // row with NaN) the bounds, Blender's automatic one; as Cycles, a flat axis keeps scale 1
     // (mesh_texture_space).
     auto texspace = get<float>(a, "mesh_texspace", 'f', {6}, true);
     if (texspace.data && texspace.rows != M) bad("mesh_texspace differs in length from the meshes");
