@@ -138,7 +138,15 @@ def test_with_a_technique_it_renders_and_matches(scene, reference, technique):
     stats = tested.session.stats()
     assert 0 < stats["adaptive_active_pixels"] < SIZE * SIZE
     if technique.get("adrrs"):
-        assert tested.session.read("adrrs_splits")[..., 0].max() > 0  # splits happened
+        # Splits happened. They are rare here (0 to 2 pixels of a 128-sample batch split, by
+        # seed), so look over up to 16 batches' worth rather than at the last batch alone.
+        session = adaptive_session(scene, **technique)
+        for seed in range(16):
+            session.set_params(seed=seed)
+            session.render(8)
+            if session.read("adrrs_splits")[..., 0].max() > 0:
+                break
+        assert session.read("adrrs_splits")[..., 0].max() > 0
     z = z_scores(tested.images, reference.images, k=2)
     assert (np.abs(z) > 4).mean() < 0.02, f"{(np.abs(z) > 4).mean():.3f} of blocks beyond |z| > 4"
     ok, a, b, err = means_agree(tested.means, reference.means)
