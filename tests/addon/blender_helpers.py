@@ -94,6 +94,25 @@ def export_current(bpy):
     return captured[0]
 
 
+def build_scene(bpy, builder, width, height):
+    """An empty file with the scene ``builder(b)`` makes with blender_scenes/build.py's helpers
+    (``b``), rendered at width x height with Cycles set up as those scenes are."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    b = load_scene_builder()
+    builder(b)
+    b.configure_render(scene, width, height)
+    return scene
+
+
+def render_seed_pairs(bpy, tmp_path, scene, samples):
+    """(p0, p1, c0, c1): the Combined RGB of Parallax and of Cycles, seeds 0 and 1 each."""
+    p0, p1 = (render_engine(bpy, tmp_path, scene, "PARALLAX", seed, samples) for seed in (0, 1))
+    c0, c1 = (render_engine(bpy, tmp_path, scene, "CYCLES", seed, samples) for seed in (0, 1))
+    return p0, p1, c0, c1
+
+
 def parity_ratio(p0, p1, c0, c1, block):
     """(difference / noise ratio R, block relMSE) of two seed pairs (test_parity.py explains R:
     about 1 without a systematic difference)."""

@@ -13,7 +13,7 @@ import os
 
 import numpy as np
 import pytest
-from blender_helpers import load_scene_builder, parity_ratio, render_engine
+from blender_helpers import build_scene, parity_ratio, render_seed_pairs
 
 WIDTH, HEIGHT, BLOCK = 48, 32, 4
 SAMPLES = int(os.environ.get("PARALLAX_PARITY_SAMPLES", 256))
@@ -115,14 +115,8 @@ PANORAMAS += [_with_depth_of_field(PANORAMAS[0]), _with_depth_of_field(PANORAMAS
 
 def compare(bpy, tmp_path, builder, samples=SAMPLES, size=(WIDTH, HEIGHT), block=BLOCK):
     """(R, block relMSE, our mean, Cycles' mean) of the scene ``builder`` makes."""
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = bpy.context.scene
-    scene.render.engine = "CYCLES"
-    b = load_scene_builder()
-    builder(b)
-    b.configure_render(scene, *size)
-    p0, p1 = (render_engine(bpy, tmp_path, scene, "PARALLAX", seed, samples) for seed in (0, 1))
-    c0, c1 = (render_engine(bpy, tmp_path, scene, "CYCLES", seed, samples) for seed in (0, 1))
+    scene = build_scene(bpy, builder, *size)
+    p0, p1, c0, c1 = render_seed_pairs(bpy, tmp_path, scene, samples)
     ratio, rel_mse = parity_ratio(p0, p1, c0, c1, block)
     ours, theirs = float((p0 + p1).mean() / 2), float((c0 + c1).mean() / 2)
     print(f"{builder.__name__}: mean {ours:.4f} vs Cycles {theirs:.4f}, block relMSE {rel_mse:.5f}, "

@@ -12,7 +12,7 @@ import math
 import os
 
 import pytest
-from blender_helpers import load_scene_builder, parity_ratio, render_engine
+from blender_helpers import build_scene, parity_ratio, render_seed_pairs
 
 SIZE, BLOCK = 32, 4
 SAMPLES = int(os.environ.get("PARALLAX_PARITY_SAMPLES", 256))
@@ -114,22 +114,10 @@ def closest_float_floor(b):
     b.set_world((0.05, 0.07, 0.1), 1.0)
 
 
-def _build(bpy, builder):
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = bpy.context.scene
-    scene.render.engine = "CYCLES"
-    b = load_scene_builder()
-    builder(b)
-    b.configure_render(scene, SIZE, SIZE)
-    return scene
-
-
-
 def compare(bpy, tmp_path, builder, samples=SAMPLES):
     """(R, block relMSE, our mean, Cycles' mean) of the scene ``builder`` makes."""
-    scene = _build(bpy, builder)
-    p0, p1 = (render_engine(bpy, tmp_path, scene, "PARALLAX", seed, samples) for seed in (0, 1))
-    c0, c1 = (render_engine(bpy, tmp_path, scene, "CYCLES", seed, samples) for seed in (0, 1))
+    scene = build_scene(bpy, builder, SIZE, SIZE)
+    p0, p1, c0, c1 = render_seed_pairs(bpy, tmp_path, scene, samples)
     ratio, rel_mse = parity_ratio(p0, p1, c0, c1, BLOCK)
     ours, theirs = float((p0 + p1).mean() / 2), float((c0 + c1).mean() / 2)
     print(f"{builder.__name__}: mean {ours:.4f} vs Cycles {theirs:.4f}, block relMSE {rel_mse:.5f}, "

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from blender_helpers import load_scene_builder, parity_ratio, render_engine
+from blender_helpers import build_scene, parity_ratio, render_seed_pairs
 
 WIDTH, HEIGHT, BLOCK = 128, 64, 4
 SAMPLES = 128
@@ -182,26 +182,19 @@ def node_grid(b):
 
 
 def test_node_graphs_match_cycles(bpy, tmp_path):
-    for builder in (node_grid,):
-        bpy.ops.wm.read_factory_settings(use_empty=True)
-        scene = bpy.context.scene
-        scene.render.engine = "CYCLES"
-        b = load_scene_builder()
-        builder(b)
-        b.configure_render(scene, WIDTH, HEIGHT)
-        from addon.sync import export_scene
+    from addon.sync import export_scene
 
-        _, warnings = export_scene(bpy.context.evaluated_depsgraph_get(), WIDTH, HEIGHT)
-        assert not [w for w in warnings if "not supported" in w], warnings
-        p0, p1 = (render_engine(bpy, tmp_path, scene, "PARALLAX", seed, SAMPLES) for seed in (0, 1))
-        c0, c1 = (render_engine(bpy, tmp_path, scene, "CYCLES", seed, SAMPLES) for seed in (0, 1))
-        np.save(tmp_path / "nodes.npy", np.stack([p0 + p1, c0 + c1]) / 2)
-        ratio, rel_mse = parity_ratio(p0, p1, c0, c1, BLOCK)
-        ours, theirs = float((p0 + p1).mean() / 2), float((c0 + c1).mean() / 2)
-        print(f"{builder.__name__}: mean {ours:.4f} vs Cycles {theirs:.4f}, block relMSE {rel_mse:.5f}, "
-              f"difference / noise {ratio:.2f}")
-        assert ours == pytest.approx(theirs, rel=0.03)
-        assert ratio < 3.0
-        # Patch by patch: the image's 4 x 2 cells, each round one patch.
-        cells = lambda img: img.reshape(2, HEIGHT // 2, 4, WIDTH // 4, -1).mean(axis=(1, 3, 4))
-        np.testing.assert_allclose(cells(p0 + p1), cells(c0 + c1), rtol=0.03)
+    scene = build_scene(bpy, node_grid, WIDTH, HEIGHT)
+    _, warnings = export_scene(bpy.context.evaluated_depsgraph_get(), WIDTH, HEIGHT)
+    assert not [w for w in warnings if "not supported" in w], warnings
+    p0, p1, c0, c1 = render_seed_pairs(bpy, tmp_path, scene, SAMPLES)
+    np.save(tmp_path / "nodes.npy", np.stack([p0 + p1, c0 + c1]) / 2)
+    ratio, rel_mse = parity_ratio(p0, p1, c0, c1, BLOCK)
+    ours, theirs = float((p0 + p1).mean() / 2), float((c0 + c1).mean() / 2)
+    print(f"node_grid: mean {ours:.4f} vs Cycles {theirs:.4f}, block relMSE {rel_mse:.5f}, "
+          f"difference / noise {ratio:.2f}")
+    assert ours == pytest.approx(theirs, rel=0.03)
+    assert ratio < 3.0
+    # Patch by patch: the image's 4 x 2 cells, each round one patch.
+    cells = lambda img: img.reshape(2, HEIGHT // 2, 4, WIDTH // 4, -1).mean(axis=(1, 3, 4))
+    np.testing.assert_allclose(cells(p0 + p1), cells(c0 + c1), rtol=0.03)

@@ -1,10 +1,15 @@
-# fixed_work.py with every material's colour and roughness from a node program (a ColorRamp of
-# fract(3 u) times the constant colour, roughness from a Map Range): the evaluator's cost.
-import dataclasses, sys
+"""fixed_work.py with every material's colour and roughness from a node program (a ColorRamp of
+fract(3 u) times the constant colour, roughness from a Map Range): the evaluator's cost."""
+import os
+import sys
+
 import numpy as np
-import parallax_core as pc
 from parallax_core import nodes
 from parallax_core.scene import SceneData
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from fixed_work import render  # noqa: E402
+
 scene = SceneData.load(sys.argv[1])
 table = np.random.default_rng(1).random((256, 4))
 for m in scene.materials:
@@ -13,9 +18,4 @@ for m in scene.materials:
     p.store("base_color", p.mix("MULTIPLY", 1.0, p.ramp(u, table, True), m.base_color))
     p.store("roughness", p.map_range(u, 0.0, 1.0, 0.2, 0.6, True))
     m.node_program = tuple(p.finish())
-known = {f.name for f in dataclasses.fields(pc.RenderParams)}
-pins = {k: v for k, v in {**getattr(pc, "UNBIASED_LIGHT_PATHS", {}), "use_adaptive_sampling": False}.items() if k in known}
-s = pc.Session(scene.width, scene.height, "cpu")
-s.set_params(**pins, method=sys.argv[2], max_depth=8, depth_leeway=0, samples_per_frame=4, seed=0)
-s.update(scene)
-s.render(int(sys.argv[3]))
+render(scene, sys.argv[2], int(sys.argv[3]))
