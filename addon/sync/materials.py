@@ -6,7 +6,7 @@ A node tree is reduced to weighted BSDF lobes plus one emission colour:
   Principled BSDF -> one principled material (Cycles' Principled v2: sheen, coat, F82-tint
       metal, glass, specular layer and diffuse base; shaders/lib/principled.glsl), plus
       emission colour * strength;
-  Mix Shader (constant factor) and Add Shader -> weighted sums of their inputs;
+  Mix Shader and Add Shader -> weighted sums of their inputs;
   Image Texture (UV mapped) into a colour input -> that lobe's sRGB base-colour texture;
   any other graph of texture and maths nodes into a colour or factor input (node_graph.py) ->
   a node program the core runs at each hit, as Cycles' SVM does (also for a Mix Shader's
@@ -185,9 +185,9 @@ def node_tree(id_block):
 def _lobe(type, base_color, roughness=0.5, ior=1.45, texture=None, multiscatter=False, principled=None):
     from ..core import load
 
-    driven = not load().nodes.Program.is_constant(base_color)
-    return dict(type=type, base_color=base_color if driven else np.asarray(base_color[:3], dtype=np.float64),
-                roughness=roughness if not load().nodes.Program.is_constant(roughness) else float(roughness),
+    constant = load().nodes.Program.is_constant  # else a register of the material's node program
+    return dict(type=type, base_color=np.asarray(base_color[:3], dtype=np.float64) if constant(base_color) else base_color,
+                roughness=float(roughness) if constant(roughness) else roughness,
                 ior=float(ior), texture=texture,
                 multiscatter=bool(multiscatter) and type in ("conductor", "dielectric", "principled"),
                 principled=principled or {})
