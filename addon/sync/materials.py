@@ -42,6 +42,7 @@ class MaterialTable:
         from ..core import load
 
         self._scene = load().scene
+        self._nodes = load().nodes
         self._warnings = warnings
         self._materials = []  # Blender materials (None: no material), by head index
         self._index = {}
@@ -71,7 +72,7 @@ class MaterialTable:
 
     def _read(self, material):
         """(name, [(weight, lobe)], emission) of a Blender material."""
-        self._program = self._scene_nodes().Program()
+        self._program = self._nodes.Program()
         if material is None:
             return "", [(1.0, _lobe("diffuse", DEFAULT_COLOR))], np.zeros(3)
         tree = node_tree(material)
@@ -82,11 +83,6 @@ class MaterialTable:
         lobes, emission = reader.shader(output.inputs.get("Surface"))
         self._program = reader.program
         return material.name, lobes, emission
-
-    def _scene_nodes(self):
-        from ..core import load
-
-        return load().nodes
 
     def _add_chain(self, head, name, lobes, emission):
         """Puts the head material (which carries the emission) at ``head`` and appends the
