@@ -125,6 +125,8 @@ class MaterialTable:
             if not (constant(total) and total == 1.0):
                 color = link.mix("MULTIPLY", 1.0, color, link.to_color(total))  # the lobes' weights add up to total
             principled = {k: field(k, v, 1.0 if k == "transmission" else 0.0) for k, v in lobe["principled"].items()}
+            if lobe["normal"] is not None:
+                field("normal", lobe["normal"], None)
             # The next lobe is appended after this one (after the head: at the end).
             next_index = len(materials) + (0 if i == 0 else 1)
             material = Material(
@@ -178,7 +180,7 @@ def node_tree(id_block):
     return id_block.node_tree
 
 
-def _lobe(type, base_color, roughness=0.5, ior=1.45, texture=None, multiscatter=False, principled=None):
+def _lobe(type, base_color, roughness=0.5, ior=1.45, texture=None, multiscatter=False, principled=None, normal=None):
     from ..core import load
 
     constant = load().nodes.Program.is_constant  # else a register of the material's node program
@@ -186,7 +188,7 @@ def _lobe(type, base_color, roughness=0.5, ior=1.45, texture=None, multiscatter=
                 roughness=float(roughness) if constant(roughness) else roughness,
                 ior=float(ior), texture=texture,
                 multiscatter=bool(multiscatter) and type in ("conductor", "dielectric", "principled"),
-                principled=principled or {})
+                principled=principled or {}, normal=normal)
 
 
 class _NodeReader:
@@ -220,6 +222,19 @@ class _NodeReader:
 
     def warn(self, text):
         self.warnings.add(f"material '{self.name}': {text}")
+
+    def normal(self, node, name="Normal"):
+        """The shading normal nodes (Bump, Normal Map, ...) give a BSDF: a register of the
+        program, or None where the input is unlinked or its graph is not supported (named in a
+        warning; the surface's own normal is used)."""
+        socket = node.inputs.get(name)
+        if socket is None or self._source(socket) is None:
+            return None
+        try:
+            return self.graph.socket(socket, "vector")
+        except (Unsupported, ValueError) as e:
+            self.warn(f"'{node.name}' {name} is driven by {e}, which is not supported; using the surface's normal")
+            return None
 
     def ior(self, node, default):
         """The node's IOR clamped into the core's range (scene.IOR_RANGE; Blender allows 0, and
@@ -340,7 +355,7 @@ class _NodeReader:
         color, texture = self.color(node, "Color")
         if self.value(node, "Roughness", 0.0) > 0.0:
             self.warn(f"'{node.name}': Oren-Nayar roughness is rendered as Lambert (roughness 0)")
-        return [(1.0, _lobe("diffuse", color, texture=texture))], np.zeros(3)
+        return [(1.0, _lobe("diffuse", color, texture=texture, normal=self.normal(node)))], np.zeros(3)
 
     def _distribution(self, node, roughness):
         """(roughness, multiscatter) of a microfacet node's distribution."""
@@ -355,7 +370,8 @@ class _NodeReader:
         roughness, ms = self._distribution(node, self.driven(node, "Roughness", 0.5))
         if abs(self.value(node, "Anisotropy", 0.0)) > 0.0:
             self.warn(f"'{node.name}': anisotropy is ignored")
-        return [(1.0, _lobe("conductor", color, roughness, texture=texture, multiscatter=ms))], np.zeros(3)
+        return [(1.0, _lobe("conductor", color, roughness, texture=texture, multiscatter=ms,
+                            normal=self.normal(node)))], np.zeros(3)
 
     _bsdf_anisotropic = _bsdf_glossy
 
@@ -369,7 +385,7 @@ class _NodeReader:
         color, texture = self.color(node, "Color", (1.0, 1.0, 1.0))
         roughness, ms = self._distribution(node, self.driven(node, "Roughness", 0.0))
         ior = self.ior(node, 1.5)
-        return [(1.0, _lobe("dielectric", color, roughness, ior, texture, ms))], np.zeros(3)
+        return [(1.0, _lobe("dielectric", color, roughness, ior, texture, ms, normal=self.normal(node)))], np.zeros(3)
 
     def _bsdf_principled(self, node):
         """Blender 4.x/5.0 inputs; Cycles clamps them as parallax_core.scene.PRINCIPLED_FIELDS."""
@@ -412,12 +428,11 @@ class _NodeReader:
             self.warn(f"'{node.name}': Anisotropic is ignored")
         if "Thin Film Thickness" in node.inputs and self.value(node, "Thin Film Thickness", 0.0) > 0.0:
             self.warn(f"'{node.name}': Thin Film is ignored")
-        for name in ("Normal", "Coat Normal"):
-            if name in node.inputs and self._source(node.inputs[name]) is not None:
-                self.warn(f"'{node.name}': the {name} input is ignored")
+        if "Coat Normal" in node.inputs and self._source(node.inputs["Coat Normal"]) is not None:
+            self.warn(f"'{node.name}': the Coat Normal input is ignored (the coat uses the Normal)")
         if self.value(node, "Alpha", 1.0) < 1.0:
             self.warn(f"'{node.name}': Alpha is ignored (rendered opaque)")
-        lobes = [(1.0, _lobe("principled", color, roughness, ior, texture, ms, principled))]
+        lobes = [(1.0, _lobe("principled", color, roughness, ior, texture, ms, principled, self.normal(node)))]
         emission_name = first("Emission Color", "Emission")
         emission_color, emission_texture = self.color(node, emission_name, (0.0, 0.0, 0.0))
         emission_color = self.constant_color(node, emission_name, emission_color, emission_texture, (1.0, 1.0, 1.0))

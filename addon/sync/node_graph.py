@@ -31,6 +31,9 @@ class GraphCompiler:
         self.texture_loader = texture_loader
         self.material_name = material_name
         self._memo = {}
+        # Where coordinates are taken: the hit (0, 0.0), or one of the two points a Bump
+        # evaluates its height at (offset 1 or 2, filter width); see Program._place.
+        self.bump_offset = (0, 0.0)
 
     # -- sockets --
 
@@ -49,7 +52,7 @@ class GraphCompiler:
                 raise Unsupported(f"a Group Input outside a group ('{node.name}')")
             outer = groups[-1]
             return self.socket(outer.inputs[output.identifier], kind, groups[:-1])
-        key = (tuple(g.name for g in groups), node.name, output.identifier)
+        key = (tuple(g.name for g in groups), node.name, output.identifier, self.bump_offset)
         if key not in self._memo:
             self._memo[key] = self._output(node, output, groups)
         value, produced = self._memo[key]
@@ -92,17 +95,65 @@ class GraphCompiler:
         kind = _KINDS.get(output.type, "float")
         return self.socket(inner, kind, groups + (node,)), kind
 
+    def _uv(self):
+        return self.program.uv(self.bump_offset)
+
     def _tex_coord(self, node, output, groups):
+        p = self.program
         if output.name == "Generated":
-            return self.program.generated(), "vector"
-        if output.name != "UV":
-            raise Unsupported(f"Texture Coordinate '{node.name}' output {output.name} (UV and Generated are supported)")
-        return self.program.uv(), "vector"
+            return p.generated(self.bump_offset), "vector"
+        if output.name == "UV":
+            return self._uv(), "vector"
+        if output.name == "Object" and node.object is None:
+            return p.geometry("object", self.bump_offset), "vector"
+        if output.name == "Normal":
+            return p.geometry("object_normal"), "vector"
+        raise Unsupported(f"Texture Coordinate '{node.name}' output {output.name}"
+                          + (" from another object" if output.name == "Object" else "")
+                          + " (UV, Generated, Object and Normal are supported)")
+
+    def _new_geometry(self, node, output, groups):
+        """Cycles' Geometry node: Position, Normal, True Normal, Incoming, Backfacing."""
+        kinds = {"Position": "position", "Normal": "normal", "True Normal": "true_normal", "Incoming": "incoming",
+                 "Backfacing": "backfacing"}
+        if output.name not in kinds:
+            raise Unsupported(f"Geometry '{node.name}' output {output.name}")
+        value = self.program.geometry(kinds[output.name], self.bump_offset)
+        return (self.program.separate(value, 0), "float") if output.name == "Backfacing" else (value, "vector")
 
     def _uvmap(self, node, output, groups):
         if node.uv_map:
             raise Unsupported(f"UV Map '{node.name}' naming the map '{node.uv_map}' (the active one is supported)")
-        return self.program.uv(), "vector"
+        return self._uv(), "vector"
+
+    def normal_input(self, node, groups, name="Normal"):
+        """A Normal input: linked, else the hit's shading normal (Cycles' N)."""
+        socket = node.inputs.get(name)
+        if socket is not None and socket.is_linked:
+            return self.socket(socket, "vector", groups)
+        return self.program.geometry("normal")
+
+    def _bump(self, node, output, groups):
+        """Cycles' Bump (svm_node_set_bump): the Height graph compiled three times, at the hit
+        and at the two offsets (nodes.glsl bump_step)."""
+        p = self.program
+        width = self._in(node, "Filter Width", "float", groups) if "Filter Width" in node.inputs else 0.1
+        if not p.is_constant(width):
+            raise Unsupported(f"Bump '{node.name}' with a linked Filter Width")
+        saved, heights = self.bump_offset, []
+        for offset in (0, 1, 2):
+            self.bump_offset = (offset, float(width)) if offset else saved
+            heights.append(self._in(node, "Height", "float", groups))
+        self.bump_offset = saved
+        strength, distance = self._in(node, "Strength", "float", groups), self._in(node, "Distance", "float", groups)
+        return p.bump(strength, distance, heights, self.normal_input(node, groups), node.invert, float(width)), "vector"
+
+    def _fresnel(self, node, output, groups):
+        return self.program.fresnel("fresnel", self._in(node, "IOR", "float", groups), self.normal_input(node, groups)), "float"
+
+    def _layer_weight(self, node, output, groups):
+        kind = "layer_fresnel" if output.name == "Fresnel" else "layer_facing"
+        return self.program.fresnel(kind, self._in(node, "Blend", "float", groups), self.normal_input(node, groups)), "float"
 
     def _tex_image(self, node, output, groups):
         if output.name != "Color":
@@ -115,7 +166,7 @@ class GraphCompiler:
         texture = self.texture_loader(node.image, f"material '{self.material_name}'", interpolation)
         if texture is None:
             raise Unsupported(f"Image Texture '{node.name}' without pixels")
-        vector = self._in(node, "Vector", "vector", groups) if node.inputs["Vector"].is_linked else self.program.uv()
+        vector = self._in(node, "Vector", "vector", groups) if node.inputs["Vector"].is_linked else self._uv()
         return self.program.texture(vector, texture), "color"
 
     def _offset(self, vector, seed):
@@ -146,7 +197,9 @@ class GraphCompiler:
 
     def _texture_vector(self, node, groups):
         """A procedural texture's Vector: linked, else Generated coordinates (Blender's default)."""
-        return self._in(node, "Vector", "vector", groups) if node.inputs["Vector"].is_linked else self.program.generated()
+        if node.inputs["Vector"].is_linked:
+            return self._in(node, "Vector", "vector", groups)
+        return self.program.generated(self.bump_offset)
 
     def _tex_checker(self, node, output, groups):
         """Cycles' svm_checker: cells of the scaled point (nudged off the cell edges), colour 1

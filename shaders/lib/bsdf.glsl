@@ -65,17 +65,6 @@ float ggx_vndf_pdf(vec3 wo, vec3 m, float alpha) {
     return ggx_g1(wo, alpha) * max(0.0, dot(wo, m)) * ggx_d(m, alpha) / wo.z;
 }
 
-// Exact unpolarised Fresnel reflectance; eta = n_t / n_i, cos_i > 0.
-float fresnel_dielectric(float cos_i, float eta) {
-    float c = abs(cos_i);
-    float g2 = eta * eta - 1.0 + c * c;
-    if (g2 <= 0.0) return 1.0;  // total internal reflection
-    float g = sqrt(g2);
-    float a = (g - c) / (g + c);
-    float b = (c * (g + c) - 1.0) / (c * (g - c) + 1.0);
-    return 0.5 * a * a * (1.0 + b * b);
-}
-
 // ---- multiscatter energy compensation ---------------------------------------------------
 float ggx_table(uint i) {
     uint w = ggx_table_words[i >> 1];

@@ -101,3 +101,15 @@ vec3 offset_ray_scaled(vec3 p, vec3 n, float scale) {
 }
 
 vec3 offset_ray(vec3 p, vec3 n) { return offset_ray_scaled(p, n, 1.0); }
+
+// Exact unpolarised Fresnel reflectance; eta = n_t / n_i, |cos_i| is used (Cycles'
+// fresnel_dielectric_cos).
+float fresnel_dielectric(float cos_i, float eta) {
+    float c = abs(cos_i);
+    float g2 = eta * eta - 1.0 + c * c;
+    if (g2 <= 0.0) return 1.0;  // total internal reflection
+    float g = sqrt(g2);
+    float a = (g - c) / (g + c);
+    float b = (c * (g + c) - 1.0) / (c * (g - c) + 1.0);
+    return 0.5 * a * a * (1.0 + b * b);
+}

@@ -208,7 +208,7 @@ void trace_pending_shadow(inout PathState ps, inout PathResult res, inout Techni
 // MixMaterial resolves a mix to one material at the intersection (pbrt-v3's MixMaterial
 // instead sums scaled BxDFs), i.e. Veach's one-sample model over lobes (Veach 1997,
 // sec. 9.2.4). The host guarantees the chain ends within MIX_CHAIN_MAX materials.
-Material select_mix_material(Material head, SurfaceHit sh, inout Rng rng) {
+Material select_mix_material(Material head, inout SurfaceHit sh, vec3 wo, inout Rng rng) {
     Material m = head;
     if (!HAS(FEATURE_MIX) || head.mix_next < 0) return m;
     float u = rnd(rng);
@@ -217,7 +217,7 @@ Material select_mix_material(Material head, SurfaceHit sh, inout Rng rng) {
         // u >= w and u < 1 imply w < 1; the rescaled u is uniform on [0,1) again.
         u = min((u - m.mix_weight) / (1.0 - m.mix_weight), 0.99999994);
         m = materials[m.mix_next];
-        run_node_program(m, sh);  // its inputs, and the weight of the next step
+        run_node_program(m, sh, wo);  // its inputs (and normal), and the weight of the next step
     }
     return m;
 }
@@ -326,7 +326,7 @@ bool emission_stage(inout PathState ps, inout PathResult res, TechniquePath tp, 
 
     sh = fetch_surface(hit.instance, hit.primitive, hit.barycentrics);
     mat = materials[sh.material];
-    run_node_program(mat, sh);
+    run_node_program(mat, sh, -ps.dir);
     vec3 wo = -ps.dir;
     guiding_hit(tp.guiding, hit.t);
     if (res.segments == 1u) {
@@ -363,7 +363,7 @@ void blur_glossy(inout Material m, float min_ray_pdf) {
 // which scatters nothing.
 bool vertex_stage(SurfaceHit sh, Material mat, vec3 dir, float min_ray_pdf, inout Rng rng, out Vertex v) {
     // Emission was the head material's; the BSDF may come from its mix chain.
-    mat = select_mix_material(mat, sh, rng);
+    mat = select_mix_material(mat, sh, -dir, rng);
     if (mat.type == MATERIAL_EMISSION) return false;
     blur_glossy(mat, min_ray_pdf);
 

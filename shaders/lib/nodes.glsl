@@ -125,10 +125,121 @@ vec3 node_blend(uint mode, float t, vec3 c1, vec3 c2) {
     }
 }
 
-// Sets the fields `m`'s program drives at a hit with texture coordinates uv, clamped as
-// Cycles clamps those inputs of its closures.
-void run_node_program(inout Material m, SurfaceHit sh) {
-    if (!HAS(FEATURE_NODES) || m.program == NO_INDEX) return;
+// ---- geometry and Cycles' Bump (kernel/svm/displace.h svm_node_set_bump) ----------------
+// Cycles evaluates a Bump's height three times: at the hit, and with its coordinates moved by
+// the ray differentials dPdx, dPdy times the node's filter width. Without ray differentials,
+// the offsets here run along the triangle's edges p1 - p0 and p2 - p0, each as long as the
+// filter width times a camera pixel's footprint at the hit (what Cycles' camera differentials
+// give a primary hit); every coordinate moves with the same barycentric step. Where the height
+// is smooth at that scale the bumped normal is its surface gradient either way (the offsets'
+// length cancels out of svm_node_set_bump).
+
+// A pixel's width in world units at point p, seen from the camera.
+float pixel_footprint(vec3 p) {
+    if (scene.camera_type == CAMERA_ORTHOGRAPHIC) return (scene.camera_window.y - scene.camera_window.x) / float(params.width);
+    vec3 eye = vec3(scene.camera_to_world[0].w, scene.camera_to_world[1].w, scene.camera_to_world[2].w);
+    float angle = scene.camera_type == CAMERA_PANORAMA ? 2.0 * PI / float(params.width)
+                                                       : (scene.camera_window.y - scene.camera_window.x) / float(params.width);
+    return angle * length(p - eye);
+}
+
+// Barycentric step of bump offset `offset` (1: along edge 1, 2: along edge 2) of filter width
+// `width`, and the world-space move it makes.
+vec2 bump_step(SurfaceHit sh, uint offset, float width, out vec3 moved) {
+    moved = vec3(0.0);
+    if (offset == 0u) return vec2(0.0);
+    InstanceInfo inst = instances[sh.instance];
+    uvec3 idx = indices[meshes[inst.mesh].first_triangle + sh.primitive];
+    vec3 edge = transform_vector(inst.object_to_world, positions[offset == 1u ? idx.y : idx.z] - positions[idx.x]);
+    float step = width * pixel_footprint(sh.p) / max(length(edge), 1e-20);
+    moved = step * edge;
+    return offset == 1u ? vec2(step, 0.0) : vec2(0.0, step);
+}
+
+// The object-space position and uv at barycentrics b (of vertices 1, 2) of the hit's triangle.
+vec3 object_point(SurfaceHit sh, vec2 b, out vec2 uv) {
+    InstanceInfo inst = instances[sh.instance];
+    MeshInfo mesh = meshes[inst.mesh];
+    uint tri = mesh.first_triangle + sh.primitive;
+    uvec3 idx = indices[tri];
+    vec3 w = vec3(1.0 - b.x - b.y, b);
+    uv = mesh.has_uvs != 0u ? w.x * corner_uvs[3u * tri] + w.y * corner_uvs[3u * tri + 1u] + w.z * corner_uvs[3u * tri + 2u]
+                            : vec2(0.0);
+    return w.x * positions[idx.x] + w.y * positions[idx.y] + w.z * positions[idx.z];
+}
+
+// NODE_UV, NODE_GENERATED, NODE_GEOMETRY: `word` = kind | offset << 8 | half filter width << 16.
+vec4 node_geometry(uint op, uint word, SurfaceHit sh, vec3 wo) {
+    uint kind = word & 0xffu, offset = (word >> 8) & 0xffu;
+    bool back = dot(sh.ng, wo) < 0.0;  // Cycles' SD_BACKFACING: N and Ng face the viewer
+    if (op == NODE_GEOMETRY) {
+        if (kind == NODE_GEOMETRY_NORMAL) return vec4(back ? -sh.ns_smooth : sh.ns_smooth, 0.0);
+        if (kind == NODE_GEOMETRY_TRUE_NORMAL) return vec4(back ? -sh.ng : sh.ng, 0.0);
+        if (kind == NODE_GEOMETRY_INCOMING) return vec4(wo, 0.0);
+        if (kind == NODE_GEOMETRY_BACKFACING) return vec4(back ? 1.0 : 0.0);
+        if (kind == NODE_GEOMETRY_OBJECT_NORMAL) {  // the inverse normal transform: M^T N
+            vec4 rows[3] = instances[sh.instance].object_to_world;
+            vec3 n = back ? -sh.ns_smooth : sh.ns_smooth;
+            return vec4(normalize(n.x * rows[0].xyz + n.y * rows[1].xyz + n.z * rows[2].xyz), 0.0);
+        }
+    }
+    vec3 moved;
+    vec2 b = sh.bary + bump_step(sh, offset, unpackHalf2x16(word >> 16).x, moved);
+    if (offset == 0u && op == NODE_UV) return vec4(sh.uv, 0.0, 0.0);
+    if (offset == 0u && op == NODE_GENERATED) return vec4(sh.generated, 0.0);
+    if (op == NODE_GEOMETRY && kind == NODE_GEOMETRY_POSITION) return vec4(sh.p + moved, 0.0);
+    vec2 uv;
+    vec3 p_object = object_point(sh, b, uv);
+    if (op == NODE_UV) return vec4(uv, 0.0, 0.0);
+    if (op == NODE_GENERATED) {
+        MeshInfo mesh = meshes[instances[sh.instance].mesh];
+        return vec4(p_object * mesh.texspace_scale + mesh.texspace_offset, 0.0);
+    }
+    return vec4(p_object, 0.0);  // NODE_GEOMETRY_OBJECT
+}
+
+// Cycles' svm_node_set_bump: the normal n (facing the viewer) tilted by the height's surface
+// gradient, from the heights h = (centre, dx, dy) at bump_step's two offsets.
+vec3 node_bump(SurfaceHit sh, vec3 n, vec3 h, float strength, float distance, uint word) {
+    float width = unpackHalf2x16(word >> 16).x;
+    vec3 dpdx, dpdy;
+    bump_step(sh, 1u, width, dpdx);
+    bump_step(sh, 2u, width, dpdy);
+    vec3 rx = cross(dpdy, n), ry = cross(n, dpdx);
+    float det = dot(dpdx, rx);
+    vec3 surfgrad = (h.y - h.x) * rx + (h.z - h.x) * ry;
+    if ((word & 1u) != 0u) distance = -distance;
+    vec3 bumped = abs(det) * n - distance * sign(det) * surfgrad;
+    if (dot(bumped, bumped) <= 1e-30 || det == 0.0) return n;
+    return normalize(max(strength, 0.0) * normalize(bumped) + (1.0 - max(strength, 0.0)) * n);
+}
+
+// Cycles' Fresnel and Layer Weight nodes (kernel/svm/fresnel.h) at normal n, viewer wo.
+float node_fresnel(uint kind, float value, vec3 n, vec3 wo, bool back) {
+    float cos_i = dot(wo, n);
+    if (kind == 0u) {
+        float eta = max(value, 1e-5);
+        return fresnel_dielectric(cos_i, back ? 1.0 / eta : eta);
+    }
+    if (kind == 1u) {
+        float eta = max(1.0 - value, 1e-5);
+        return fresnel_dielectric(cos_i, back ? eta : 1.0 / eta);
+    }
+    float f = abs(cos_i);
+    if (value != 0.5) {
+        float blend = clamp(value, 0.0, 1.0 - 1e-5);
+        f = pow(f, blend < 0.5 ? 2.0 * blend : 0.5 / (1.0 - blend));
+    }
+    return 1.0 - f;
+}
+
+// Sets the fields `m`'s program drives at a hit seen from direction wo, clamped as Cycles
+// clamps those inputs of its closures; a stored normal (Bump, Normal Map) becomes sh.ns.
+// Without a program sh.ns is the interpolated normal (a mix chain's other links may bump it).
+void run_node_program(inout Material m, inout SurfaceHit sh, vec3 wo) {
+    if (!HAS(FEATURE_NODES)) return;
+    sh.ns = sh.ns_smooth;
+    if (m.program == NO_INDEX) return;
     vec4 reg[NODE_REGISTERS];
     uint pc = m.program;
     for (;;) {
@@ -143,10 +254,18 @@ void run_node_program(inout Material m, SurfaceHit sh) {
             pc += 3u;
             break;
         case NODE_UV:
-            reg[dst] = vec4(sh.uv, 0.0, 0.0);
-            break;
         case NODE_GENERATED:
-            reg[dst] = vec4(sh.generated, 0.0);
+        case NODE_GEOMETRY:
+            reg[dst] = node_geometry(op, arg, sh, wo);
+            break;
+        case NODE_BUMP: {
+            vec3 h = vec3(reg[arg & 0xffu].x, reg[(arg >> 8) & 0xffu].x, reg[(arg >> 16) & 0xffu].x);
+            reg[dst].xyz = node_bump(sh, reg[arg >> 24].xyz, h, reg[a].x, reg[b].x, node_words[pc]);
+            pc += 1u;
+            break;
+        }
+        case NODE_FRESNEL:
+            reg[dst].x = node_fresnel(arg, reg[a].x, reg[b].xyz, wo, dot(sh.ng, wo) < 0.0);
             break;
         case NODE_NOISE:
             reg[dst].x = noise_fbm(reg[a].xyz, reg[arg & 0xffu].x, reg[(arg >> 8) & 0xffu].x, reg[(arg >> 16) & 0xffu].x,
@@ -218,7 +337,10 @@ void run_node_program(inout Material m, SurfaceHit sh) {
             case 5u: m.specular_ior_level = max(v.x, 0.0); break;
             case 6u: m.mix_weight = clamp(v.x, 0.0, 1.0); break;
             case 7u: m.coat_roughness = clamp(v.x, 0.0, 1.0); break;
-            default: m.sheen_weight = max(v.x, 0.0); break;
+            case 8u: m.sheen_weight = max(v.x, 0.0); break;
+            default:  // the normal (facing the viewer, as Cycles' N) on the geometric normal's side
+                if (dot(v.xyz, v.xyz) > 1e-30) sh.ns = normalize(dot(sh.ng, wo) < 0.0 ? -v.xyz : v.xyz);
+                break;
             }
         }
         }

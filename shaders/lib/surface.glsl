@@ -5,6 +5,8 @@ struct SurfaceHit {
     vec3 generated;  // Generated texture coordinates (node programs only: FEATURE_NODES)
     vec3 ng;  // geometric normal, unit, world space (winding order side)
     vec3 ns;  // shading normal, unit, on the same side as ng
+    vec3 ns_smooth;  // the interpolated one, before a node program bumps ns (FEATURE_NODES)
+    vec2 bary;       // barycentrics of vertices 1 and 2 (FEATURE_NODES)
     vec2 uv;
     uint material;
     uint instance;
@@ -36,6 +38,8 @@ SurfaceHit fetch_surface(uint instance_index, uint primitive, vec2 bary) {
     h.uv = vec2(0.0);
     if (HAS(FEATURE_UVS) && mesh.has_uvs != 0u)
         h.uv = b.x * corner_uvs[3u * tri] + b.y * corner_uvs[3u * tri + 1u] + b.z * corner_uvs[3u * tri + 2u];
+    h.ns_smooth = h.ns;
+    h.bary = bary;
     h.material = triangle_material[tri];
     h.instance = instance_index;
     h.primitive = primitive;

@@ -232,7 +232,7 @@ struct Material {
 // one word or more of its own, up to NODE_END.
 PX_CONST uint NODE_END = 0;
 PX_CONST uint NODE_CONST = 1;      // dst = 4 float words
-PX_CONST uint NODE_UV = 2;         // dst = (uv, 0, 0); word unused
+PX_CONST uint NODE_UV = 2;         // dst = (uv, 0, 0); word: bump offset (NODE_BUMP)
 PX_CONST uint NODE_TEXTURE = 3;    // dst = texture[word] at a.xy (Image Texture, Linear/Closest, repeat)
 PX_CONST uint NODE_AFFINE = 4;     // dst.xyz = 3x4 matrix (12 words) * (a.xyz, 1) (Mapping)
 PX_CONST uint NODE_MATH = 5;       // dst.x = MATH op (word & 0xff) of a.x, b.x, c.x (c: word >> 16)
@@ -247,16 +247,34 @@ PX_CONST uint NODE_SEPARATE = 10;  // dst.x = a[word]
 PX_CONST uint NODE_COMBINE = 11;   // dst = (a.x, b.x, reg[word].x, 1)
 PX_CONST uint NODE_STORE = 12;     // Material field (word: parallax_core.nodes.FIELDS) = a
 PX_CONST uint NODE_CONVERT = 13;   // word 0: dst.x = luminance of a.rgb; 1: mean of a.xyz; 2: dst = a.xxx
-PX_CONST uint NODE_GENERATED = 14; // dst = Generated texture coordinates; word unused
+PX_CONST uint NODE_GENERATED = 14; // dst = Generated texture coordinates; word: bump offset
 PX_CONST uint NODE_NOISE = 15;     // dst.x = Cycles' 3D fBm Perlin noise at a.xyz; word: registers of
                                    // detail, roughness, lacunarity (a byte each), bit 24: normalize
-PX_CONST uint NODE_OPS = 16;
+PX_CONST uint NODE_GEOMETRY = 22;  // dst = the hit's NODE_GEOMETRY_* (word & 0xff) at the bump offset
+                                   // (word >> 8: see NODE_BUMP)
+PX_CONST uint NODE_BUMP = 23;      // dst.xyz = Cycles' bumped normal: strength a.x, distance b.x; word:
+                                   // registers of the heights at the centre, dx and dy offsets and of
+                                   // the normal (a byte each); next word: invert | filter width << 16
+PX_CONST uint NODE_FRESNEL = 24;   // dst.x = word 0: Fresnel of IOR a.x, 1: Layer Weight's Fresnel,
+                                   // 2: its Facing, of blend a.x; b: the normal
+PX_CONST uint NODE_OPS = 25;
+// A coordinate operation's bump offset (word >> 8 of NODE_GEOMETRY, word of NODE_UV and
+// NODE_GENERATED): 0 the hit itself, 1 and 2 the points Cycles' Bump evaluates its height at,
+// a filter width (half float, word >> 16) of a pixel's footprint along the triangle's edges.
+PX_CONST uint NODE_GEOMETRY_POSITION = 0;     // world space
+PX_CONST uint NODE_GEOMETRY_NORMAL = 1;       // the shading normal on the viewer's side (Cycles' N)
+PX_CONST uint NODE_GEOMETRY_TRUE_NORMAL = 2;  // the geometric normal on the viewer's side
+PX_CONST uint NODE_GEOMETRY_INCOMING = 3;     // towards the viewer
+PX_CONST uint NODE_GEOMETRY_OBJECT = 4;       // object-space position (Texture Coordinate Object)
+PX_CONST uint NODE_GEOMETRY_OBJECT_NORMAL = 5;  // object-space normal (Texture Coordinate Normal)
+PX_CONST uint NODE_GEOMETRY_BACKFACING = 6;   // 1 where the ray hit the back
+PX_CONST uint NODE_GEOMETRY_KINDS = 7;
 PX_CONST uint NODE_REGISTERS = 32;
 PX_CONST uint NODE_MATH_OPS = 22;   // parallax_core.nodes.MATH_OPS, in that order
 PX_CONST uint NODE_BLEND_MODES = 10;  // parallax_core.nodes.BLEND_MODES
-PX_CONST uint NODE_FIELDS = 9;      // parallax_core.nodes.FIELDS: base_color, roughness, metallic,
+PX_CONST uint NODE_FIELDS = 10;     // parallax_core.nodes.FIELDS: base_color, roughness, metallic,
                                     // transmission, coat_weight, specular_ior_level, mix_weight,
-                                    // coat_roughness, sheen_weight (emission stays constant: the
+                                    // coat_roughness, sheen_weight, normal (emission stays constant: the
                                     // light table samples emitters by it)
 
 // Conductor/dielectric: Cycles' Multiscatter GGX, the single-scatter lobe scaled by

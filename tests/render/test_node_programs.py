@@ -138,3 +138,90 @@ def test_noise_and_generated_coordinates(device):
     # its UVs do, sample by sample), the flat axis to 0.5 (Cycles keeps scale 1 there).
     got = run(device, lambda p, u, v: p.mix("ADD", 1.0, p.mix("SUBTRACT", 1.0, p.generated(), p.uv()), 0.25))
     np.testing.assert_allclose(got, np.broadcast_to([0.25, 0.25, 0.75], got.shape), atol=1e-5)
+
+
+def run_plain(device, build, field="base_color", pass_name="albedo"):
+    """As run(), without snapping: ``build(program)`` returns the register stored in ``field``;
+    the pass is read as averaged over each pixel's samples."""
+    session, scene, _ = device
+    p = nodes.Program()
+    p.store(field, build(p))
+    scene.materials = [Material("diffuse", (1.0, 1.0, 1.0), node_program=tuple(p.finish()))]
+    session.update(scene)
+    session.render(4)
+    return session.read(pass_name)[::-1]
+
+
+def test_geometry_outputs(device):
+    """Cycles' Geometry and Texture Coordinate outputs on the quad (z = 0, facing the camera on
+    +z): positions (world = object here) mapped to 0..1, the normals and the incoming direction."""
+    u, v = grid()
+    half = lambda p, x: p.mix("MULTIPLY", 1.0, p.mix("ADD", 1.0, x, 1.0), 0.5)  # -1..1 -> 0..1
+    for kind in ("position", "object"):
+        got = run_plain(device, lambda p: half(p, p.geometry(kind)))
+        np.testing.assert_allclose(got[..., 0], u, atol=2e-3)
+        np.testing.assert_allclose(got[..., 1], v, atol=2e-3)
+        np.testing.assert_allclose(got[..., 2], 0.5, atol=1e-5)
+    for kind in ("normal", "true_normal", "incoming", "object_normal"):
+        got = run_plain(device, lambda p: half(p, p.geometry(kind)))
+        np.testing.assert_allclose(got, np.broadcast_to([0.5, 0.5, 1.0], got.shape), atol=1e-5, err_msg=kind)
+    got = run_plain(device, lambda p: p.to_color(p.math("ADD", p.separate(p.geometry("backfacing"), 0), 0.25)))
+    np.testing.assert_allclose(got, 0.25, atol=1e-6)
+
+
+def test_fresnel_and_layer_weight(device):
+    """Fresnel and Layer Weight against Cycles' formulas (fresnel_dielectric_cos), the normal
+    tilted by theta = u across the image (the view along -z: cos = cos theta)."""
+    # Each pixel averages its samples: the references are averaged over 64 points across it.
+    fine = (np.arange(W * 64) + 0.5) / (W * 64)
+    theta = np.pi / 2 * 0.98 * fine
+    pixel_mean = lambda x: np.broadcast_to(x.reshape(W, 64).mean(axis=1), (W, W))
+
+    def tilted(p):
+        t = p.math("MULTIPLY", p.separate(p.geometry("position"), 0), 0.5 * np.pi / 2 * 0.98)
+        t = p.math("ADD", t, 0.5 * np.pi / 2 * 0.98)  # x = -1..1 -> theta = 0..0.98 pi/2
+        return p.combine(p.math("SINE", t), 0.0, p.math("COSINE", t))
+
+    def fresnel(cos_i, eta):
+        g = np.sqrt(np.maximum(eta * eta - 1 + cos_i * cos_i, 0))
+        a, b = (g - cos_i) / (g + cos_i), (cos_i * (g + cos_i) - 1) / (cos_i * (g - cos_i) + 1)
+        return 0.5 * a * a * (1 + b * b)
+
+    cases = {("fresnel", 1.45): fresnel(np.cos(theta), 1.45),
+             ("layer_fresnel", 0.3): fresnel(np.cos(theta), 1 / 0.7),
+             ("layer_facing", 0.5): 1 - np.cos(theta),
+             ("layer_facing", 0.8): 1 - np.cos(theta) ** (0.5 / 0.2)}
+    for (kind, value), want in cases.items():
+        got = run_plain(device, lambda p: p.to_color(p.fresnel(kind, value, tilted(p))))
+        want = pixel_mean(want)
+        np.testing.assert_allclose(got[..., 0], want, rtol=0.03, atol=2e-3, err_msg=kind)  # 8 samples of a curve
+        assert np.ptp(want) > 0.2
+
+
+@pytest.mark.parametrize("strength,invert", [(1.0, False), (0.5, False), (1.0, True)])
+def test_bump_tilts_the_normal_by_the_height_gradient(device, strength, invert):
+    """Cycles' Bump: normal = normalize(N - distance grad h), mixed with N by the strength. The
+    heights come from the program run at the two offsets (UV and Generated moved with them):
+    h = 2 u + sin(3 v) on the quad (u = (x + 1) / 2, v = (y + 1) / 2), so grad h = (1,
+    1.5 cos(3 v), 0) in world units."""
+    u, v = grid()
+    distance = 0.4
+
+    def height(p, offset):
+        uv = p.uv((offset, 0.1))
+        gen = p.generated((offset, 0.1))  # 0..1 across the quad as the uvs are
+        return p.math("ADD", p.math("MULTIPLY", p.separate(uv, 0), 2.0), p.math("SINE", p.math("MULTIPLY", p.separate(gen, 1), 3.0)))
+
+    def build(p):
+        return p.bump(strength, distance, [height(p, k) for k in range(3)], p.geometry("normal"), invert, 0.1)
+
+    got = run_plain(device, build, field="normal", pass_name="normal")
+    sign = -1.0 if invert else 1.0
+    bumped = np.stack([-sign * distance * np.ones_like(u), -sign * distance * 1.5 * np.cos(3 * v), np.ones_like(u)], -1)
+    bumped /= np.linalg.norm(bumped, axis=-1, keepdims=True)
+    want = strength * bumped + (1 - strength) * np.array([0.0, 0.0, 1.0])
+    want /= np.linalg.norm(want, axis=-1, keepdims=True)
+    got = got[..., :3] / np.linalg.norm(got[..., :3], axis=-1, keepdims=True)
+    # Within 0.01: each pixel averages 8 jittered samples of a curving normal.
+    np.testing.assert_allclose(got, want, atol=0.01)
+    assert np.abs(want[..., 0]).min() > 0.15  # tilted everywhere

@@ -20,6 +20,9 @@ import numpy as np
 NODE_END, NODE_CONST, NODE_UV, NODE_TEXTURE, NODE_AFFINE, NODE_MATH, NODE_MIX = 0, 1, 2, 3, 4, 5, 6
 NODE_INVERT, NODE_MAP_RANGE, NODE_RAMP, NODE_SEPARATE, NODE_COMBINE, NODE_STORE, NODE_CONVERT = 7, 8, 9, 10, 11, 12, 13
 NODE_GENERATED, NODE_NOISE = 14, 15
+NODE_GEOMETRY, NODE_BUMP, NODE_FRESNEL = 22, 23, 24
+# NODE_GEOMETRY's outputs (types.h NODE_GEOMETRY_*), in order.
+GEOMETRY_KINDS = ("position", "normal", "true_normal", "incoming", "object", "object_normal", "backfacing")
 NODE_REGISTERS = 32
 NODE_RAMP_SIZE = 256  # Cycles' RAMP_TABLE_SIZE: a ColorRamp is a table of its colours
 
@@ -34,7 +37,7 @@ BLEND_MODES = ("MIX", "ADD", "MULTIPLY", "SUBTRACT", "SCREEN", "DIFFERENCE", "DA
                "DIVIDE")
 # Material fields a program may set (NODE_STORE), clamped as Cycles clamps the inputs.
 FIELDS = ("base_color", "roughness", "metallic", "transmission", "coat_weight", "specular_ior_level",
-          "mix_weight", "coat_roughness", "sheen_weight")
+          "mix_weight", "coat_roughness", "sheen_weight", "normal")
 
 
 def _f32(x):
@@ -204,7 +207,8 @@ _READS = {NODE_TEXTURE: [(0, 16)], NODE_AFFINE: [(0, 16)], NODE_MATH: [(0, 16), 
           NODE_MIX: [(0, 16), (0, 24), (1, 8)], NODE_INVERT: [(0, 16), (0, 24)],
           NODE_MAP_RANGE: [(0, 16), (1, 0), (1, 8), (1, 16), (1, 24)], NODE_RAMP: [(0, 16)],
           NODE_SEPARATE: [(0, 16)], NODE_COMBINE: [(0, 16), (0, 24), (1, 0)], NODE_STORE: [(0, 16)],
-          NODE_CONVERT: [(0, 16)], NODE_NOISE: [(0, 16), (1, 0), (1, 8), (1, 16)]}
+          NODE_CONVERT: [(0, 16)], NODE_NOISE: [(0, 16), (1, 0), (1, 8), (1, 16)],
+          NODE_BUMP: [(0, 16), (0, 24), (1, 0), (1, 8), (1, 16), (1, 24)], NODE_FRESNEL: [(0, 16), (0, 24)]}
 
 
 def allocate_registers(words):
@@ -242,7 +246,7 @@ def _instruction_starts(words):
     while words[pc] & 0xFF != NODE_END:
         op = words[pc] & 0xFF
         yield pc, op
-        size = {NODE_CONST: 4, NODE_AFFINE: 12, NODE_MAP_RANGE: 2}.get(op, 1)  # words after the instruction
+        size = {NODE_CONST: 4, NODE_AFFINE: 12, NODE_MAP_RANGE: 2, NODE_BUMP: 2}.get(op, 1)  # words after the instruction
         if op == NODE_RAMP:
             size = 1 + 4 * (words[pc + 1] & 0xFFFF)
         pc += 1 + size
@@ -290,12 +294,41 @@ class Program:
         self.words += [op | r << 8 | a << 16 | b << 24, *extra]
         return r
 
-    def uv(self):
-        return self._op(NODE_UV)
+    @staticmethod
+    def _place(kind, bump_offset):
+        """A coordinate operation's word: kind | offset << 8 | filter width (half) << 16, where
+        ``bump_offset`` is (0, 0.0) at the hit or (1 or 2, filter width): one of the points
+        Cycles' Bump evaluates its height at (nodes.glsl bump_step)."""
+        offset, width = bump_offset
+        return kind | offset << 8 | int(np.float16(width).view(np.uint16)) << 16
 
-    def generated(self):
+    def uv(self, bump_offset=(0, 0.0)):
+        return self._op(NODE_UV, extra=[self._place(0, bump_offset)])
+
+    def generated(self, bump_offset=(0, 0.0)):
         """Blender's Generated texture coordinates (the mesh's texture space as 0..1)."""
-        return self._op(NODE_GENERATED)
+        return self._op(NODE_GENERATED, extra=[self._place(0, bump_offset)])
+
+    def geometry(self, kind, bump_offset=(0, 0.0)):
+        """The hit's GEOMETRY_KINDS ``kind`` (normals and the incoming direction face the
+        viewer, as Cycles' N, Ng and I)."""
+        return self._op(NODE_GEOMETRY, extra=[self._place(GEOMETRY_KINDS.index(kind), bump_offset)])
+
+    def bump(self, strength, distance, heights, normal, invert, width):
+        """Cycles' Bump: ``normal`` tilted by the gradient of the height, given at the hit and
+        at bump offsets 1 and 2 of filter width ``width`` (``heights``)."""
+        if all(self.is_constant(h) for h in heights) and len({float(_vec4(h)[0]) for h in heights}) == 1:
+            return normal  # a flat height: no tilt
+        strength, distance, normal = self._in(strength), self._in(distance), self._in(normal)
+        h = [self._in(x) for x in heights]
+        flags = int(bool(invert)) | int(np.float16(width).view(np.uint16)) << 16
+        return self._op(NODE_BUMP, strength, distance, [h[0] | h[1] << 8 | h[2] << 16 | normal << 24, flags])
+
+    def fresnel(self, kind, value, normal):
+        """Cycles' Fresnel (kind "fresnel", value: IOR) or Layer Weight ("layer_fresnel",
+        "layer_facing"; value: Blend) at ``normal``."""
+        kinds = ("fresnel", "layer_fresnel", "layer_facing")
+        return self._op(NODE_FRESNEL, self._in(value), self._in(normal), [kinds.index(kind)])
 
     def noise(self, vector, detail, roughness, lacunarity, normalize):
         """Cycles' 3D fBm noise at ``vector`` (already scaled)."""

@@ -408,13 +408,21 @@ void check_node_program(const std::vector<uint>& words, uint32_t start, size_t t
         size_t size = 2;  // the instruction and its word
         if (op == NODE_CONST) size = 5;
         if (op == NODE_AFFINE) size = 13;
-        if (op == NODE_MAP_RANGE) size = 3;
+        if (op == NODE_MAP_RANGE || op == NODE_BUMP) size = 3;
         if (op == NODE_RAMP && pc + 1 < words.size()) size = 2 + 4 * size_t(words[pc + 1] & 0xffffu);
         if (pc + size >= words.size()) bad(where + " runs past the end of material_node_programs");
         const uint arg = words[pc + 1];
         switch (op) {
             case NODE_CONST: finite_words(pc + 1, 4); break;
-            case NODE_UV: break;
+            case NODE_UV:
+            case NODE_GENERATED:
+            case NODE_GEOMETRY:
+                if ((arg >> 8 & 0xffu) > 2) bad(where + ": unknown bump offset " + std::to_string(arg >> 8 & 0xffu));
+                if (op == NODE_GEOMETRY && (arg & 0xffu) >= NODE_GEOMETRY_KINDS)
+                    bad(where + ": unknown geometry output " + std::to_string(arg & 0xffu));
+                break;
+            case NODE_BUMP: reg(a), reg(b); for (int k = 0; k < 4; ++k) reg((arg >> (8 * k)) & 0xffu); break;
+            case NODE_FRESNEL: reg(a), reg(b); if (arg > 2) bad(where + ": unknown Fresnel kind " + std::to_string(arg)); break;
             case NODE_TEXTURE:
                 reg(a);
                 if (arg >= textures) bad(where + " samples texture " + std::to_string(arg) + " of " + std::to_string(textures));
@@ -439,7 +447,6 @@ void check_node_program(const std::vector<uint>& words, uint32_t start, size_t t
             case NODE_COMBINE: reg(a), reg(b), reg(arg); break;
             case NODE_STORE: reg(a); if (arg >= NODE_FIELDS) bad(where + ": unknown field " + std::to_string(arg)); break;
             case NODE_CONVERT: reg(a); if (arg > 2) bad(where + ": unknown conversion " + std::to_string(arg)); break;
-            case NODE_GENERATED: break;
             case NODE_NOISE: reg(a), reg(arg & 0xffu), reg((arg >> 8) & 0xffu), reg((arg >> 16) & 0xffu); break;
         }
         if (op != NODE_STORE) {
