@@ -46,6 +46,7 @@ class SceneExporter:
         warnings = Warnings()
         self._materials = materials.MaterialTable(warnings)
         self._mesh_index = meshes.export_geometry(depsgraph, data, self._materials, warnings)
+        self._tangents_exported = self._tangent_needs()
         self._materials.build(data)
         lights.export_lights(depsgraph, data, warnings)
         world.export_world(depsgraph.scene.world, data, warnings)
@@ -57,6 +58,11 @@ class SceneExporter:
                          "the image will be black")
         self.data = data
         return data, list(warnings)
+
+    def _tangent_needs(self):
+        """Each material's UV maps whose tangents its Normal Maps use (the geometry holds
+        them: a change needs a geometry export)."""
+        return [self._materials.tangent_maps(i) for i in range(len(self._materials))]
 
     def update(self, depsgraph, parts):
         """Re-exports ``parts`` (subset of PARTS) of the last full export into ``self.data``.
@@ -70,6 +76,9 @@ class SceneExporter:
             return {"geometry"}, self.full(depsgraph, self.data.width, self.data.height,
                                            view_camera=self.data.camera)[1]
         if "materials" in parts:
+            if self._tangent_needs() != self._tangents_exported:  # a Normal Map added or removed
+                return {"geometry"}, self.full(depsgraph, self.data.width, self.data.height,
+                                               view_camera=self.data.camera)[1]
             self._materials.build(self.data, warnings)
         if "lights" in parts:  # exported aside, then swapped in (a render thread may be reading)
             fresh = core.load().scene.SceneData()

@@ -24,7 +24,7 @@ diffuse surface of its colour.
 import numpy as np
 
 from .images import image_rgb
-from .node_graph import GraphCompiler, Unsupported
+from .node_graph import GraphCompiler, Unsupported, tangent_uv_maps
 
 DEFAULT_COLOR = (0.8, 0.8, 0.8)  # Cycles' surface for objects without a material
 
@@ -54,6 +54,15 @@ class MaterialTable:
             self._index[key] = len(self._materials)
             self._materials.append(material)
         return self._index[key]
+
+    def __len__(self):
+        return len(self._materials)
+
+    def tangent_maps(self, index):
+        """The UV maps ('' for the active one) whose tangents material ``index``'s Normal Maps
+        need (the mesh export computes them)."""
+        material = self._materials[index]
+        return frozenset(tangent_uv_maps(node_tree(material))) if material is not None else frozenset()
 
     def build(self, data, warnings=None):
         """(Re)reads every material's node tree into ``data.materials``/``data.textures``."""

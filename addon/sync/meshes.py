@@ -94,11 +94,15 @@ def _mesh_arrays(mesh, name, slots, material_table, warnings):
     normals = _get(tris, "split_normals", T * 9, np.float32).reshape(T, 3, 3)
     slot_of_triangle = _get(tris, "material_index", T, np.int32)
 
-    uvs = None
+    uvs = tangents = None
     uv_layer = mesh.uv_layers.active
     if uv_layer is not None:
         loop_uvs = _get(uv_layer.data, "uv", len(mesh.loops) * 2, np.float32).reshape(-1, 2)
         uvs = loop_uvs[loops]
+        maps = frozenset().union(*(material_table.tangent_maps(i) for i in slots))
+        if maps:
+            tangents = _tangents(mesh, uv_layer, maps, name, warnings)
+            tangents = tangents[loops] if tangents is not None else None
 
     if slots:
         table = np.asarray(slots, dtype=np.int64)
@@ -117,14 +121,34 @@ def _mesh_arrays(mesh, name, slots, material_table, warnings):
             return None
         indices, normals, material_indices = indices[keep], normals[keep], material_indices[keep]
         uvs = uvs[keep] if uvs is not None else None
+        tangents = tangents[keep] if tangents is not None else None
         positions = np.where(bad_vertex[:, None], 0.0, positions).astype(np.float32)
     # Generated texture coordinates' space (Blender keeps the automatic one at the bounds).
     location, size = getattr(mesh, "texspace_location", None), getattr(mesh, "texspace_size", None)
     texspace = (*location, *size) if location is not None and size is not None else None
     if texspace is not None and not np.isfinite(texspace).all():
         texspace = None  # NaN vertices: the bounds of the ones kept
-    return dict(positions=positions, indices=indices, normals=normals, uvs=uvs,
+    return dict(positions=positions, indices=indices, normals=normals, uvs=uvs, tangents=tangents,
                 material_indices=material_indices, name=name, texspace=texspace)
+
+
+def _tangents(mesh, uv_layer, maps, name, warnings):
+    """(loops, 4) MikkTSpace tangents of the exported UV map and bitangent signs, as Blender
+    computes them for Cycles' Normal Map; None (with a warning) where Blender cannot."""
+    other = sorted(m for m in maps if m and m != uv_layer.name)
+    if other:
+        warnings.add(f"object '{name}': a Normal Map names the UV map '{other[0]}'; the tangents of the "
+                     f"active map '{uv_layer.name}' are used (one UV map is exported)")
+    try:
+        mesh.calc_tangents(uvmap=uv_layer.name)
+    except RuntimeError as e:
+        warnings.add(f"object '{name}': no tangents for its Normal Map ({e}); the surface's normal is used")
+        return None
+    L = len(mesh.loops)
+    out = np.empty((L, 4), np.float32)
+    out[:, :3] = _get(mesh.loops, "tangent", L * 3, np.float32).reshape(L, 3)
+    out[:, 3] = _get(mesh.loops, "bitangent_sign", L, np.float32)
+    return out
 
 
 def _get(collection, attribute, count, dtype):

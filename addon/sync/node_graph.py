@@ -14,6 +14,22 @@ and node groups (flattened).
 import numpy as np
 
 
+def tangent_uv_maps(tree, seen=None):
+    """The UV maps ('' for the active one) whose tangents the tree's tangent-space Normal Map
+    nodes use, node groups included: what the mesh export computes tangents for."""
+    seen = set() if seen is None else seen
+    maps = set()
+    if tree is None or tree.name_full in seen:
+        return maps
+    seen.add(tree.name_full)
+    for node in tree.nodes:
+        if node.type == "NORMAL_MAP" and node.space == "TANGENT":
+            maps.add(node.uv_map)
+        elif node.type == "GROUP":
+            maps |= tangent_uv_maps(node.node_tree, seen)
+    return maps
+
+
 class Unsupported(Exception):
     """A node (or a setting of one) the compiler does not translate; its message names it."""
 
@@ -147,6 +163,13 @@ class GraphCompiler:
         self.bump_offset = saved
         strength, distance = self._in(node, "Strength", "float", groups), self._in(node, "Distance", "float", groups)
         return p.bump(strength, distance, heights, self.normal_input(node, groups), node.invert, float(width)), "vector"
+
+    def _normal_map(self, node, output, groups):
+        """Cycles' Normal Map; tangent space uses the tangents the mesh export computes for
+        the materials whose trees hold one (tangent_uv_maps)."""
+        color = self._in(node, "Color", "color", groups)
+        strength = self._in(node, "Strength", "float", groups)
+        return self.program.normal_map(color, strength, node.space), "vector"
 
     def _fresnel(self, node, output, groups):
         return self.program.fresnel("fresnel", self._in(node, "IOR", "float", groups), self.normal_input(node, groups)), "float"

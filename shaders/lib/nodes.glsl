@@ -214,6 +214,49 @@ vec3 node_bump(SurfaceHit sh, vec3 n, vec3 h, float strength, float distance, ui
     return normalize(max(strength, 0.0) * normalize(bumped) + (1.0 - max(strength, 0.0)) * n);
 }
 
+// Cycles' Normal Map (kernel/svm/tex_coord.h svm_node_normal_map): a colour (0..1 per axis)
+// as a normal, facing the viewer. Tangent space uses the mesh's MikkTSpace tangents and the
+// interpolated (unnormalised) object-space normal, the strength scaling the tangent part; the
+// other spaces mix with the shading normal by the strength.
+vec3 node_normal_map(SurfaceHit sh, vec3 color, float strength, uint space, bool back) {
+    vec3 c = 2.0 * (color - 0.5);
+    vec3 n_shading = back ? -sh.ns_smooth : sh.ns_smooth;
+    vec3 n;
+    InstanceInfo inst = instances[sh.instance];
+    if (space == NODE_NORMAL_MAP_TANGENT) {
+        MeshInfo mesh = meshes[inst.mesh];
+        if (mesh.has_tangents == 0u) return n_shading;  // as Cycles without the UV map's tangents
+        uint tri = mesh.first_triangle + sh.primitive;
+        vec3 w = vec3(1.0 - sh.bary.x - sh.bary.y, sh.bary);
+        vec4 t = w.x * corner_tangents[3u * tri] + w.y * corner_tangents[3u * tri + 1u] + w.z * corner_tangents[3u * tri + 2u];
+        vec3 normal;  // object space, on the winding side
+        if (mesh.has_normals != 0u) {
+            normal = w.x * corner_normals[3u * tri] + w.y * corner_normals[3u * tri + 1u] + w.z * corner_normals[3u * tri + 2u];
+        } else {
+            uvec3 idx = indices[tri];
+            normal = normalize(cross(positions[idx.y] - positions[idx.x], positions[idx.z] - positions[idx.x]));
+        }
+        c.xy *= strength;
+        c.z = mix(1.0, c.z, clamp(strength, 0.0, 1.0));
+        vec3 b = (t.w < 0.0 ? -1.0 : 1.0) * cross(normal, t.xyz);
+        n = c.x * t.xyz + c.y * b + c.z * normal;
+        n = transform_vector(inst.normal_to_world, n);
+        n = dot(n, n) > 0.0 ? normalize(n) : n;
+        if (back) n = -n;
+    } else {
+        if (space >= NODE_NORMAL_MAP_BLENDER_OBJECT) c.yz = -c.yz;  // Blender's own convention
+        n = c;
+        if (space == NODE_NORMAL_MAP_OBJECT || space == NODE_NORMAL_MAP_BLENDER_OBJECT) n = transform_vector(inst.normal_to_world, n);
+        n = dot(n, n) > 0.0 ? normalize(n) : n;
+        if (back) n = -n;
+        if (strength != 1.0) {
+            n = n_shading + (n - n_shading) * max(strength, 0.0);
+            n = dot(n, n) > 0.0 ? normalize(n) : n;
+        }
+    }
+    return dot(n, n) > 0.0 && !any(isnan(n)) ? n : n_shading;
+}
+
 // Cycles' Fresnel and Layer Weight nodes (kernel/svm/fresnel.h) at normal n, viewer wo.
 float node_fresnel(uint kind, float value, vec3 n, vec3 wo, bool back) {
     float cos_i = dot(wo, n);
@@ -264,6 +307,9 @@ void run_node_program(inout Material m, inout SurfaceHit sh, vec3 wo) {
             pc += 1u;
             break;
         }
+        case NODE_NORMAL_MAP:
+            reg[dst].xyz = node_normal_map(sh, reg[a].rgb, reg[b].x, arg, dot(sh.ng, wo) < 0.0);
+            break;
         case NODE_FRESNEL:
             reg[dst].x = node_fresnel(arg, reg[a].x, reg[b].xyz, wo, dot(sh.ng, wo) < 0.0);
             break;

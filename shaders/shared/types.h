@@ -69,7 +69,8 @@ PX_CONST uint BINDING_ADAPTIVE_PIXELS = 40;
 PX_CONST uint BINDING_PIXEL_FILTER = 41;
 // uint words: the materials' node programs (Material.program; shaders/lib/nodes.glsl)
 PX_CONST uint BINDING_NODE_PROGRAMS = 42;
-PX_CONST uint BINDING_COUNT = 43;
+PX_CONST uint BINDING_CORNER_TANGENTS = 43;  // vec4 [3] per triangle: tangent, bitangent sign (Normal Map)
+PX_CONST uint BINDING_COUNT = 44;
 
 // ---- shader binding table: miss shaders and hit groups (RayTracingPipeline group order) -
 PX_CONST uint MISS_SCENE = 0;         // miss.rmiss: the world
@@ -184,6 +185,7 @@ struct MeshInfo {
     // mesh's texture space (its bounds by default) to 0..1.
     vec3 texspace_scale;
     vec3 texspace_offset;
+    uint has_tangents;  // corner tangents at the same triangle index (tangent-space Normal Maps)
 };
 
 struct InstanceInfo {
@@ -257,7 +259,14 @@ PX_CONST uint NODE_BUMP = 23;      // dst.xyz = Cycles' bumped normal: strength 
                                    // the normal (a byte each); next word: invert | filter width << 16
 PX_CONST uint NODE_FRESNEL = 24;   // dst.x = word 0: Fresnel of IOR a.x, 1: Layer Weight's Fresnel,
                                    // 2: its Facing, of blend a.x; b: the normal
-PX_CONST uint NODE_OPS = 25;
+PX_CONST uint NODE_NORMAL_MAP = 25;  // dst.xyz = Cycles' Normal Map of colour a.rgb, strength b.x; word:
+                                     // space (NODE_NORMAL_MAP_*)
+PX_CONST uint NODE_OPS = 26;
+PX_CONST uint NODE_NORMAL_MAP_TANGENT = 0;
+PX_CONST uint NODE_NORMAL_MAP_OBJECT = 1;
+PX_CONST uint NODE_NORMAL_MAP_WORLD = 2;
+PX_CONST uint NODE_NORMAL_MAP_BLENDER_OBJECT = 3;
+PX_CONST uint NODE_NORMAL_MAP_BLENDER_WORLD = 4;
 // A coordinate operation's bump offset (word >> 8 of NODE_GEOMETRY, word of NODE_UV and
 // NODE_GENERATED): 0 the hit itself, 1 and 2 the points Cycles' Bump evaluates its height at,
 // a filter width (half float, word >> 16) of a pixel's footprint along the triangle's edges.

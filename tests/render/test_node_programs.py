@@ -225,3 +225,51 @@ def test_bump_tilts_the_normal_by_the_height_gradient(device, strength, invert):
     # Within 0.01: each pixel averages 8 jittered samples of a curving normal.
     np.testing.assert_allclose(got, want, atol=0.01)
     assert np.abs(want[..., 0]).min() > 0.15  # tilted everywhere
+
+
+@pytest.mark.parametrize("space,strength,sign", [("TANGENT", 1.0, 1.0), ("TANGENT", 0.5, -1.0), ("WORLD", 1.0, 1.0),
+                                                 ("WORLD", 0.5, 1.0), ("BLENDER_WORLD", 1.0, 1.0)])
+def test_normal_map(device, space, strength, sign):
+    """Cycles' Normal Map of a colour that varies across the quad, read back through the Normal
+    pass: tangent space with the mesh's tangents (+x, the bitangent sign flipping y), world space
+    as the colour itself, Blender's world space with y and z negated."""
+    session, scene, _ = device
+    mesh = scene.meshes[0]
+    tangents = np.zeros((len(mesh.indices), 3, 4))
+    tangents[..., :] = (1.0, 0.0, 0.0, sign)
+    scene.meshes = [Mesh(mesh.positions, mesh.indices, uvs=mesh.uvs, tangents=tangents)]
+    try:
+        p = nodes.Program()
+        uv = p.uv()
+        snap = lambda x: p.math("DIVIDE", p.math("ADD", p.math("FLOOR", p.math("MULTIPLY", x, W)), 0.5), W)
+        u, v = snap(p.separate(uv, 0)), snap(p.separate(uv, 1))
+        color = p.combine(p.math("ADD", p.math("MULTIPLY", u, 0.6), 0.2), p.math("ADD", p.math("MULTIPLY", v, -0.5), 0.75), 0.85)
+        p.store("normal", p.normal_map(color, strength, space))
+        scene.materials = [Material("diffuse", (1.0, 1.0, 1.0), node_program=tuple(p.finish()))]
+        session.update(scene)
+        session.render(1)
+        got = session.read("normal")[::-1][..., :3]
+    finally:
+        scene.meshes = [mesh]
+    uu, vv = grid()
+    c = 2.0 * (np.stack([0.6 * uu + 0.2, -0.5 * vv + 0.75, np.full_like(uu, 0.85)], -1) - 0.5)
+    n_shading = np.array([0.0, 0.0, 1.0])
+    if space == "TANGENT":  # x along the tangent, y along sign * (N x T) = sign * +y
+        c[..., :2] *= strength
+        c[..., 2] = 1.0 + (c[..., 2] - 1.0) * min(max(strength, 0.0), 1.0)
+        want = c * np.array([1.0, sign, 1.0])
+        want /= np.linalg.norm(want, axis=-1, keepdims=True)
+    else:
+        want = c * (np.array([1.0, -1.0, -1.0]) if space == "BLENDER_WORLD" else 1.0)
+        want /= np.linalg.norm(want, axis=-1, keepdims=True)
+        want = n_shading + (want - n_shading) * strength
+        want /= np.linalg.norm(want, axis=-1, keepdims=True)
+    if space == "BLENDER_WORLD":  # z negated: it faces away, and the Normal pass shows it flipped
+        assert (want[..., 2] < 0).all()
+        want = -want
+    np.testing.assert_allclose(got / np.linalg.norm(got, axis=-1, keepdims=True), want, atol=2e-3)
+
+
+def test_normal_map_without_tangents_keeps_the_normal(device):
+    got = run_plain(device, lambda p: p.normal_map((0.9, 0.5, 0.6), 1.0, "TANGENT"), field="normal", pass_name="normal")
+    np.testing.assert_allclose(got[..., :3], np.broadcast_to([0.0, 0.0, 1.0], got[..., :3].shape), atol=1e-5)

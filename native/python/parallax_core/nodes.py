@@ -20,7 +20,9 @@ import numpy as np
 NODE_END, NODE_CONST, NODE_UV, NODE_TEXTURE, NODE_AFFINE, NODE_MATH, NODE_MIX = 0, 1, 2, 3, 4, 5, 6
 NODE_INVERT, NODE_MAP_RANGE, NODE_RAMP, NODE_SEPARATE, NODE_COMBINE, NODE_STORE, NODE_CONVERT = 7, 8, 9, 10, 11, 12, 13
 NODE_GENERATED, NODE_NOISE = 14, 15
-NODE_GEOMETRY, NODE_BUMP, NODE_FRESNEL = 22, 23, 24
+NODE_GEOMETRY, NODE_BUMP, NODE_FRESNEL, NODE_NORMAL_MAP = 22, 23, 24, 25
+# NODE_NORMAL_MAP's spaces: Blender's Normal Map space enum, in types.h's order.
+NORMAL_MAP_SPACES = ("TANGENT", "OBJECT", "WORLD", "BLENDER_OBJECT", "BLENDER_WORLD")
 # NODE_GEOMETRY's outputs (types.h NODE_GEOMETRY_*), in order.
 GEOMETRY_KINDS = ("position", "normal", "true_normal", "incoming", "object", "object_normal", "backfacing")
 NODE_REGISTERS = 32
@@ -208,7 +210,8 @@ _READS = {NODE_TEXTURE: [(0, 16)], NODE_AFFINE: [(0, 16)], NODE_MATH: [(0, 16), 
           NODE_MAP_RANGE: [(0, 16), (1, 0), (1, 8), (1, 16), (1, 24)], NODE_RAMP: [(0, 16)],
           NODE_SEPARATE: [(0, 16)], NODE_COMBINE: [(0, 16), (0, 24), (1, 0)], NODE_STORE: [(0, 16)],
           NODE_CONVERT: [(0, 16)], NODE_NOISE: [(0, 16), (1, 0), (1, 8), (1, 16)],
-          NODE_BUMP: [(0, 16), (0, 24), (1, 0), (1, 8), (1, 16), (1, 24)], NODE_FRESNEL: [(0, 16), (0, 24)]}
+          NODE_BUMP: [(0, 16), (0, 24), (1, 0), (1, 8), (1, 16), (1, 24)], NODE_FRESNEL: [(0, 16), (0, 24)],
+          NODE_NORMAL_MAP: [(0, 16), (0, 24)]}
 
 
 def allocate_registers(words):
@@ -323,6 +326,11 @@ class Program:
         h = [self._in(x) for x in heights]
         flags = int(bool(invert)) | int(np.float16(width).view(np.uint16)) << 16
         return self._op(NODE_BUMP, strength, distance, [h[0] | h[1] << 8 | h[2] << 16 | normal << 24, flags])
+
+    def normal_map(self, color, strength, space):
+        """Cycles' Normal Map of ``color`` in NORMAL_MAP_SPACES ``space`` (tangent space: the
+        mesh's tangents)."""
+        return self._op(NODE_NORMAL_MAP, self._in(color), self._in(strength), [NORMAL_MAP_SPACES.index(space)])
 
     def fresnel(self, kind, value, normal):
         """Cycles' Fresnel (kind "fresnel", value: IOR) or Layer Weight ("layer_fresnel",

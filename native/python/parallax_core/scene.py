@@ -44,10 +44,12 @@ FLAT_KEYS = {
     "triangle_material": (np.uint32, "(T,)"),
     "corner_normals": (np.float32, "(T,3,3) or (0,3,3)"),
     "corner_uvs": (np.float32, "(T,3,2) or (0,3,2)"),
+    "corner_tangents": (np.float32, "(T,3,4) or (0,3,4)"),  # object-space tangent, bitangent sign
     "mesh_first_triangle": (np.uint32, "(M,)"),
     "mesh_triangle_count": (np.uint32, "(M,)"),
     "mesh_has_normals": (np.uint32, "(M,)"),
     "mesh_has_uvs": (np.uint32, "(M,)"),
+    "mesh_has_tangents": (np.uint32, "(M,)"),
     "mesh_texspace": (np.float32, "(M,6)"),        # Generated coordinates' space: location, half size
     "instance_transform": (np.float32, "(I,3,4)"),
     "instance_mesh": (np.uint32, "(I,)"),
@@ -257,6 +259,9 @@ class Mesh:
     indices: np.ndarray                    # (T,3) int
     normals: np.ndarray | None = None      # (T,3,3)
     uvs: np.ndarray | None = None          # (T,3,2), Blender UVs (v = 0 at the bottom)
+    # (T,3,4): the UVs' tangent (object space, MikkTSpace as Blender computes it) and the
+    # bitangent's sign per corner, for tangent-space Normal Maps.
+    tangents: np.ndarray | None = None
     material_indices: np.ndarray | None = None  # (T,) int
     name: str = ""
     texspace: tuple | None = None          # Generated coordinates' space: location, half size (None: the bounds)
@@ -732,10 +737,11 @@ class SceneData:
         return flat, warns
 
     def _flatten_meshes(self, keeps, out):
-        pos, idx, mat, nrm, uvs = [], [], [], [], []
-        first, count, has_n, has_uv, texspace = [], [], [], [], []
+        pos, idx, mat, nrm, uvs, tangents = [], [], [], [], [], []
+        first, count, has_n, has_uv, has_t, texspace = [], [], [], [], [], []
         any_n = any(m.normals is not None for m in self.meshes)
         any_uv = any(m.uvs is not None for m in self.meshes)
+        any_t = any(m.tangents is not None for m in self.meshes)
         v_off = t_off = 0
         for mesh, keep in zip(self.meshes, keeps):
             p = np.asarray(mesh.positions, dtype=np.float32).reshape(-1, 3)
@@ -751,10 +757,14 @@ class SceneData:
             if any_uv:
                 uvs.append(np.zeros((T, 3, 2), np.float32) if mesh.uvs is None
                            else np.asarray(mesh.uvs, dtype=np.float32)[keep])
+            if any_t:
+                tangents.append(np.zeros((T, 3, 4), np.float32) if mesh.tangents is None
+                                else np.asarray(mesh.tangents, dtype=np.float32)[keep])
             first.append(t_off)
             count.append(T)
             has_n.append(mesh.normals is not None)
             has_uv.append(mesh.uvs is not None)
+            has_t.append(mesh.tangents is not None)
             texspace.append(_bounds_texspace(p) if mesh.texspace is None else np.asarray(mesh.texspace, np.float64).ravel())
             v_off += len(p)
             t_off += T
@@ -767,10 +777,12 @@ class SceneData:
         out["triangle_material"] = cat(mat, (0,), np.uint32)
         out["corner_normals"] = cat(nrm, (0, 3, 3), np.float32)
         out["corner_uvs"] = cat(uvs, (0, 3, 2), np.float32)
+        out["corner_tangents"] = cat(tangents, (0, 3, 4), np.float32)
         out["mesh_first_triangle"] = np.array(first, dtype=np.uint32)
         out["mesh_triangle_count"] = np.array(count, dtype=np.uint32)
         out["mesh_has_normals"] = np.array(has_n, dtype=np.uint32)
         out["mesh_has_uvs"] = np.array(has_uv, dtype=np.uint32)
+        out["mesh_has_tangents"] = np.array(has_t, dtype=np.uint32)
         out["mesh_texspace"] = np.array(texspace, dtype=np.float32).reshape(-1, 6)
 
     def _flatten_materials(self, out):
@@ -920,6 +932,7 @@ class SceneData:
                 indices=a["indices"][t0:t1].astype(np.int64) - v0,
                 normals=a["corner_normals"][t0:t1].copy() if a["mesh_has_normals"][m] else None,
                 uvs=a["corner_uvs"][t0:t1].copy() if a["mesh_has_uvs"][m] else None,
+                tangents=a["corner_tangents"][t0:t1].copy() if a["mesh_has_tangents"][m] else None,
                 material_indices=a["triangle_material"][t0:t1].astype(np.int64),
                 name=names[m],
                 texspace=tuple(a["mesh_texspace"][m].tolist())))
@@ -1004,7 +1017,7 @@ def _check_mesh(mesh, i, K):
             t, c = np.argwhere(out)[0]
             raise ValueError(f"{lbl}: triangle {t} index {tri[t, c]} out of range "
                              f"({V} vertices)")
-    for attr, tail in (("normals", (3, 3)), ("uvs", (3, 2))):
+    for attr, tail in (("normals", (3, 3)), ("uvs", (3, 2)), ("tangents", (3, 4))):
         a = getattr(mesh, attr)
         if a is None:
             continue
@@ -1075,7 +1088,7 @@ def _check_flat(flat, meta):
         if len(set(lengths.values())) > 1:
             raise ValueError(f"arrays of one kind differ in length: {lengths}")
     T, M, V = len(a["indices"]), len(a["mesh_first_triangle"]), len(a["positions"])
-    for k in ("corner_normals", "corner_uvs"):
+    for k in ("corner_normals", "corner_uvs", "corner_tangents"):
         if len(a[k]) not in (0, T):
             raise ValueError(f"array '{k}' has {len(a[k])} rows, expected 0 or {T}")
     for k, n in (("world_color", 3), ("camera_to_world", 3), ("camera_type", 1), ("camera_window", 4),
@@ -1171,6 +1184,9 @@ def _with_optional_defaults(flat):
             used = np.asarray(flat["indices"])[first:first + count].ravel().astype(np.int64)
             rows.append(_bounds_texspace(np.asarray(flat["positions"])[used]))
         flat["mesh_texspace"] = np.array(rows, np.float32).reshape(-1, 6)
+    if "mesh_has_tangents" not in flat and "mesh_first_triangle" in flat:  # files before tangents
+        flat["mesh_has_tangents"] = np.zeros(len(flat["mesh_first_triangle"]), np.uint32)
+        flat.setdefault("corner_tangents", np.zeros((0, 3, 4), np.float32))
     pinhole = Camera()
     for k, row in (("camera_aperture", _camera_aperture(pinhole)), ("camera_panorama_type", (0,)),
                    ("camera_panorama_range", pinhole.panorama_range), ("camera_fisheye", _camera_fisheye(pinhole))):

@@ -285,17 +285,21 @@ std::shared_ptr<const SceneGeometry> prepare_geometry(const SceneArrays& a, bool
     auto tri_mat = get<uint32_t>(a, "triangle_material", 'u', {});
     auto normals = get<float>(a, "corner_normals", 'f', {3, 3});
     auto uvs = get<float>(a, "corner_uvs", 'f', {3, 2});
+    auto tangents = get<float>(a, "corner_tangents", 'f', {3, 4}, true);
     auto mesh_first = get<uint32_t>(a, "mesh_first_triangle", 'u', {});
     auto mesh_count = get<uint32_t>(a, "mesh_triangle_count", 'u', {});
     auto mesh_has_n = get<uint32_t>(a, "mesh_has_normals", 'u', {});
     auto mesh_has_uv = get<uint32_t>(a, "mesh_has_uvs", 'u', {});
+    auto mesh_has_t = get<uint32_t>(a, "mesh_has_tangents", 'u', {}, true);
     auto materials_type = get<uint32_t>(a, "material_type", 'u', {});
     const size_t V = positions.rows, T = indices.rows, M = mesh_first.rows, K = materials_type.rows;
     if (V > 0xffffffffu || T > (1u << 28)) bad("too many vertices or triangles");
     if (tri_mat.rows != T) bad("triangle_material has " + std::to_string(tri_mat.rows) + " entries, expected " + std::to_string(T));
     if (normals.rows != 0 && normals.rows != T) bad("corner_normals must have 0 or " + std::to_string(T) + " rows");
     if (uvs.rows != 0 && uvs.rows != T) bad("corner_uvs must have 0 or " + std::to_string(T) + " rows");
-    if (mesh_count.rows != M || mesh_has_n.rows != M || mesh_has_uv.rows != M)
+    if (tangents.data && tangents.rows != 0 && tangents.rows != T)
+        bad("corner_tangents must have 0 or " + std::to_string(T) + " rows");
+    if (mesh_count.rows != M || mesh_has_n.rows != M || mesh_has_uv.rows != M || (mesh_has_t.data && mesh_has_t.rows != M))
         bad("mesh_* arrays differ in length");
     for (size_t i = 0; i < V; ++i) {
         if (!finite3(positions.data + 3 * i)) bad("positions[" + std::to_string(i) + "] is NaN or infinite");
@@ -330,6 +334,15 @@ std::shared_ptr<const SceneGeometry> prepare_geometry(const SceneArrays& a, bool
             g.corner_uvs[i] = {std::isfinite(u) ? u : 0.0f, std::isfinite(v) ? v : 0.0f};
         }
     }
+    const bool any_tangents = tangents.data && tangents.rows == T && T > 0;
+    if (any_tangents) {  // a non-finite tangent is a zero one (the Normal Map then keeps the normal)
+        g.corner_tangents.resize(3 * T);
+        for (size_t i = 0; i < 3 * T; ++i) {
+            const float* t = tangents.data + 4 * i;
+            bool ok = finite3(t) && std::isfinite(t[3]);
+            g.corner_tangents[i] = ok ? vec4{t[0], t[1], t[2], t[3] < 0.0f ? -1.0f : 1.0f} : vec4{0, 0, 0, 1};
+        }
+    }
     g.meshes.resize(M);
     for (size_t m = 0; m < M; ++m) {
         uint64_t first = mesh_first.data[m], count = mesh_count.data[m];
@@ -337,7 +350,8 @@ std::shared_ptr<const SceneGeometry> prepare_geometry(const SceneArrays& a, bool
             bad("mesh " + std::to_string(m) + " covers triangles " + std::to_string(first) + ".." +
                 std::to_string(first + count) + " but there are " + std::to_string(T));
         g.meshes[m] = {uint(first), uint(count), mesh_has_n.data[m] && normals.rows ? 1u : 0u,
-                       mesh_has_uv.data[m] && uvs.rows ? 1u : 0u, {1, 1, 1}, {0, 0, 0}};
+                       mesh_has_uv.data[m] && uvs.rows ? 1u : 0u, {1, 1, 1}, {0, 0, 0},
+                       any_tangents && mesh_has_t.data && mesh_has_t.data[m] ? 1u : 0u};
         if (!spatial_order || count < 2) continue;
         // Reorder this mesh's triangles for lavapipe's BVH builder (bvh_order).
         std::vector<vec3> tri_lo(count), tri_hi(count);
@@ -358,6 +372,7 @@ std::shared_ptr<const SceneGeometry> prepare_geometry(const SceneArrays& a, bool
         permute(g.triangle_material, 1);
         permute(g.corner_normals, 3);
         permute(g.corner_uvs, 3);
+        permute(g.corner_tangents, 3);
     }
     // Object-space bounds (instance placement) and the materials the triangles need.
     g.mesh_lo.assign(M, {INFINITY, INFINITY, INFINITY});
@@ -422,6 +437,10 @@ void check_node_program(const std::vector<uint>& words, uint32_t start, size_t t
                     bad(where + ": unknown geometry output " + std::to_string(arg & 0xffu));
                 break;
             case NODE_BUMP: reg(a), reg(b); for (int k = 0; k < 4; ++k) reg((arg >> (8 * k)) & 0xffu); break;
+            case NODE_NORMAL_MAP:
+                reg(a), reg(b);
+                if (arg > NODE_NORMAL_MAP_BLENDER_WORLD) bad(where + ": unknown normal map space " + std::to_string(arg));
+                break;
             case NODE_FRESNEL: reg(a), reg(b); if (arg > 2) bad(where + ": unknown Fresnel kind " + std::to_string(arg)); break;
             case NODE_TEXTURE:
                 reg(a);
@@ -1081,7 +1100,7 @@ uint32_t scene_part_of_array(const std::string& name) {
     if (starts("light_") || starts("world_")) return PART_LIGHTS;
     if (starts("camera_")) return PART_CAMERA;
     if (starts("mesh_") || name == "positions" || name == "indices" || name == "triangle_material" ||
-        name == "corner_normals" || name == "corner_uvs")
+        name == "corner_normals" || name == "corner_uvs" || name == "corner_tangents")
         return PART_GEOMETRY;
     return 0;
 }
@@ -1149,13 +1168,14 @@ Scene::Scene(Context& ctx, SceneHost host, const Scene* previous) : host_(std::m
     const bool same_geometry = old && old->geometry == host_.geometry;
     if (same_geometry) {
         reuse({BINDING_POSITIONS, BINDING_INDICES, BINDING_CORNER_NORMALS, BINDING_CORNER_UVS,
-               BINDING_TRIANGLE_MATERIAL, BINDING_MESHES});
+               BINDING_CORNER_TANGENTS, BINDING_TRIANGLE_MATERIAL, BINDING_MESHES});
     } else {
         const VkBufferUsageFlags as_input = kStorageUsage | VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR;
         put(BINDING_POSITIONS, g.positions, as_input);
         put(BINDING_INDICES, g.indices, as_input);
         put(BINDING_CORNER_NORMALS, g.corner_normals);
         put(BINDING_CORNER_UVS, g.corner_uvs);
+        put(BINDING_CORNER_TANGENTS, g.corner_tangents);
         put(BINDING_TRIANGLE_MATERIAL, g.triangle_material);
         put(BINDING_MESHES, g.meshes);
     }
