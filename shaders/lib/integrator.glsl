@@ -359,6 +359,43 @@ void blur_glossy(inout Material m, float min_ray_pdf) {
     m.coat_roughness = max(m.coat_roughness, min_roughness);
 }
 
+// ---- bumped normals (a node program's Bump or Normal Map), as Cycles treats them ----------
+bool is_bumped(SurfaceHit sh) { return HAS(FEATURE_NODES) && any(notEqual(sh.ns, sh.ns_smooth)); }
+
+// Cycles' ensure_valid_specular_reflection: n (facing wo, like ng) tilted towards ng just
+// enough that the mirror direction of wo rises above the surface by min(0.9 wo.ng, 0.01).
+// In the frame z = ng, x = n's part across ng, the tilted n' = (x, 0, z) solves
+// 2 (n'.wo) z - wo.z = t, a quadratic in z^2 with one root on the right side.
+vec3 valid_reflection_normal(vec3 ng, vec3 wo, vec3 n) {
+    float wz = dot(wo, ng), t = min(0.9 * wz, 0.01);
+    if (dot(ng, 2.0 * dot(n, wo) * n - wo) >= t) return n;
+    vec3 across = n - dot(n, ng) * ng;
+    vec3 x = dot(across, across) > 1e-20 ? normalize(across) : n;
+    float wx = dot(wo, x);
+    float a = wx * wx + wz * wz, b = 2.0 * (a + wz * t), c = (t + wz) * (t + wz);
+    float root = sqrt(max(b * b - 4.0 * a * c, 0.0));
+    float z2 = 0.25 * (wx < 0.0 ? b + root : b - root) / a;
+    return sqrt(max(1.0 - z2, 0.0)) * x + sqrt(max(z2, 0.0)) * ng;
+}
+
+// Cycles' bump_shadowing_term (Conty Estevez et al. 2019, "A Microfacet-Based Shadowing
+// Function to Solve the Bump Terminator Problem") for light leaving along wi at a vertex whose
+// normal was bumped: 0 where wi and the bumped normal lie on opposite sides of the smooth
+// surface (evaluations; sampled directions of diffuse surfaces), and for diffuse surfaces the
+// GGX G1 of alpha^2 = tan^2(bump angle) / 8 at wi's angle to the smooth normal.
+float bump_shadowing(Vertex v, vec3 wi, bool eval) {
+    if (!is_bumped(v.sh)) return 1.0;
+    vec3 smooth_n = dot(v.ns, v.sh.ns) > 0.0 ? v.sh.ns_smooth : -v.sh.ns_smooth;  // on v.ns's side
+    float cos_si = dot(smooth_n, wi), cos_sn = dot(smooth_n, v.ns);
+    bool diffuse = v.surf.type == MATERIAL_DIFFUSE;
+    if (cos_si * cos_sn * dot(v.ns, wi) < 0.0 && (eval || diffuse)) return 0.0;
+    float cos_i = abs(cos_si), cos_d = abs(cos_sn);
+    if (!diffuse || cos_d >= 1.0 || cos_i >= 1.0) return 1.0;
+    if (cos_i < 1e-6) return 0.0;
+    float alpha = sqrt(clamp(0.125 * (1.0 / (cos_d * cos_d) - 1.0), 0.0, 1.0));
+    return ggx_g1(vec3(sqrt(1.0 - cos_i * cos_i), 0.0, cos_i), alpha);
+}
+
 // The vertex's BSDF and shading frame. False: its material (of the mix chain) is an emitter,
 // which scatters nothing.
 bool vertex_stage(SurfaceHit sh, Material mat, vec3 dir, float min_ray_pdf, inout Rng rng, out Vertex v) {
@@ -374,7 +411,8 @@ bool vertex_stage(SurfaceHit sh, Material mat, vec3 dir, float min_ray_pdf, inou
     v.sh = sh;
     v.ng = front ? sh.ng : -sh.ng;
     v.ns = front ? sh.ns : -sh.ns;
-    if (dot(v.ns, wo) <= 1e-6) v.ns = v.ng;  // shading normal facing away from the viewer
+    if (is_bumped(sh)) v.ns = valid_reflection_normal(v.ng, wo, v.ns);
+    else if (dot(v.ns, wo) <= 1e-6) v.ns = v.ng;  // shading normal facing away from the viewer
     v.surf.type = mat.type;
     v.surf.albedo = material_albedo(mat, sh.uv);
     v.surf.alpha = mat.roughness * mat.roughness;
@@ -403,7 +441,7 @@ void direct_light_stage(inout PathState ps, inout PathResult res, inout Techniqu
         if (!sample_light(v.sh.p, v.sh.ng, u, ls)) continue;
         vec3 wi_local = vec3(dot(ls.wi, v.tangent), dot(ls.wi, v.bitangent), dot(ls.wi, v.ns));
         float bsdf_pdf;
-        vec3 f = bsdf_eval(v.surf, v.wo_local, wi_local, bsdf_pdf);
+        vec3 f = bsdf_eval(v.surf, v.wo_local, wi_local, bsdf_pdf) * bump_shadowing(v, ls.wi, true);
         if (max3(f) <= 0.0 || max3(ls.radiance) <= 0.0) continue;
         bsdf_pdf = guiding_continuation_pdf(tv.guiding, bsdf_pdf, v.sh.p, ls.wi);
         float w = (METHOD == METHOD_MIS && !ls.delta && !last_vertex) ? mis_weight(float(opt.light_samples) * ls.pdf, bsdf_pdf) : 1.0;
@@ -438,6 +476,13 @@ bool continuation_stage(inout PathState ps, PathResult res, inout TechniquePath 
     if (!guiding_sample(tv.guiding, v.surf, v.wo_local, v.sh.p, v.tangent, v.bitangent, v.ns, rng, bs, sampled))
         sampled = bsdf_sample(v.surf, v.wo_local, rnd3(rng), bs);
     if (!sampled) return false;
+    if (is_bumped(v.sh)) {
+        // As Cycles' samplers (bsdf_microfacet_sample, bsdf_diffuse_sample), a bumped normal's
+        // sample on the wrong side of the geometric surface ends the path.
+        vec3 wi = bs.wi.x * v.tangent + bs.wi.y * v.bitangent + bs.wi.z * v.ns;
+        if ((dot(v.ng, wi) < 0.0) != (bs.kind == BOUNCE_TRANSMISSION)) return false;
+        bs.weight *= bump_shadowing(v, wi, false);
+    }
     ps.roulette_throughput *= bs.weight;
     // The BSDF's own pdf, before guiding mixes its own in (Cycles' unguided_bsdf_pdf).
     if (LIMITS(LIMIT_BLUR_GLOSSY) && !bs.delta) ps.min_ray_pdf = min(ps.min_ray_pdf, bs.pdf);

@@ -76,6 +76,8 @@ def test_unknown_pass_and_params(session):
         (lambda a: a["mesh_triangle_count"].__setitem__(0, 10**6), "mesh 0 covers triangles"),
         (lambda a: a["camera_window"].__setitem__(1, -5.0), "camera_window"),
         (lambda a: a.__setitem__("world_map", np.zeros((0, 4, 3), np.float32)), "world_map has zero size"),
+        (lambda a: a.__setitem__("corner_tangents", np.zeros((3, 3, 4), np.float32)), "corner_tangents must have 0 or"),
+        (lambda a: a.__setitem__("mesh_has_tangents", np.zeros(1, np.uint32)), "mesh_\\* arrays differ in length"),
     ],
 )
 def test_native_validation_names_the_problem(session, corrupt, message):

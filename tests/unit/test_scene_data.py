@@ -563,6 +563,30 @@ def test_node_programs_round_trip(tmp_path):
         s.flatten()
 
 
+def test_tangents_round_trip_and_older_files(tmp_path):
+    s = scenes.cornell_box(width=32, height=24)
+    T = len(s.meshes[1].indices)
+    rng = np.random.default_rng(2)
+    tangents = np.concatenate([rng.normal(size=(T, 3, 3)), np.sign(rng.normal(size=(T, 3, 1)))], -1)
+    s.meshes[1].tangents = tangents  # Normal Map tangents on one mesh only
+    flat = s.flatten()
+    assert flat["corner_tangents"].shape == (len(flat["indices"]), 3, 4)
+    assert list(flat["mesh_has_tangents"][:3]) == [0, 1, 0]
+    s.save(tmp_path / "tangents.npz")
+    loaded = SceneData.load(tmp_path / "tangents.npz")
+    np.testing.assert_allclose(loaded.meshes[1].tangents, tangents, rtol=1e-6)
+    assert loaded.meshes[0].tangents is None
+    assert_flat_equal(flat, loaded.flatten())
+    del flat["corner_tangents"], flat["mesh_has_tangents"]  # files before tangents
+    assert all(m.tangents is None for m in SceneData.from_flat(flat).meshes)
+    s.meshes[1].tangents = tangents[:-1]
+    with pytest.raises(ValueError, match="tangents has shape"):
+        s.flatten()
+    s.meshes[1].tangents = np.where(np.arange(4) == 3, np.nan, tangents)
+    with pytest.raises(ValueError, match="tangents of triangle 0 is NaN"):
+        s.flatten()
+
+
 def test_camera_lens_round_trip_and_older_files(tmp_path):
     s = scenes.cornell_box(width=32, height=24)
     s.camera = Camera(s.camera.camera_to_world, "panorama", (0.0, 1.0, 0.0, 1.0), 0.1, 100.0,
