@@ -1,8 +1,8 @@
 """The node program machine (shaders/lib/nodes.glsl) against its numpy reference
 (parallax_core/nodes.py): every Math operation, blend mode, Map Range, ColorRamp, Invert,
 the socket conversions, Mapping, Separate/Combine, Image Texture and the procedural textures
-(Noise, Voronoi, Wave, Brick), run on the device at
-each pixel of a quad and read back through the Albedo pass (the stored Base Color).
+(Noise, Voronoi, Wave, Brick), run on the device at each pixel of a quad and read back
+through the Albedo pass (the stored Base Color).
 
 The quad fills the image (orthographic, box filter), and each program first snaps its UVs to
 the pixel's centre, so every sample of a pixel computes the same value and the Albedo is that
