@@ -68,6 +68,10 @@ class GraphCompiler:
         return p.to_color(value)
 
     def _in(self, node, index_or_name, kind, groups):
+        if isinstance(index_or_name, str) and node.inputs.get(index_or_name) is None:
+            # A socket the node's settings hide (Voronoi's Smoothness outside Smooth F1): its
+            # value still goes in, as Cycles compiles every input.
+            return self.socket(next(s for s in node.inputs if s.identifier == index_or_name), kind, groups)
         return self.socket(node.inputs[index_or_name], kind, groups)
 
     # -- nodes --
@@ -192,13 +196,13 @@ class GraphCompiler:
             raise Unsupported(f"Voronoi Texture '{node.name}' in {node.voronoi_dimensions} (3D is supported)")
         if node.feature not in self.nodes.VORONOI_FEATURES:
             raise Unsupported(f"Voronoi Texture '{node.name}' feature {node.feature} (F1, F2, Smooth F1 are supported)")
-        if output.name not in self.nodes.VORONOI_OUTPUTS:
+        if output.identifier not in self.nodes.VORONOI_OUTPUTS:
             raise Unsupported(f"Voronoi Texture '{node.name}' output {output.name}")
         args = [self._in(node, k, "float", groups) for k in ("Scale", "Detail", "Roughness", "Lacunarity",
                                                                "Smoothness", "Exponent", "Randomness")]
         value = self.program.voronoi(self._texture_vector(node, groups), *args, node.feature, node.distance,
-                                     node.normalize, output.name)
-        return value, {"Distance": "float", "Color": "color", "Position": "vector"}[output.name]
+                                     node.normalize, output.identifier)
+        return value, {"Distance": "float", "Color": "color", "Position": "vector"}[output.identifier]
 
     def _tex_wave(self, node, output, groups):
         """Cycles' Wave Texture (kernel/svm/wave.h): Color is the Fac as grey."""
@@ -212,7 +216,7 @@ class GraphCompiler:
             self._memo[key] = p.wave(self._texture_vector(node, groups), args[0], node.wave_type, direction,
                                      node.wave_profile, *args[1:]), "float"
         fac = self._memo[key][0]
-        return (fac, "float") if output.name == "Fac" else (self.program.to_color(fac), "color")
+        return (fac, "float") if output.identifier == "Fac" else (self.program.to_color(fac), "color")
 
     def _tex_brick(self, node, output, groups):
         """Cycles' Brick Texture (kernel/svm/brick.h, brick_noise's integer hash)."""
@@ -220,8 +224,9 @@ class GraphCompiler:
         floats = [self._in(node, k, "float", groups) for k in ("Scale", "Mortar Size", "Mortar Smooth", "Bias",
                                                                  "Brick Width", "Row Height")]
         value = self.program.brick(self._texture_vector(node, groups), floats[0], *colors, *floats[1:], node.offset,
-                                   node.offset_frequency, node.squash, node.squash_frequency, output.name)
-        return value, "float" if output.name == "Fac" else "color"
+                                   node.offset_frequency, node.squash, node.squash_frequency,
+                                   "Fac" if output.identifier == "Fac" else "Color")
+        return value, "float" if output.identifier == "Fac" else "color"
 
     def _mapping(self, node, output, groups):
         from mathutils import Euler, Matrix, Vector
