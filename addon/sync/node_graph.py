@@ -145,7 +145,7 @@ class GraphCompiler:
             shift = p.combine(*(p.noise(self._offset(vector, float(k)), 0.0, 0.0, 2.0, False) for k in range(3)))
             vector = p.mix("ADD", 1.0, vector, p.mix("MULTIPLY", 1.0, shift, p.to_color(distortion)))
         value = p.noise(vector, detail, roughness, lacunarity, normalize)
-        if output.name == "Fac":
+        if output.identifier == "Fac":  # named "Factor" since Blender 5
             return value, "float"
         return p.combine(value, *(p.noise(self._offset(vector, seed), detail, roughness, lacunarity, normalize)
                                   for seed in (3.0, 4.0))), "color"
@@ -165,7 +165,7 @@ class GraphCompiler:
             parity.append(p.math("MODULO", p.math("ABSOLUTE", p.math("FLOOR", x)), 2.0))
         same = lambda a, b: p.math("SUBTRACT", 1.0, p.math("ABSOLUTE", p.math("SUBTRACT", a, b)))
         fac = same(same(parity[0], parity[1]), parity[2])
-        if output.name == "Fac":
+        if output.identifier == "Fac":  # named "Factor" since Blender 5
             return fac, "float"
         return p.mix("MIX", fac, self._in(node, "Color2", "color", groups), self._in(node, "Color1", "color", groups)), "color"
 
@@ -188,7 +188,7 @@ class GraphCompiler:
         elif kind == "DIAGONAL":
             x = p.math("MULTIPLY", p.math("ADD", x, p.separate(vector, 1)), 0.5)
         fac = p.math("CLAMP", x, 0.0, 1.0)
-        return (fac, "float") if output.name == "Fac" else (p.to_color(fac), "color")
+        return (fac, "float") if output.identifier == "Fac" else (p.to_color(fac), "color")
 
     def _tex_voronoi(self, node, output, groups):
         """Cycles' 3D Voronoi Texture (kernel/svm/voronoi.h: F1, F2 and Smooth F1, fractal)."""

@@ -1,4 +1,4 @@
-"""Voronoi, Wave and Brick Textures pixel by pixel: Cycles (bpy 5.0.1) and Parallax against
+"""Voronoi, Wave and Brick Textures (and Noise's Factor) pixel by pixel: Cycles (bpy 5.0.1) and Parallax against
 parallax_core.nodes' references, so both engines compute the same pattern (same hash, same
 formulas), not merely the same mean.
 
@@ -105,7 +105,21 @@ def _brick(output, squash, squash_frequency, mortar_smooth):
     return build, reference
 
 
+def _noise_factor():
+    """The Noise Texture's Factor output (the compiler once took it for Color: its name)."""
+    def build(nodes, links, vector):
+        node = nodes.new("ShaderNodeTexNoise")
+        node.inputs["Scale"].default_value, node.inputs["Detail"].default_value = 3.0, 2.5
+        links.new(vector, node.inputs["Vector"])
+        return _socket(node.outputs, "Fac")
+
+    def reference(p, nodes):
+        return nodes.noise_reference(p * 3.0, 2.5, 0.5, 2.0, True)
+    return build, reference
+
+
 CASES = {
+    "noise_factor": _noise_factor(),
     "voronoi_f1_color": _voronoi("F1", "EUCLIDEAN", "Color"),
     "voronoi_f1_minkowski_distance": _voronoi("F1", "MINKOWSKI", "Distance", detail=1.0, normalize=True),
     "voronoi_f2_manhattan_fractal_distance": _voronoi("F2", "MANHATTAN", "Distance", detail=2.5, normalize=True),
