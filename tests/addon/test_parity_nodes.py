@@ -1,6 +1,7 @@
 """Parity with Cycles for node graphs driving shader inputs (issue 37, the node evaluator): a
 grid of patches, each a material whose colour, roughness, metallic or Mix Shader factor comes
-from texture and maths nodes (shaders/lib/nodes.glsl runs them per hit). Rendered by both
+from texture and maths nodes (shaders/lib/nodes.glsl runs them per hit); a second grid of the
+procedural Voronoi, Wave and Brick Textures. Rendered by both
 engines with two seeds, compared as test_parity_features.py does (R < 3, means within 3%),
 and patch by patch (each patch's mean within 3%)."""
 import math
@@ -165,12 +166,101 @@ def materials(bpy):
     return [_material(bpy, b.__name__, b) for b in builders]
 
 
-def node_grid(b):
+def texture_materials(bpy):
+    """Voronoi, Wave and Brick Textures (their default Vector: Generated, 0..1 across a patch) at
+    scales where a patch holds many cells, bands or bricks."""
+    def texture(nodes, kind, **settings):
+        node = nodes.new(kind)
+        for name, value in settings.items():
+            if name.isupper() or name[0].isupper():
+                next(s for s in node.inputs if s.identifier == name).default_value = value
+            else:
+                setattr(node, name, value)
+        return node
+
+    def factor(node):
+        return next(s for s in node.outputs if s.identifier == "Fac")
+
+    def voronoi_color(nodes, links, surface):  # F1 cell colours into a base colour
+        bsdf = nodes.new("ShaderNodeBsdfPrincipled")
+        bsdf.inputs["Roughness"].default_value = 0.6
+        voronoi = texture(nodes, "ShaderNodeTexVoronoi", Scale=6.0)
+        links.new(voronoi.outputs["Color"], bsdf.inputs["Base Color"])
+        links.new(bsdf.outputs[0], surface)
+
+    def voronoi_fractal_roughness(nodes, links, surface):  # F2 Manhattan, fractal, normalized, into roughness
+        bsdf = nodes.new("ShaderNodeBsdfPrincipled")
+        bsdf.inputs["Base Color"].default_value = (0.8, 0.6, 0.3, 1.0)
+        bsdf.inputs["Metallic"].default_value = 1.0
+        voronoi = texture(nodes, "ShaderNodeTexVoronoi", feature="F2", distance="MANHATTAN", normalize=True,
+                          Scale=4.0, Detail=2.0, Roughness=0.6)
+        links.new(voronoi.outputs["Distance"], bsdf.inputs["Roughness"])
+        links.new(bsdf.outputs[0], surface)
+
+    def voronoi_smooth_position(nodes, links, surface):  # Smooth F1 Chebychev cell positions as a colour
+        bsdf = nodes.new("ShaderNodeBsdfDiffuse")
+        voronoi = texture(nodes, "ShaderNodeTexVoronoi", feature="SMOOTH_F1", distance="CHEBYCHEV", Scale=5.0,
+                          Smoothness=0.7)
+        links.new(voronoi.outputs["Position"], bsdf.inputs["Color"])
+        links.new(bsdf.outputs[0], surface)
+
+    def voronoi_minkowski_mix(nodes, links, surface):  # Minkowski distance mixing two colours
+        bsdf = nodes.new("ShaderNodeBsdfDiffuse")
+        voronoi = texture(nodes, "ShaderNodeTexVoronoi", distance="MINKOWSKI", Scale=7.0, Exponent=1.3,
+                          Randomness=0.7)
+        mix = nodes.new("ShaderNodeMix")
+        mix.data_type = "RGBA"
+        mix.inputs[6].default_value, mix.inputs[7].default_value = (0.9, 0.2, 0.1, 1.0), (0.1, 0.3, 0.9, 1.0)
+        links.new(voronoi.outputs["Distance"], mix.inputs["Factor"])
+        links.new(mix.outputs[2], bsdf.inputs["Color"])
+        links.new(bsdf.outputs[0], surface)
+
+    def wave_bands(nodes, links, surface):  # sine bands, distorted, as a grey colour
+        bsdf = nodes.new("ShaderNodeBsdfDiffuse")
+        wave = texture(nodes, "ShaderNodeTexWave", bands_direction="DIAGONAL", Scale=2.0, Distortion=3.0, Detail=2.0)
+        links.new(wave.outputs["Color"], bsdf.inputs["Color"])
+        links.new(bsdf.outputs[0], surface)
+
+    def wave_rings_metallic(nodes, links, surface):  # saw rings' factor into metallic
+        bsdf = nodes.new("ShaderNodeBsdfPrincipled")
+        bsdf.inputs["Base Color"].default_value = (0.3, 0.7, 0.5, 1.0)
+        bsdf.inputs["Roughness"].default_value = 0.35
+        wave = texture(nodes, "ShaderNodeTexWave", wave_type="RINGS", rings_direction="Z", wave_profile="SAW",
+                       Scale=1.5)
+        links.new(factor(wave), bsdf.inputs["Metallic"])
+        links.new(bsdf.outputs[0], surface)
+
+    def brick_color(nodes, links, surface):  # bricks (squashed rows, tints) as the colour
+        bsdf = nodes.new("ShaderNodeBsdfDiffuse")
+        brick = texture(nodes, "ShaderNodeTexBrick", squash=0.7, offset_frequency=2, squash_frequency=3,
+                        Scale=4.0, Bias=0.2, Color1=(0.8, 0.3, 0.1, 1.0), Color2=(0.5, 0.6, 0.2, 1.0),
+                        Mortar=(0.9, 0.9, 0.85, 1.0))
+        links.new(brick.outputs["Color"], bsdf.inputs["Color"])
+        links.new(bsdf.outputs[0], surface)
+
+    def brick_mortar_mix(nodes, links, surface):  # the smooth mortar's factor mixing two shaders
+        diffuse = nodes.new("ShaderNodeBsdfDiffuse")
+        diffuse.inputs["Color"].default_value = (0.8, 0.2, 0.1, 1.0)
+        glossy = nodes.new("ShaderNodeBsdfGlossy")
+        glossy.inputs["Roughness"].default_value = 0.25
+        brick = texture(nodes, "ShaderNodeTexBrick", Scale=3.0, **{"Mortar Size": 0.05, "Mortar Smooth": 0.5})
+        mix = nodes.new("ShaderNodeMixShader")
+        links.new(factor(brick), mix.inputs["Fac"])
+        links.new(diffuse.outputs[0], mix.inputs[1])
+        links.new(glossy.outputs[0], mix.inputs[2])
+        links.new(mix.outputs[0], surface)
+
+    builders = [voronoi_color, voronoi_fractal_roughness, voronoi_smooth_position, voronoi_minkowski_mix,
+                wave_bands, wave_rings_metallic, brick_color, brick_mortar_mix]
+    return [_material(bpy, b.__name__, b) for b in builders]
+
+
+def node_grid(b, make_materials=materials):
     """Eight 1 m patches (UVs -0.5..0.5 each) in a 4 x 2 grid facing the camera, lit by an area light
     from the front and a grey world."""
     import bpy
 
-    for k, material in enumerate(materials(bpy)):
+    for k, material in enumerate(make_materials(bpy)):
         x, z = (k % 4 - 1.5) * 1.1, 1.65 - (k // 4) * 1.1
         patch = b.add_rect(f"Patch{k}", 1.0, 1.0, material, (x, 0.0, z), (math.pi / 2, 0.0, 0.0))
         b.box_project_uvs(patch.data)  # u, v = the quad's own x, y: -0.5..0.5
@@ -181,17 +271,19 @@ def node_grid(b):
     b.set_world((0.2, 0.2, 0.2), 1.0)
 
 
-def test_node_graphs_match_cycles(bpy, tmp_path):
+@pytest.mark.parametrize("grid", ["nodes", "textures"])
+def test_node_graphs_match_cycles(bpy, tmp_path, grid):
     from addon.sync import export_scene
 
-    scene = build_scene(bpy, node_grid, WIDTH, HEIGHT)
+    make = materials if grid == "nodes" else texture_materials
+    scene = build_scene(bpy, lambda b: node_grid(b, make), WIDTH, HEIGHT)
     _, warnings = export_scene(bpy.context.evaluated_depsgraph_get(), WIDTH, HEIGHT)
     assert not [w for w in warnings if "not supported" in w], warnings
     p0, p1, c0, c1 = render_seed_pairs(bpy, tmp_path, scene, SAMPLES)
-    np.save(tmp_path / "nodes.npy", np.stack([p0 + p1, c0 + c1]) / 2)
+    np.save(tmp_path / f"{grid}.npy", np.stack([p0 + p1, c0 + c1]) / 2)
     ratio, rel_mse = parity_ratio(p0, p1, c0, c1, BLOCK)
     ours, theirs = float((p0 + p1).mean() / 2), float((c0 + c1).mean() / 2)
-    print(f"node_grid: mean {ours:.4f} vs Cycles {theirs:.4f}, block relMSE {rel_mse:.5f}, "
+    print(f"{grid} grid: mean {ours:.4f} vs Cycles {theirs:.4f}, block relMSE {rel_mse:.5f}, "
           f"difference / noise {ratio:.2f}")
     assert ours == pytest.approx(theirs, rel=0.03)
     assert ratio < 3.0

@@ -121,7 +121,10 @@ def test_programs_are_checked_before_they_run(device):
     bad = {"reads register 3 before it is set": [nodes.NODE_STORE | 3 << 16, 0, nodes.NODE_END],
            "unknown operation": [99, 0, nodes.NODE_END],
            "samples texture 5": [nodes.NODE_UV, 0, nodes.NODE_TEXTURE | 1 << 8, 5, nodes.NODE_END],
-           "runs past the end": [nodes.NODE_UV, 0]}
+           "runs past the end": [nodes.NODE_UV, 0],
+           "unknown texture mode 3": [nodes.NODE_UV, 0, nodes.NODE_VORONOI | 1 << 8, 0, 3 << 16, nodes.NODE_END],
+           "reads register 5": [nodes.NODE_UV, 0, nodes.NODE_WAVE | 1 << 8, 5, 0, nodes.NODE_END],
+           "NaN": [nodes.NODE_UV, 0, nodes.NODE_BRICK | 1 << 8, 0, 0, 0x7FC00000, 0, 0x202, nodes.NODE_END]}
     for message, words in bad.items():
         scene.materials = [Material("diffuse", node_program=tuple(words))]
         with pytest.raises(ValueError, match=message):
