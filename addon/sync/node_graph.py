@@ -6,7 +6,9 @@ maths nodes that drive a shader's inputs, evaluated per hit on the device as Cyc
 ``Unsupported``; the caller then names the node in a warning and uses the socket's own value.
 Supported: Value, RGB, Image Texture (Color; flat, repeating, the active UV map), Noise
 Texture (3D fBm, as Cycles: same hash, same noise), Checker Texture, Gradient Texture (linear,
-quadratic, easing, diagonal), Texture Coordinate (UV, Generated), UV Map, Mapping (point, texture, vector), Math, Clamp, Mix and MixRGB (the
+quadratic, easing, diagonal), Voronoi Texture (3D; F1, F2, Smooth F1; every distance metric;
+fractal detail; Distance, Color, Position), Wave Texture (bands and rings, every direction and
+profile, distortion), Brick Texture (Color, Fac), Texture Coordinate (UV, Generated), UV Map, Mapping (point, texture, vector), Math, Clamp, Mix and MixRGB (the
 blend modes of parallax_core.nodes.BLEND_MODES), Invert, Map Range (linear), ColorRamp (any
 interpolation, as Cycles: a 256-entry table), Separate/Combine Color (RGB) and XYZ, Reroute
 and node groups (flattened).
@@ -85,6 +87,10 @@ class GraphCompiler:
         return p.to_color(value)
 
     def _in(self, node, index_or_name, kind, groups):
+        if isinstance(index_or_name, str) and node.inputs.get(index_or_name) is None:
+            # A socket the node's settings hide (Voronoi's Smoothness outside Smooth F1): its
+            # value still goes in, as Cycles compiles every input.
+            return self.socket(next(s for s in node.inputs if s.identifier == index_or_name), kind, groups)
         return self.socket(node.inputs[index_or_name], kind, groups)
 
     # -- nodes --
@@ -213,7 +219,7 @@ class GraphCompiler:
             shift = p.combine(*(p.noise(self._offset(vector, float(k)), 0.0, 0.0, 2.0, False) for k in range(3)))
             vector = p.mix("ADD", 1.0, vector, p.mix("MULTIPLY", 1.0, shift, p.to_color(distortion)))
         value = p.noise(vector, detail, roughness, lacunarity, normalize)
-        if output.name == "Fac":
+        if output.identifier == "Fac":  # named "Factor" since Blender 5
             return value, "float"
         return p.combine(value, *(p.noise(self._offset(vector, seed), detail, roughness, lacunarity, normalize)
                                   for seed in (3.0, 4.0))), "color"
@@ -235,7 +241,7 @@ class GraphCompiler:
             parity.append(p.math("MODULO", p.math("ABSOLUTE", p.math("FLOOR", x)), 2.0))
         same = lambda a, b: p.math("SUBTRACT", 1.0, p.math("ABSOLUTE", p.math("SUBTRACT", a, b)))
         fac = same(same(parity[0], parity[1]), parity[2])
-        if output.name == "Fac":
+        if output.identifier == "Fac":  # named "Factor" since Blender 5
             return fac, "float"
         return p.mix("MIX", fac, self._in(node, "Color2", "color", groups), self._in(node, "Color1", "color", groups)), "color"
 
@@ -258,7 +264,45 @@ class GraphCompiler:
         elif kind == "DIAGONAL":
             x = p.math("MULTIPLY", p.math("ADD", x, p.separate(vector, 1)), 0.5)
         fac = p.math("CLAMP", x, 0.0, 1.0)
-        return (fac, "float") if output.name == "Fac" else (p.to_color(fac), "color")
+        return (fac, "float") if output.identifier == "Fac" else (p.to_color(fac), "color")
+
+    def _tex_voronoi(self, node, output, groups):
+        """Cycles' 3D Voronoi Texture (kernel/svm/voronoi.h: F1, F2 and Smooth F1, fractal)."""
+        if node.voronoi_dimensions != "3D":
+            raise Unsupported(f"Voronoi Texture '{node.name}' in {node.voronoi_dimensions} (3D is supported)")
+        if node.feature not in self.nodes.VORONOI_FEATURES:
+            raise Unsupported(f"Voronoi Texture '{node.name}' feature {node.feature} (F1, F2, Smooth F1 are supported)")
+        if output.identifier not in self.nodes.VORONOI_OUTPUTS:
+            raise Unsupported(f"Voronoi Texture '{node.name}' output {output.name}")
+        args = [self._in(node, k, "float", groups) for k in ("Scale", "Detail", "Roughness", "Lacunarity",
+                                                               "Smoothness", "Exponent", "Randomness")]
+        value = self.program.voronoi(self._texture_vector(node, groups), *args, node.feature, node.distance,
+                                     node.normalize, output.identifier)
+        return value, {"Distance": "float", "Color": "color", "Position": "vector"}[output.identifier]
+
+    def _tex_wave(self, node, output, groups):
+        """Cycles' Wave Texture (kernel/svm/wave.h): Color is the Fac as grey."""
+        key = (tuple(g.name for g in groups), node.name, "wave")  # one value for both outputs
+        if key not in self._memo:
+            p = self.program
+            rings = node.wave_type == "RINGS"
+            direction = node.rings_direction if rings else node.bands_direction
+            args = [self._in(node, k, "float", groups) for k in ("Scale", "Distortion", "Detail", "Detail Scale",
+                                                                   "Detail Roughness", "Phase Offset")]
+            self._memo[key] = p.wave(self._texture_vector(node, groups), args[0], node.wave_type, direction,
+                                     node.wave_profile, *args[1:]), "float"
+        fac = self._memo[key][0]
+        return (fac, "float") if output.identifier == "Fac" else (self.program.to_color(fac), "color")
+
+    def _tex_brick(self, node, output, groups):
+        """Cycles' Brick Texture (kernel/svm/brick.h, brick_noise's integer hash)."""
+        colors = [self._in(node, k, "color", groups) for k in ("Color1", "Color2", "Mortar")]
+        floats = [self._in(node, k, "float", groups) for k in ("Scale", "Mortar Size", "Mortar Smooth", "Bias",
+                                                                 "Brick Width", "Row Height")]
+        value = self.program.brick(self._texture_vector(node, groups), floats[0], *colors, *floats[1:], node.offset,
+                                   node.offset_frequency, node.squash, node.squash_frequency,
+                                   "Fac" if output.identifier == "Fac" else "Color")
+        return value, "float" if output.identifier == "Fac" else "color"
 
     def _mapping(self, node, output, groups):
         from mathutils import Euler, Matrix, Vector

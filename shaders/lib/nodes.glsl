@@ -76,6 +76,152 @@ float noise_fbm(vec3 p, float detail, float roughness, float lacunarity, bool no
     return value;
 }
 
+// Cycles' hash_int3_to_float3 (PCG 3D, hash_pcg3d_i, on wrapping signed ints): a Voronoi
+// cell's point offset and colour.
+vec3 hash_cell(ivec3 v) {
+    v = v * 1664525 + 1013904223;
+    v.x += v.y * v.z; v.y += v.z * v.x; v.z += v.x * v.y;
+    v ^= v >> 16;
+    v.x += v.y * v.z; v.y += v.z * v.x; v.z += v.x * v.y;
+    return vec3(v & 0x7fffffff) * (1.0 / 2147483648.0);
+}
+
+// Cycles' voronoi_distance of d = a - b by metric (0 Euclidean, 1 Manhattan, 2 Chebychev,
+// 3 Minkowski); `bound`: voronoi_distance_bound (no root), which orders cells the same way.
+float voronoi_distance(vec3 d, uint metric, float exponent, bool bound) {
+    d = abs(d);
+    if (metric == 0u) return bound ? dot(d, d) : length(d);
+    if (metric == 1u) return d.x + d.y + d.z;
+    if (metric == 2u) return max(max(d.x, d.y), d.z);
+    vec3 e = pow(d, vec3(exponent));
+    return bound ? e.x + e.y + e.z : pow(e.x + e.y + e.z, 1.0 / exponent);
+}
+
+// One octave of Cycles' 3D Voronoi: voronoi_f1 (feature 0), voronoi_f2 (1), voronoi_smooth_f1
+// (2, over 5^3 cells). A cell's colour is the hash that places its point.
+void voronoi_octave(vec3 coord, uint feature, uint metric, float exponent, float randomness, float smoothness,
+                    out float dist, out vec3 color, out vec3 position) {
+    vec3 cell_f = floor(coord), local = coord - cell_f;
+    ivec3 cell = ivec3(cell_f);
+    int r = feature == 2u ? 2 : 1;
+    float d1 = 3.402823466e38, d2 = d1, h = -1.0;  // F1, F2 (smooth F1: d1 its distance, h its weight)
+    vec3 c1 = vec3(0.0), c2 = c1, p1 = c1, p2 = c1;
+    for (int k = -r; k <= r; ++k)
+        for (int j = -r; j <= r; ++j)
+            for (int i = -r; i <= r; ++i) {
+                vec3 offset = vec3(i, j, k), c = hash_cell(cell + ivec3(i, j, k)), point = offset + c * randomness;
+                float d = voronoi_distance(point - local, metric, exponent, feature == 0u);
+                if (feature == 2u) {
+                    if (h == -1.0) d1 = 0.0;
+                    h = h == -1.0 ? 1.0 : smoothstep(0.0, 1.0, 0.5 + 0.5 * (d1 - d) / smoothness);
+                    float correction = smoothness * h * (1.0 - h);
+                    d1 = mix(d1, d, h) - correction;
+                    correction /= 1.0 + 3.0 * smoothness;
+                    c1 = mix(c1, c, h) - correction;
+                    p1 = mix(p1, point, h) - correction;
+                } else if (d < d1) {
+                    d2 = d1; c2 = c1; p2 = p1;
+                    d1 = d; c1 = c; p1 = point;
+                } else if (d < d2) {
+                    d2 = d; c2 = c; p2 = point;
+                }
+            }
+    if (feature == 0u) d1 = voronoi_distance(p1 - local, metric, exponent, false);
+    dist = feature == 1u ? d2 : d1;
+    color = feature == 1u ? c2 : c1;
+    position = cell_f + (feature == 1u ? p2 : p1);
+}
+
+// Cycles' 3D Voronoi Texture (svm_node_tex_voronoi, fractal_voronoi_x_fx): octaves summed as
+// fBm, with lerps for the position. The output (modes >> 5): 0 distance, 1 colour, 2 position.
+vec4 node_voronoi(vec3 coord, float scale, float detail, float roughness, float lacunarity, float smoothness,
+                  float exponent, float randomness, uint modes) {
+    uint feature = modes & 3u, metric = (modes >> 2) & 3u;
+    detail = clamp(detail, 0.0, 15.0);
+    roughness = clamp(roughness, 0.0, 1.0);
+    randomness = clamp(randomness, 0.0, 1.0);
+    smoothness = clamp(smoothness / 2.0, 0.0, 0.5);
+    if (feature == 2u && smoothness == 0.0) feature = 0u;
+    coord *= scale;
+    float amplitude = 1.0, max_amplitude = 0.0, octave_scale = 1.0, dist = 0.0;
+    vec3 color = vec3(0.0), position = vec3(0.0);
+    for (int i = 0; i <= int(ceil(detail)); ++i) {
+        float d;
+        vec3 c, p;
+        voronoi_octave(coord * octave_scale, feature, metric, exponent, randomness, smoothness, d, c, p);
+        if (detail == 0.0 || roughness == 0.0) {
+            max_amplitude = 1.0; dist = d; color = c; position = p;
+            break;
+        }
+        float weight = amplitude;
+        if (float(i) > detail) {  // the fraction of one more octave
+            float remainder = detail - floor(detail);
+            if (remainder == 0.0) break;
+            max_amplitude = mix(max_amplitude, max_amplitude + amplitude, remainder);
+            weight *= remainder;
+            position = mix(position, mix(position, p / octave_scale, amplitude), remainder);
+        } else {
+            max_amplitude += amplitude;
+            position = mix(position, p / octave_scale, amplitude);
+        }
+        dist += d * weight;
+        color += c * weight;
+        octave_scale *= lacunarity;
+        amplitude *= roughness;
+    }
+    if ((modes & 16u) != 0u) {  // normalize
+        dist /= max_amplitude * voronoi_distance(vec3(0.5 + 0.5 * randomness), metric, exponent, false) *
+                (feature == 1u ? 2.0 : 1.0);
+        color /= max_amplitude;
+    }
+    uint output_ = modes >> 5;
+    return output_ == 0u ? vec4(dist) : output_ == 1u ? vec4(color, 1.0) : vec4(scale != 0.0 ? position / scale : vec3(0.0), 0.0);
+}
+
+// Cycles' svm_wave at p (scaled): modes bit 0 rings (else bands), bits 1-2 the direction (X, Y,
+// Z, diagonal / spherical), bits 3-4 the profile (sine, saw, triangle).
+float node_wave(vec3 p, uint modes, float distortion, float detail, float detail_scale, float detail_roughness,
+                float phase) {
+    p = (p + 0.000001) * 0.999999;  // as Cycles: off the unit coordinates
+    uint direction = (modes >> 1) & 3u, profile = modes >> 3;
+    float n;
+    if ((modes & 1u) == 0u) n = direction == 3u ? (p.x + p.y + p.z) * 10.0 : p[direction] * 20.0;
+    else n = length(direction == 3u ? p : p * vec3(notEqual(uvec3(0u, 1u, 2u), uvec3(direction)))) * 20.0;
+    n += phase;
+    if (distortion != 0.0) n += distortion * (noise_fbm(p * detail_scale, detail, detail_roughness, 2.0, true) * 2.0 - 1.0);
+    if (profile == 0u) return 0.5 + 0.5 * sin(n - 1.57079632679);
+    n /= 6.28318530718;
+    return profile == 1u ? n - floor(n) : abs(n - floor(n + 0.5)) * 2.0;
+}
+
+// Cycles' brick_noise: an integer hash of a brick's row and number, 0..1.
+float brick_noise(uint n) {
+    n = (n + 1013u) & 0x7fffffffu;
+    n = (n >> 13) ^ n;
+    uint nn = (n * (n * n * 60493u + 19990303u) + 1376312589u) & 0x7fffffffu;
+    return 0.5 * (float(nn) / 1073741824.0);
+}
+
+// Cycles' svm_brick and svm_node_tex_brick at p (scaled): the colour (rgb) and the mortar (w).
+// Words from `at`: the offset and squash amounts, then their frequencies (a byte each).
+vec4 node_brick(vec3 p, vec3 color1, vec3 color2, vec3 mortar_color, float mortar_size, float mortar_smooth, float bias,
+                float brick_width, float row_height, uint at) {
+    uint offset_frequency = node_words[at + 2u] & 0xffu, squash_frequency = (node_words[at + 2u] >> 8) & 0xffu;
+    int row = int(floor(p.y / row_height));
+    float offset = 0.0;
+    if (offset_frequency != 0u && squash_frequency != 0u) {  // (C's % keeps the sign: divisible or not)
+        if (uint(abs(row)) % squash_frequency == 0u) brick_width *= node_float(at + 1u);
+        if (uint(abs(row)) % offset_frequency == 0u) offset = brick_width * node_float(at);
+    }
+    int brick = int(floor((p.x + offset) / brick_width));
+    float x = (p.x + offset) - brick_width * float(brick), y = p.y - row_height * float(row);
+    float tint = clamp(brick_noise(uint((row << 16) + (brick & 0xffff))) + bias, 0.0, 1.0);
+    float min_dist = min(min(x, y), min(brick_width - x, row_height - y));
+    float mortar = min_dist >= mortar_size ? 0.0 :
+                   mortar_smooth == 0.0 ? 1.0 : smoothstep(0.0, 1.0, (1.0 - min_dist / mortar_size) / mortar_smooth);
+    return vec4(mix(mix(color1, color2, tint), mortar_color, mortar), mortar);
+}
+
 // Blender's Math node as Cycles computes it (svm_math_float: division, root, power and modulo
 // are safe).
 float node_math(uint op, float a, float b, float c) {
@@ -317,6 +463,30 @@ void run_node_program(inout Material m, inout SurfaceHit sh, vec3 wo) {
             reg[dst].x = noise_fbm(reg[a].xyz, reg[arg & 0xffu].x, reg[(arg >> 8) & 0xffu].x, reg[(arg >> 16) & 0xffu].x,
                                    (arg >> 24) != 0u);
             break;
+        case NODE_VORONOI: {
+            uint more = node_words[pc];
+            reg[dst] = node_voronoi(reg[a].xyz, reg[b].x, reg[arg & 0xffu].x, reg[(arg >> 8) & 0xffu].x,
+                                    reg[(arg >> 16) & 0xffu].x, reg[arg >> 24].x, reg[more & 0xffu].x,
+                                    reg[(more >> 8) & 0xffu].x, more >> 16);
+            pc += 1u;
+            break;
+        }
+        case NODE_WAVE: {
+            uint more = node_words[pc];
+            reg[dst] = vec4(node_wave(reg[a].xyz * reg[b].x, more >> 8, reg[arg & 0xffu].x, reg[(arg >> 8) & 0xffu].x,
+                                      reg[(arg >> 16) & 0xffu].x, reg[arg >> 24].x, reg[more & 0xffu].x));
+            pc += 1u;
+            break;
+        }
+        case NODE_BRICK: {
+            uint more = node_words[pc];
+            vec4 c = node_brick(reg[a].xyz * reg[b].x, reg[arg & 0xffu].rgb, reg[(arg >> 8) & 0xffu].rgb,
+                                reg[(arg >> 16) & 0xffu].rgb, reg[arg >> 24].x, reg[more & 0xffu].x, reg[(more >> 8) & 0xffu].x,
+                                reg[(more >> 16) & 0xffu].x, reg[more >> 24].x, pc + 1u);
+            reg[dst] = (node_words[pc + 3u] & 0x10000u) != 0u ? vec4(c.w) : vec4(c.rgb, 1.0);
+            pc += 4u;
+            break;
+        }
         case NODE_TEXTURE:
             reg[dst] = vec4(sample_texture(int(arg), reg[a].xy), 1.0);
             break;

@@ -252,6 +252,16 @@ PX_CONST uint NODE_CONVERT = 13;   // word 0: dst.x = luminance of a.rgb; 1: mea
 PX_CONST uint NODE_GENERATED = 14; // dst = Generated texture coordinates; word: bump offset
 PX_CONST uint NODE_NOISE = 15;     // dst.x = Cycles' 3D fBm Perlin noise at a.xyz; word: registers of
                                    // detail, roughness, lacunarity (a byte each), bit 24: normalize
+PX_CONST uint NODE_VORONOI = 16;   // dst = Cycles' 3D Voronoi of a.xyz * b.x; word: registers of detail,
+                                   // roughness, lacunarity, smoothness; next: exponent, randomness, then
+                                   // (bits 16..) feature | metric << 2 | normalize << 4 | output << 5
+PX_CONST uint NODE_WAVE = 17;      // dst = Cycles' Wave of a.xyz * b.x; word: registers of distortion,
+                                   // detail, detail scale, detail roughness; next: phase, then (bits 8..)
+                                   // type | direction << 1 | profile << 3
+PX_CONST uint NODE_BRICK = 18;     // dst = Cycles' Brick of a.xyz * b.x; word: registers of color1, color2,
+                                   // mortar, mortar size; next: mortar smooth, bias, brick width, row
+                                   // height; then offset, squash (floats); then offset frequency | squash
+                                   // frequency << 8 | (Fac, not Color) << 16
 PX_CONST uint NODE_GEOMETRY = 22;  // dst = the hit's NODE_GEOMETRY_* (word & 0xff) at the bump offset
                                    // (word >> 8: see NODE_BUMP)
 PX_CONST uint NODE_BUMP = 23;      // dst.xyz = Cycles' bumped normal: strength a.x, distance b.x; word:

@@ -238,6 +238,68 @@ def materials(bpy):
     return [_material(bpy, b.__name__, b) for b in builders]
 
 
+def texture_materials(bpy):
+    """Voronoi, Wave and Brick Textures (their default Vector: Generated, 0..1 across a patch) at
+    scales where a patch holds many cells, bands or bricks."""
+    def texture(nodes, kind, **settings):
+        node = nodes.new(kind)
+        for name, value in settings.items():
+            if name.isupper() or name[0].isupper():
+                next(s for s in node.inputs if s.identifier == name).default_value = value
+            else:
+                setattr(node, name, value)
+        return node
+
+    def factor(node):
+        return next(s for s in node.outputs if s.identifier == "Fac")
+
+    def voronoi_color(nodes, links, surface):  # F1 cell colours into a base colour
+        bsdf = nodes.new("ShaderNodeBsdfPrincipled")
+        bsdf.inputs["Roughness"].default_value = 0.6
+        voronoi = texture(nodes, "ShaderNodeTexVoronoi", Scale=6.0)
+        links.new(voronoi.outputs["Color"], bsdf.inputs["Base Color"])
+        links.new(bsdf.outputs[0], surface)
+
+    def voronoi_fractal_roughness(nodes, links, surface):  # F2 Manhattan, fractal, normalized, into roughness
+        bsdf = nodes.new("ShaderNodeBsdfPrincipled")
+        bsdf.inputs["Base Color"].default_value = (0.8, 0.6, 0.3, 1.0)
+        bsdf.inputs["Metallic"].default_value = 1.0
+        voronoi = texture(nodes, "ShaderNodeTexVoronoi", feature="F2", distance="MANHATTAN", normalize=True,
+                          Scale=4.0, Detail=2.0, Roughness=0.6)
+        links.new(voronoi.outputs["Distance"], bsdf.inputs["Roughness"])
+        links.new(bsdf.outputs[0], surface)
+
+    def wave_bands(nodes, links, surface):  # sine bands, distorted, as a grey colour
+        bsdf = nodes.new("ShaderNodeBsdfDiffuse")
+        wave = texture(nodes, "ShaderNodeTexWave", bands_direction="DIAGONAL", Scale=2.0, Distortion=3.0, Detail=2.0)
+        links.new(wave.outputs["Color"], bsdf.inputs["Color"])
+        links.new(bsdf.outputs[0], surface)
+
+    def brick_color(nodes, links, surface):  # bricks (squashed rows, tints) as the colour
+        bsdf = nodes.new("ShaderNodeBsdfDiffuse")
+        brick = texture(nodes, "ShaderNodeTexBrick", squash=0.7, offset_frequency=2, squash_frequency=3,
+                        Scale=4.0, Bias=0.2, Color1=(0.8, 0.3, 0.1, 1.0), Color2=(0.5, 0.6, 0.2, 1.0),
+                        Mortar=(0.9, 0.9, 0.85, 1.0))
+        links.new(brick.outputs["Color"], bsdf.inputs["Color"])
+        links.new(bsdf.outputs[0], surface)
+
+    def brick_mortar_mix(nodes, links, surface):  # the smooth mortar's factor mixing two shaders
+        diffuse = nodes.new("ShaderNodeBsdfDiffuse")
+        diffuse.inputs["Color"].default_value = (0.8, 0.2, 0.1, 1.0)
+        glossy = nodes.new("ShaderNodeBsdfGlossy")
+        glossy.inputs["Roughness"].default_value = 0.25
+        brick = texture(nodes, "ShaderNodeTexBrick", Scale=3.0, **{"Mortar Size": 0.05, "Mortar Smooth": 0.5})
+        mix = nodes.new("ShaderNodeMixShader")
+        links.new(factor(brick), mix.inputs["Fac"])
+        links.new(diffuse.outputs[0], mix.inputs[1])
+        links.new(glossy.outputs[0], mix.inputs[2])
+        links.new(mix.outputs[0], surface)
+
+    # Smooth F1, Minkowski and rings are checked pixel by pixel in test_parity_textures.py.
+    builders = [voronoi_color, voronoi_fractal_roughness, wave_bands, brick_color, brick_mortar_mix]
+    return [_material(bpy, b.__name__, b) for b in builders]
+
+
 def _normal_map_image(bpy, name, size=64):
     """A tangent-space normal map (Non-Color): the normals of ripples h = 0.08 sin(6 pi u) sin(4 pi v)."""
     u, v = np.meshgrid((np.arange(size) + 0.5) / size, (np.arange(size) + 0.5) / size)
@@ -258,12 +320,12 @@ def node_grid(b):
     light from the front and a grey world."""
     import bpy
 
-    for k, material in enumerate(materials(bpy)):
+    for k, material in enumerate(materials(bpy) + texture_materials(bpy)):
         x, z = (k % COLUMNS - (COLUMNS - 1) / 2) * 1.1, 1.1 + ((ROWS - 1) / 2 - k // COLUMNS) * 1.1
         patch = b.add_rect(f"Patch{k}", 1.0, 1.0, material, (x, 0.0, z), (math.pi / 2, 0.0, 0.0))
         b.box_project_uvs(patch.data)  # u, v = the quad's own x, y: -0.5..0.5
     light = bpy.data.lights.new("Key", "AREA")
-    light.energy, light.size = 1200.0, 3.0
+    light.energy, light.size = 500.0, 3.0
     b.add_object("Key", light, (2.0, -5.0, 3.5), (math.radians(55), 0.0, math.radians(25)))
     b.add_camera((0.0, -7.5, 1.1), (0.0, 0.0, 1.1), 45.0)
     b.set_world((0.2, 0.2, 0.2), 1.0)

@@ -1,7 +1,8 @@
 """The node program machine (shaders/lib/nodes.glsl) against its numpy reference
 (parallax_core/nodes.py): every Math operation, blend mode, Map Range, ColorRamp, Invert,
-the socket conversions, Mapping, Separate/Combine and Image Texture, run on the device at
-each pixel of a quad and read back through the Albedo pass (the stored Base Color).
+the socket conversions, Mapping, Separate/Combine, Image Texture and the procedural textures
+(Noise, Voronoi, Wave, Brick), run on the device at each pixel of a quad and read back
+through the Albedo pass (the stored Base Color).
 
 The quad fills the image (orthographic, box filter), and each program first snaps its UVs to
 the pixel's centre, so every sample of a pixel computes the same value and the Albedo is that
@@ -120,7 +121,10 @@ def test_programs_are_checked_before_they_run(device):
     bad = {"reads register 3 before it is set": [nodes.NODE_STORE | 3 << 16, 0, nodes.NODE_END],
            "unknown operation": [99, 0, nodes.NODE_END],
            "samples texture 5": [nodes.NODE_UV, 0, nodes.NODE_TEXTURE | 1 << 8, 5, nodes.NODE_END],
-           "runs past the end": [nodes.NODE_UV, 0]}
+           "runs past the end": [nodes.NODE_UV, 0],
+           "unknown texture mode 3": [nodes.NODE_UV, 0, nodes.NODE_VORONOI | 1 << 8, 0, 3 << 16, nodes.NODE_END],
+           "reads register 5": [nodes.NODE_UV, 0, nodes.NODE_WAVE | 1 << 8, 5, 0, nodes.NODE_END],
+           "NaN": [nodes.NODE_UV, 0, nodes.NODE_BRICK | 1 << 8, 0, 0, 0x7FC00000, 0, 0x202, nodes.NODE_END]}
     for message, words in bad.items():
         scene.materials = [Material("diffuse", node_program=tuple(words))]
         with pytest.raises(ValueError, match=message):
@@ -273,3 +277,76 @@ def test_normal_map(device, space, strength, sign):
 def test_normal_map_without_tangents_keeps_the_normal(device):
     got = run_plain(device, lambda p: p.normal_map((0.9, 0.5, 0.6), 1.0, "TANGENT"), field="normal", pass_name="normal")
     np.testing.assert_allclose(got[..., :3], np.broadcast_to([0.0, 0.0, 1.0], got[..., :3].shape), atol=1e-5)
+
+
+def assert_mostly_close(got, want, atol=1e-4, allowed=0.01):
+    """got == want (clamped at 0, as the Albedo stores it) within atol at all but a fraction
+    ``allowed`` of the pixels (those where a cell, band or brick edge passes within float
+    rounding of the pixel's point, where float32 and the float64 reference may pick different
+    sides)."""
+    bad = np.abs(np.asarray(got) - np.clip(want, 0.0, None)) > atol
+    bad = bad.reshape(W * W, -1).any(axis=1)
+    assert bad.mean() <= allowed, f"{bad.sum()} of {bad.size} pixels differ by more than {atol}"
+
+
+def scaled_point(p, u, v, sx, sy, z):
+    return p.combine(p.math("MULTIPLY_ADD", u, sx, 0.3), p.math("MULTIPLY_ADD", v, sy, 0.2), z)
+
+
+@pytest.mark.parametrize("feature, metric, detail, output", [
+    ("F1", "EUCLIDEAN", 0.0, "Distance"), ("F1", "EUCLIDEAN", 0.0, "Color"), ("F1", "MANHATTAN", 0.0, "Position"),
+    ("F2", "CHEBYCHEV", 0.0, "Distance"), ("F2", "EUCLIDEAN", 2.5, "Color"), ("F1", "MINKOWSKI", 1.0, "Distance"),
+    ("SMOOTH_F1", "EUCLIDEAN", 0.0, "Distance"), ("SMOOTH_F1", "MANHATTAN", 1.5, "Color"),
+    ("SMOOTH_F1", "EUCLIDEAN", 0.0, "Position")])
+def test_voronoi(device, feature, metric, detail, output):
+    u, v = grid()
+    # Scale 2.5 over points spanning 0.3..2.3 and 0.2..1.7: about 5 x 4 cells, then finer octaves.
+    args = dict(scale=2.5, detail=detail, roughness=0.6, lacunarity=2.2, smoothness=0.8, exponent=1.5,
+                randomness=0.85, feature=feature, metric=metric, normalize=detail > 0.0 or metric == "CHEBYCHEV")
+    got = run(device, lambda p, u, v: p.voronoi(scaled_point(p, u, v, 2.0, 1.5, 0.45), output=output, **{
+        k: (p.math("ADD", u, 1.5) if k == "scale" and output == "Position" else x) for k, x in args.items()}))
+    want = []
+    for a, b in zip(u.ravel(), v.ravel()):
+        scale = a + 1.5 if output == "Position" else args["scale"]  # a linked scale too
+        out = nodes.voronoi_reference((2 * a + 0.3, 1.5 * b + 0.2, 0.45), scale, *[args[k] for k in (
+            "detail", "roughness", "lacunarity", "smoothness", "exponent", "randomness", "feature", "metric",
+            "normalize")])[nodes.VORONOI_OUTPUTS.index(output)]
+        want.append(np.broadcast_to(out, 3))
+    want = np.array(want).reshape(W, W, 3)
+    assert want[..., 0].std() > 0.03  # a pattern, not a constant
+    assert_mostly_close(got, want)
+
+
+@pytest.mark.parametrize("wave_type, direction, profile, distortion", [
+    ("BANDS", "X", "SIN", 0.0), ("BANDS", "DIAGONAL", "SAW", 0.0), ("BANDS", "Z", "TRI", 3.0),
+    ("RINGS", "SPHERICAL", "SIN", 2.0), ("RINGS", "Y", "TRI", 0.0), ("RINGS", "X", "SAW", 1.5)])
+def test_wave(device, wave_type, direction, profile, distortion):
+    u, v = grid()
+    got = run(device, lambda p, u, v: p.to_color(p.wave(scaled_point(p, u, v, 0.5, 0.4, p.math("MULTIPLY", u, 0.3)),
+                                                        1.3, wave_type, direction, profile, distortion, 2.5, 1.7,
+                                                        0.55, 0.4)))
+    want = np.vectorize(lambda a, b: nodes.wave_reference(1.3 * np.array([0.5 * a + 0.3, 0.4 * b + 0.2, 0.3 * a]),
+                                                          wave_type, direction, profile, distortion, 2.5, 1.7,
+                                                          0.55, 0.4))(u, v)
+    assert want.std() > 0.05
+    assert_mostly_close(got[..., 0], want)
+
+
+@pytest.mark.parametrize("output", ["Color", "Fac"])
+@pytest.mark.parametrize("offset_frequency, squash, squash_frequency, mortar_smooth", [
+    (2, 1.0, 2, 0.0), (3, 0.6, 2, 0.4), (1, 1.3, 3, 1.0)])
+def test_brick(device, output, offset_frequency, squash, squash_frequency, mortar_smooth):
+    u, v = grid()
+    colors = ((0.8, 0.2, 0.1), (0.2, 0.7, 0.3), (0.9, 0.9, 0.8))
+    # Points spanning -1..1.6 and -0.6..1.2 at scale 1.5: negative rows and bricks too.
+    got = run(device, lambda p, u, v: p.brick(
+        p.combine(p.math("MULTIPLY_ADD", u, 2.6, -1.0), p.math("MULTIPLY_ADD", v, 1.8, -0.6), 0.0), 1.5,
+        p.combine(u, 0.2, 0.1), *colors[1:], 0.06, mortar_smooth, p.math("MULTIPLY_ADD", v, 0.6, -0.3), 0.5, 0.25,
+        0.4, offset_frequency, squash, squash_frequency, output))
+    want = np.array([nodes.brick_reference(1.5 * np.array([2.6 * a - 1.0, 1.8 * b - 0.6, 0.0]), (a, 0.2, 0.1),
+                                           *colors[1:], 0.06, mortar_smooth, 0.6 * b - 0.3, 0.5, 0.25, 0.4,
+                                           offset_frequency, squash, squash_frequency)[output == "Fac"]
+                     for a, b in zip(u.ravel(), v.ravel())])
+    want = np.broadcast_to(want.reshape(W * W, -1), (W * W, 3)).reshape(W, W, 3)
+    assert want.std() > 0.05
+    assert_mostly_close(got, want)

@@ -61,3 +61,40 @@ def test_registers_are_reused_and_too_many_live_values_say_so():
     p.store("roughness", total)
     with pytest.raises(nodes.ProgramTooLong):
         p.finish()
+
+
+def test_procedural_textures_fold_and_read_their_registers():
+    p = nodes.Program()
+    point = (0.3, 0.7, 0.2)
+    args = (5.0, 1.5, 0.6, 2.0, 1.0, 0.5, 0.9, "F2", "MANHATTAN", True)
+    for k, output in enumerate(nodes.VORONOI_OUTPUTS):
+        want = nodes.voronoi_reference(point, *args)[k]
+        np.testing.assert_allclose(p.voronoi(point, *args, output), want)
+    wave = ("RINGS", "SPHERICAL", "SAW", 2.0, 3.0, 1.5, 0.5, 0.25)
+    assert p.wave(point, 2.0, *wave) == nodes.wave_reference(np.multiply(point, 2.0), *wave)
+    brick = ((0.8, 0.1, 0.1), (0.1, 0.8, 0.1), (0.5, 0.5, 0.5), 0.02, 0.1, 0.0, 0.5, 0.25, 0.5, 2, 1.0, 2)
+    color, fac = nodes.brick_reference(np.multiply(point, 4.0), *brick)
+    np.testing.assert_allclose(p.brick(point, 4.0, *brick, "Color"), color)
+    assert p.brick(point, 4.0, *brick, "Fac") == fac
+    assert p.words == []  # all folded
+    # Linked: every socket input is a register the allocator maps (the programs' operands).
+    u = p.separate(p.uv(), 0)
+    vector = p.combine(u, 0.5, 0.25)
+    values = [p.voronoi(vector, u, 1.0, 0.5, 2.0, 1.0, 0.5, u, "F1", "EUCLIDEAN", False, "Color"),
+              p.wave(vector, 3.0, "BANDS", "DIAGONAL", "TRI", u, 2.0, 1.0, 0.5, u),
+              p.brick(vector, 5.0, vector, (0, 1, 0), vector, 0.02, 0.0, u, 0.5, 0.25, 0.5, 2, 1.0, 2, "Fac")]
+    total = p.mix("ADD", 1.0, p.mix("ADD", 1.0, values[0], values[1]), values[2])
+    p.store("base_color", total)
+    steps = list(nodes.instructions(p.finish()))
+    ops = [op for op, *_ in steps]
+    assert ops.count(nodes.NODE_VORONOI) == ops.count(nodes.NODE_WAVE) == ops.count(nodes.NODE_BRICK) == 1
+    assert [len(words) for op, _, _, _, words in steps if op in (nodes.NODE_VORONOI, nodes.NODE_WAVE, nodes.NODE_BRICK)] == [2, 2, 5]
+    assert steps[-1][0] == nodes.NODE_STORE
+
+
+def test_brick_noise_and_cell_hash_are_cycles_integer_arithmetic():
+    # brick_noise wraps on 32 bits and keeps 31; hash_pcg3d works on signed ints (negative cells).
+    assert 0.0 <= nodes.brick_noise(0xFFFFFFFF) < 1.0 and nodes.brick_noise(5) != nodes.brick_noise(6)
+    h = nodes.hash_cell((-1, -7, 3))
+    assert h.shape == (3,) and ((0 <= h) & (h <= 1)).all() and len(set(h)) == 3
+    assert nodes.hash_pcg3d(-1, -2, 0) == nodes.hash_pcg3d(0xFFFFFFFF, 0xFFFFFFFE, 0)  # two's complement

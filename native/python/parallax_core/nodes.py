@@ -20,6 +20,7 @@ import numpy as np
 NODE_END, NODE_CONST, NODE_UV, NODE_TEXTURE, NODE_AFFINE, NODE_MATH, NODE_MIX = 0, 1, 2, 3, 4, 5, 6
 NODE_INVERT, NODE_MAP_RANGE, NODE_RAMP, NODE_SEPARATE, NODE_COMBINE, NODE_STORE, NODE_CONVERT = 7, 8, 9, 10, 11, 12, 13
 NODE_GENERATED, NODE_NOISE = 14, 15
+NODE_VORONOI, NODE_WAVE, NODE_BRICK = 16, 17, 18
 NODE_GEOMETRY, NODE_BUMP, NODE_FRESNEL, NODE_NORMAL_MAP = 22, 23, 24, 25
 # NODE_NORMAL_MAP's spaces: Blender's Normal Map space enum, in types.h's order.
 NORMAL_MAP_SPACES = ("TANGENT", "OBJECT", "WORLD", "BLENDER_OBJECT", "BLENDER_WORLD")
@@ -37,6 +38,15 @@ _BINARY_MATH = {"ADD", "SUBTRACT", "MULTIPLY", "DIVIDE", "POWER", "MINIMUM", "MA
 # Blender's Mix node blend types (MixRGB's blend_type, Mix's blend_type for colours).
 BLEND_MODES = ("MIX", "ADD", "MULTIPLY", "SUBTRACT", "SCREEN", "DIFFERENCE", "DARKEN", "LIGHTEN", "OVERLAY",
                "DIVIDE")
+# Voronoi Texture features and distance metrics, Wave Texture types, directions and profiles
+# (Blender's enum names) -> the ids NODE_VORONOI and NODE_WAVE take.
+VORONOI_FEATURES = ("F1", "F2", "SMOOTH_F1")
+VORONOI_METRICS = ("EUCLIDEAN", "MANHATTAN", "CHEBYCHEV", "MINKOWSKI")
+VORONOI_OUTPUTS = ("Distance", "Color", "Position")
+WAVE_TYPES = ("BANDS", "RINGS")
+WAVE_BANDS_DIRECTIONS = ("X", "Y", "Z", "DIAGONAL")
+WAVE_RINGS_DIRECTIONS = ("X", "Y", "Z", "SPHERICAL")
+WAVE_PROFILES = ("SIN", "SAW", "TRI")
 # Material fields a program may set (NODE_STORE), clamped as Cycles clamps the inputs.
 FIELDS = ("base_color", "roughness", "metallic", "transmission", "coat_weight", "specular_ior_level",
           "mix_weight", "coat_roughness", "sheen_weight", "normal")
@@ -185,6 +195,177 @@ def noise_reference(p, detail, roughness, lacunarity, normalize):
     return value
 
 
+def _s32(x):
+    x &= 0xFFFFFFFF
+    return x - (1 << 32) if x >> 31 else x
+
+
+def hash_pcg3d(x, y, z):
+    """Cycles' hash_pcg3d_i (PCG 3D on signed 32-bit integers, results masked to 31 bits)."""
+    m = 0xFFFFFFFF
+    x, y, z = ((k * 1664525 + 1013904223) & m for k in (x, y, z))
+    for step in range(2):
+        x = (x + y * z) & m
+        y = (y + z * x) & m
+        z = (z + x * y) & m
+        if step == 0:  # v ^= v >> 16 (an arithmetic shift)
+            x, y, z = ((k ^ (_s32(k) >> 16)) & m for k in (x, y, z))
+    return x & 0x7FFFFFFF, y & 0x7FFFFFFF, z & 0x7FFFFFFF
+
+
+def hash_cell(cell):
+    """Cycles' hash_int3_to_float3: a Voronoi cell's point offset and colour, float32 as it is
+    computed there."""
+    h = hash_pcg3d(*(int(c) for c in cell))
+    return np.array([np.float32(k) * np.float32(1.0 / 2147483648.0) for k in h], np.float64)
+
+
+def _voronoi_distance(d, metric, exponent, bound=False):
+    """Cycles' voronoi_distance of d = a - b (voronoi_distance_bound if ``bound``)."""
+    d = np.abs(d)
+    if metric == "EUCLIDEAN":
+        return float(d @ d) if bound else float(np.sqrt(d @ d))
+    if metric == "MANHATTAN":
+        return float(d.sum())
+    if metric == "CHEBYCHEV":
+        return float(d.max())
+    total = float(np.sum(d ** exponent))
+    return total if bound else total ** (1.0 / exponent)
+
+
+def _voronoi_octave(coord, feature, metric, exponent, randomness, smoothness):
+    """One octave of Cycles' 3D voronoi_f1 / voronoi_f2 / voronoi_smooth_f1: (distance,
+    colour, position)."""
+    cell = np.floor(coord)
+    local = coord - cell
+    if feature == "SMOOTH_F1":
+        distance, color, position, h = 0.0, np.zeros(3), np.zeros(3), -1.0
+        for k in range(-2, 3):
+            for j in range(-2, 3):
+                for i in range(-2, 3):
+                    offset = np.array([i, j, k], np.float64)
+                    cell_color = hash_cell(cell + offset)
+                    point = offset + cell_color * randomness
+                    d = _voronoi_distance(point - local, metric, exponent)
+                    if h == -1.0:
+                        h = 1.0
+                    else:
+                        t = min(max(0.5 + 0.5 * (distance - d) / smoothness, 0.0), 1.0)
+                        h = (3.0 - 2.0 * t) * t * t
+                    correction = smoothness * h * (1.0 - h)
+                    distance = distance * (1 - h) + d * h - correction
+                    correction /= 1.0 + 3.0 * smoothness
+                    color = color * (1 - h) + cell_color * h - correction
+                    position = position * (1 - h) + point * h - correction
+        return distance, color, cell + position
+    best = [(np.inf, None, None), (np.inf, None, None)]  # (distance, point, colour) of F1, F2
+    for k in range(-1, 2):
+        for j in range(-1, 2):
+            for i in range(-1, 2):
+                offset = np.array([i, j, k], np.float64)
+                cell_color = hash_cell(cell + offset)
+                point = offset + cell_color * randomness
+                d = _voronoi_distance(point - local, metric, exponent, bound=feature == "F1")
+                if d < best[0][0]:
+                    best = [(d, point, cell_color), best[0]]
+                elif d < best[1][0]:
+                    best[1] = (d, point, cell_color)
+    d, point, color = best[1] if feature == "F2" else best[0]
+    if feature == "F1":
+        d = _voronoi_distance(point - local, metric, exponent)
+    return d, color, point + cell
+
+
+def voronoi_reference(p, scale, detail, roughness, lacunarity, smoothness, exponent, randomness, feature,
+                      metric, normalize):
+    """Cycles' 3D Voronoi Texture (svm_node_tex_voronoi, fractal_voronoi_x_fx) at point p:
+    (distance, colour, position)."""
+    detail, roughness = min(max(detail, 0.0), 15.0), min(max(roughness, 0.0), 1.0)
+    randomness, smoothness = min(max(randomness, 0.0), 1.0), min(max(smoothness / 2.0, 0.0), 0.5)
+    if feature == "SMOOTH_F1" and smoothness == 0.0:
+        feature = "F1"
+    coord = np.asarray(p, np.float64)[:3] * scale
+    amplitude, max_amplitude, octave_scale = 1.0, 0.0, 1.0
+    distance, color, position = 0.0, np.zeros(3), np.zeros(3)
+    for i in range(int(math.ceil(detail)) + 1):
+        d, c, q = _voronoi_octave(coord * octave_scale, feature, metric, exponent, randomness, smoothness)
+        if detail == 0.0 or roughness == 0.0:
+            max_amplitude, distance, color, position = 1.0, d, c, q
+            break
+        if i <= detail:
+            max_amplitude += amplitude
+            distance += d * amplitude
+            color = color + c * amplitude
+            position = position * (1 - amplitude) + q / octave_scale * amplitude
+            octave_scale *= lacunarity
+            amplitude *= roughness
+        else:
+            r = detail - math.floor(detail)
+            max_amplitude += amplitude * r
+            distance += d * amplitude * r
+            color = color + c * amplitude * r
+            position = position * (1 - r) + (position * (1 - amplitude) + q / octave_scale * amplitude) * r
+    if normalize:
+        max_distance = _voronoi_distance(np.full(3, 0.5 + 0.5 * randomness), metric, exponent)
+        distance /= max_amplitude * max_distance * (2.0 if feature == "F2" else 1.0)
+        color = color / max_amplitude
+    position = position / scale if scale != 0.0 else np.zeros(3)
+    return distance, color, position
+
+
+def wave_reference(p, wave_type, direction, profile, distortion, detail, detail_scale, detail_roughness, phase):
+    """Cycles' svm_wave at point p (already scaled)."""
+    p = (np.asarray(p, np.float64)[:3] + 0.000001) * 0.999999
+    axis = {"X": 0, "Y": 1, "Z": 2}.get(direction)
+    if wave_type == "BANDS":
+        n = p[axis] * 20.0 if axis is not None else p.sum() * 10.0
+    else:
+        rp = p.copy()
+        if axis is not None:
+            rp[axis] = 0.0
+        n = float(np.sqrt(rp @ rp)) * 20.0
+    n += phase
+    if distortion != 0.0:
+        n += distortion * (noise_reference(p * detail_scale, detail, detail_roughness, 2.0, True) * 2.0 - 1.0)
+    if profile == "SIN":
+        return 0.5 + 0.5 * math.sin(n - math.pi / 2)
+    n /= 2 * math.pi
+    return n - math.floor(n) if profile == "SAW" else abs(n - math.floor(n + 0.5)) * 2.0
+
+
+def brick_noise(n):
+    """Cycles' brick_noise: integer noise of a uint (a brick's row and number)."""
+    m = 0xFFFFFFFF
+    n = (n + 1013) & 0x7FFFFFFF
+    n = (n >> 13) ^ n
+    nn = (n * ((n * n * 60493 + 19990303) & m) + 1376312589) & 0x7FFFFFFF
+    return 0.5 * float(np.float32(nn)) / 1073741824.0
+
+
+def brick_reference(p, color1, color2, mortar_color, mortar_size, mortar_smooth, bias, brick_width, row_height,
+                    offset_amount, offset_frequency, squash_amount, squash_frequency):
+    """Cycles' svm_brick and svm_node_tex_brick at point p (already scaled): (colour, fac)."""
+    p = np.asarray(p, np.float64)
+    rownum = int(math.floor(p[1] / row_height))
+    offset = 0.0
+    if offset_frequency and squash_frequency:
+        brick_width *= 1.0 if rownum % squash_frequency else squash_amount
+        offset = 0.0 if rownum % offset_frequency else brick_width * offset_amount
+    bricknum = int(math.floor((p[0] + offset) / brick_width))
+    x, y = (p[0] + offset) - brick_width * bricknum, p[1] - row_height * rownum
+    tint = min(max(brick_noise(((rownum << 16) + (bricknum & 0xFFFF)) & 0xFFFFFFFF) + bias, 0.0), 1.0)
+    min_dist = min(x, y, brick_width - x, row_height - y)
+    if min_dist >= mortar_size:
+        fac = 0.0
+    elif mortar_smooth == 0.0:
+        fac = 1.0
+    else:
+        f = (1.0 - min_dist / mortar_size) / mortar_smooth
+        fac = 0.0 if f <= 0.0 else 1.0 if f >= 1.0 else 3.0 * f * f - 2.0 * f * f * f
+    color = (1.0 - tint) * _vec4(color1)[:3] + tint * _vec4(color2)[:3]
+    return color * (1.0 - fac) + _vec4(mortar_color)[:3] * fac, fac
+
+
 def _vec4(value):
     v = np.zeros(4, np.float64)
     flat = np.atleast_1d(np.asarray(value, np.float64)).ravel()[:4]
@@ -210,8 +391,13 @@ _READS = {NODE_TEXTURE: [(0, 16)], NODE_AFFINE: [(0, 16)], NODE_MATH: [(0, 16), 
           NODE_MAP_RANGE: [(0, 16), (1, 0), (1, 8), (1, 16), (1, 24)], NODE_RAMP: [(0, 16)],
           NODE_SEPARATE: [(0, 16)], NODE_COMBINE: [(0, 16), (0, 24), (1, 0)], NODE_STORE: [(0, 16)],
           NODE_CONVERT: [(0, 16)], NODE_NOISE: [(0, 16), (1, 0), (1, 8), (1, 16)],
+          NODE_VORONOI: [(0, 16), (0, 24), (1, 0), (1, 8), (1, 16), (1, 24), (2, 0), (2, 8)],
+          NODE_WAVE: [(0, 16), (0, 24), (1, 0), (1, 8), (1, 16), (1, 24), (2, 0)],
+          NODE_BRICK: [(0, 16), (0, 24), (1, 0), (1, 8), (1, 16), (1, 24), (2, 0), (2, 8), (2, 16), (2, 24)],
           NODE_BUMP: [(0, 16), (0, 24), (1, 0), (1, 8), (1, 16), (1, 24)], NODE_FRESNEL: [(0, 16), (0, 24)],
           NODE_NORMAL_MAP: [(0, 16), (0, 24)]}
+# Words after the instruction, where more than one.
+_SIZES = {NODE_CONST: 4, NODE_AFFINE: 12, NODE_MAP_RANGE: 2, NODE_VORONOI: 2, NODE_WAVE: 2, NODE_BRICK: 5, NODE_BUMP: 2}
 
 
 def allocate_registers(words):
@@ -249,7 +435,7 @@ def _instruction_starts(words):
     while words[pc] & 0xFF != NODE_END:
         op = words[pc] & 0xFF
         yield pc, op
-        size = {NODE_CONST: 4, NODE_AFFINE: 12, NODE_MAP_RANGE: 2, NODE_BUMP: 2}.get(op, 1)  # words after the instruction
+        size = _SIZES.get(op, 1)
         if op == NODE_RAMP:
             size = 1 + 4 * (words[pc + 1] & 0xFFFF)
         pc += 1 + size
@@ -345,6 +531,53 @@ class Program:
             return noise_reference(_vec4(vector)[:3], *(_vec4(x)[0] for x in args), normalize)
         vector, detail, roughness, lacunarity = (self._in(x) for x in (vector, *args))
         return self._op(NODE_NOISE, vector, 0, [detail | roughness << 8 | lacunarity << 16 | int(bool(normalize)) << 24])
+
+    def voronoi(self, vector, scale, detail, roughness, lacunarity, smoothness, exponent, randomness,
+                feature, metric, normalize, output):
+        """Cycles' 3D Voronoi Texture at ``vector`` (scaled here): its ``output``
+        (VORONOI_OUTPUTS; Distance as a float, Color and Position as vectors)."""
+        args = (scale, detail, roughness, lacunarity, smoothness, exponent, randomness)
+        if self.is_constant(vector) and all(self.is_constant(x) for x in args):
+            out = voronoi_reference(_vec4(vector)[:3], *(_vec4(x)[0] for x in args), feature, metric, normalize)
+            return out[VORONOI_OUTPUTS.index(output)]
+        vector, scale, detail, roughness, lacunarity, smoothness, exponent, randomness = (
+            self._in(x) for x in (vector, *args))
+        modes = (VORONOI_FEATURES.index(feature) | VORONOI_METRICS.index(metric) << 2 | int(bool(normalize)) << 4 |
+                 VORONOI_OUTPUTS.index(output) << 5)
+        return self._op(NODE_VORONOI, vector, scale, [detail | roughness << 8 | lacunarity << 16 | smoothness << 24,
+                                                      exponent | randomness << 8 | modes << 16])
+
+    def wave(self, vector, scale, wave_type, direction, profile, distortion, detail, detail_scale,
+             detail_roughness, phase):
+        """Cycles' Wave Texture at ``vector`` (scaled here): its Fac (a float)."""
+        args = (scale, distortion, detail, detail_scale, detail_roughness, phase)
+        directions = WAVE_BANDS_DIRECTIONS if wave_type == "BANDS" else WAVE_RINGS_DIRECTIONS
+        if self.is_constant(vector) and all(self.is_constant(x) for x in args):
+            scale, *rest = (_vec4(x)[0] for x in args)
+            return wave_reference(_vec4(vector)[:3] * scale, wave_type, direction, profile, *rest)
+        vector, scale, distortion, detail, detail_scale, detail_roughness, phase = (self._in(x) for x in (vector, *args))
+        modes = WAVE_TYPES.index(wave_type) | directions.index(direction) << 1 | WAVE_PROFILES.index(profile) << 3
+        return self._op(NODE_WAVE, vector, scale, [distortion | detail << 8 | detail_scale << 16 | detail_roughness << 24,
+                                                   phase | modes << 8])
+
+    def brick(self, vector, scale, color1, color2, mortar, mortar_size, mortar_smooth, bias, brick_width,
+              row_height, offset_amount, offset_frequency, squash_amount, squash_frequency, output):
+        """Cycles' Brick Texture at ``vector`` (scaled here): its Color or Fac. The offset and
+        squash settings are the node's own (constants)."""
+        if not (0 <= offset_frequency <= 255 and 0 <= squash_frequency <= 255):
+            raise ValueError("brick frequencies are 0..255")
+        floats = (scale, mortar_size, mortar_smooth, bias, brick_width, row_height)
+        if all(self.is_constant(x) for x in (vector, color1, color2, mortar, *floats)):
+            scale, *rest = (_vec4(x)[0] for x in floats)
+            color, fac = brick_reference(_vec4(vector)[:3] * scale, color1, color2, mortar, *rest, offset_amount,
+                                         offset_frequency, squash_amount, squash_frequency)
+            return fac if output == "Fac" else color
+        vector, scale, color1, color2, mortar, mortar_size, mortar_smooth, bias, brick_width, row_height = (
+            self._in(x) for x in (vector, scale, color1, color2, mortar, *floats[1:]))
+        return self._op(NODE_BRICK, vector, scale, [
+            color1 | color2 << 8 | mortar << 16 | mortar_size << 24, mortar_smooth | bias << 8 | brick_width << 16 |
+            row_height << 24, _f32(offset_amount), _f32(squash_amount),
+            int(offset_frequency) | int(squash_frequency) << 8 | int(output == "Fac") << 16])
 
     def to_float(self, value, kind):
         """A colour (its luminance, Rec. 709) or a vector (its mean) as a float, as Blender

@@ -423,7 +423,8 @@ void check_node_program(const std::vector<uint>& words, uint32_t start, size_t t
         size_t size = 2;  // the instruction and its word
         if (op == NODE_CONST) size = 5;
         if (op == NODE_AFFINE) size = 13;
-        if (op == NODE_MAP_RANGE || op == NODE_BUMP) size = 3;
+        if (op == NODE_MAP_RANGE || op == NODE_VORONOI || op == NODE_WAVE || op == NODE_BUMP) size = 3;
+        if (op == NODE_BRICK) size = 6;
         if (op == NODE_RAMP && pc + 1 < words.size()) size = 2 + 4 * size_t(words[pc + 1] & 0xffffu);
         if (pc + size >= words.size()) bad(where + " runs past the end of material_node_programs");
         const uint arg = words[pc + 1];
@@ -467,6 +468,19 @@ void check_node_program(const std::vector<uint>& words, uint32_t start, size_t t
             case NODE_STORE: reg(a); if (arg >= NODE_FIELDS) bad(where + ": unknown field " + std::to_string(arg)); break;
             case NODE_CONVERT: reg(a); if (arg > 2) bad(where + ": unknown conversion " + std::to_string(arg)); break;
             case NODE_NOISE: reg(a), reg(arg & 0xffu), reg((arg >> 8) & 0xffu), reg((arg >> 16) & 0xffu); break;
+            case NODE_VORONOI:  // modes: feature < 3, output < 3
+            case NODE_WAVE:     // modes: profile < 3
+            case NODE_BRICK: {
+                const uint more = words[pc + 2];
+                reg(a), reg(b);
+                for (int k = 0; k < 4; ++k) reg((arg >> (8 * k)) & 0xffu);
+                for (int k = 0; k < (op == NODE_WAVE ? 1 : op == NODE_VORONOI ? 2 : 4); ++k) reg((more >> (8 * k)) & 0xffu);
+                const uint modes = op == NODE_VORONOI ? more >> 16 : more >> 8;
+                if ((op == NODE_VORONOI && ((modes & 3u) > 2u || (modes >> 5) > 2u)) || (op == NODE_WAVE && (modes >> 3) > 2u))
+                    bad(where + ": unknown texture mode " + std::to_string(modes));
+                if (op == NODE_BRICK) finite_words(pc + 3, 2);
+                break;
+            }
         }
         if (op != NODE_STORE) {
             if (dst >= NODE_REGISTERS) bad(where + " writes register " + std::to_string(dst));
