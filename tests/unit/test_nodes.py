@@ -80,6 +80,8 @@ def test_new_operations_fold_and_their_registers_are_tracked():
     assert p.words == []
     u, v = p.separate(p.uv(), 0), p.separate(p.uv(), 1)
     w = p.combine(u, v, 0.5)
+    size = len(p.words)
+    assert p.curves(np.zeros((4, 3)), 0.0, 1.0, True, 0.0, w) == w and len(p.words) == size  # Fac 0: no table
     values = [p.vector_math("FACEFORWARD", w, (0.0, 0.0, 1.0), p.combine(v, u, 0.0)),
               p.vector_math("SCALE", w, scale=u),
               p.curves(np.random.default_rng(1).random((8, 3)), -0.5, 1.5, False, v, w),

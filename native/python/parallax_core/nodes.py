@@ -605,6 +605,8 @@ class Program:
         tables = tables.reshape(len(tables), -1)
         if self.is_constant(fac) and self.is_constant(value):
             return curves_reference(tables, min_x, max_x, extrapolate, _vec4(fac)[0], value)
+        if self.is_constant(fac) and _vec4(fac)[0] == 0.0:  # the input as it is (Cycles drops the node)
+            return value
         value, fac = self._in(value), self._in(fac)
         return self._op(NODE_CURVES, value, fac, [len(tables) | int(bool(extrapolate)) << 16 | tables.shape[1] << 24,
                                                   _f32(min_x), _f32(max_x)] + [_f32(x) for x in tables.ravel()])
