@@ -8,10 +8,15 @@ Supported: Value, RGB, Image Texture (Color; flat, repeating, the active UV map)
 Texture (3D fBm, as Cycles: same hash, same noise), Checker Texture, Gradient Texture (linear,
 quadratic, easing, diagonal), Voronoi Texture (3D; F1, F2, Smooth F1; every distance metric;
 fractal detail; Distance, Color, Position), Wave Texture (bands and rings, every direction and
-profile, distortion), Brick Texture (Color, Fac), Texture Coordinate (UV, Generated), UV Map, Mapping (point, texture, vector), Math, Clamp, Mix and MixRGB (the
-blend modes of parallax_core.nodes.BLEND_MODES), Invert, Map Range (linear), ColorRamp (any
-interpolation, as Cycles: a 256-entry table), Separate/Combine Color (RGB) and XYZ, Reroute
-and node groups (flattened).
+profile, distortion), Brick Texture (Color, Fac), Texture Coordinate (UV, Generated, Object,
+Normal), Geometry (Position, Normal, True Normal, Incoming, Backfacing), UV Map, Mapping (point,
+texture, vector), Math (every operation), Vector Math (every operation), Clamp, Mix and MixRGB
+(the blend modes of parallax_core.nodes.BLEND_MODES), Invert, Hue/Saturation/Value,
+Bright/Contrast, Gamma, Map Range (float and vector; linear, stepped, smooth step, smoother
+step), ColorRamp (any interpolation, as Cycles: a 256-entry table), RGB Curves and Float Curve
+(as Cycles: 256-entry tables over the curves' range, extrapolated or not), Separate/Combine
+Color (RGB) and XYZ, Fresnel, Layer Weight, Bump, Normal Map (tangent, object and world space),
+Reroute and node groups (flattened).
 """
 import numpy as np
 
@@ -87,10 +92,11 @@ class GraphCompiler:
         return p.to_color(value)
 
     def _in(self, node, index_or_name, kind, groups):
-        if isinstance(index_or_name, str) and node.inputs.get(index_or_name) is None:
-            # A socket the node's settings hide (Voronoi's Smoothness outside Smooth F1): its
-            # value still goes in, as Cycles compiles every input.
-            return self.socket(next(s for s in node.inputs if s.identifier == index_or_name), kind, groups)
+        """An input by index, identifier or name."""
+        if isinstance(index_or_name, str):
+            socket = next((s for s in node.inputs if s.identifier == index_or_name), None)
+            if socket is not None:
+                return self.socket(socket, kind, groups)
         return self.socket(node.inputs[index_or_name], kind, groups)
 
     # -- nodes --
@@ -367,10 +373,89 @@ class GraphCompiler:
         return self.program.invert(self._in(node, 0, "float", groups), self._in(node, 1, "color", groups)), "color"
 
     def _map_range(self, node, output, groups):
-        if getattr(node, "data_type", "FLOAT") != "FLOAT" or node.interpolation_type != "LINEAR":
-            raise Unsupported(f"Map Range '{node.name}' ({node.interpolation_type.lower()})")
-        args = [self._in(node, k, "float", groups) for k in range(5)]
-        return self.program.map_range(*args, node.clamp), "float"
+        """Cycles' MapRangeNode (clamped by the Clamp node its expand() adds) or, for vectors,
+        VectorMapRangeNode, which this does component by component."""
+        p = self.program
+        kind = node.interpolation_type
+        if kind not in self.nodes.MAP_RANGE_TYPES:
+            raise Unsupported(f"Map Range '{node.name}' interpolation {kind}")
+        sockets = {s.identifier: s for s in node.inputs}
+        names = ("Value", "From Min", "From Max", "To Min", "To Max", "Steps")
+        if node.data_type == "FLOAT":
+            args = [self.socket(sockets[k], "float", groups) if k != "Steps" or kind == "STEPPED" else 4.0 for k in names]
+            if output.identifier != "Result":
+                return np.zeros(3), "vector"
+            return p.map_range(*args[:5], node.clamp, kind, args[5]), "float"
+        if node.data_type != "FLOAT_VECTOR":
+            raise Unsupported(f"Map Range '{node.name}' of {node.data_type} values")
+        if output.identifier != "Vector":
+            return 0.0, "float"
+        ids = ("Vector", "From_Min_FLOAT3", "From_Max_FLOAT3", "To_Min_FLOAT3", "To_Max_FLOAT3", "Steps_FLOAT3")
+        args = [self.socket(sockets[k], "vector", groups) if k != "Steps_FLOAT3" or kind == "STEPPED" else np.full(3, 4.0)
+                for k in ids]
+        return p.combine(*(p.map_range(*(p.separate(x, k) for x in args[:5]), node.clamp, kind, p.separate(args[5], k),
+                                       vector=True) for k in range(3))), "vector"
+
+    def _vect_math(self, node, output, groups):
+        """Cycles' svm_vector_math: Value is the float of Dot Product, Distance and Length (0
+        for the others), Vector theirs (zero for those three)."""
+        op = node.operation
+        if op not in self.nodes.VECTOR_MATH_OPS:
+            raise Unsupported(f"Vector Math '{node.name}' operation {op}")
+        is_float = op in self.nodes.VECTOR_MATH_FLOAT_OPS
+        if (output.identifier == "Value") != is_float:
+            return (0.0, "float") if output.identifier == "Value" else (np.zeros(3), "vector")
+        used = self.nodes.VECTOR_MATH_OPERANDS[op]
+        sockets = {s.identifier: s for s in node.inputs}
+        a, b, c = (self.socket(sockets[k], "vector", groups) if key in used else np.zeros(3)
+                   for k, key in (("Vector", "a"), ("Vector_001", "b"), ("Vector_002", "c")))
+        scale = self.socket(sockets["Scale"], "float", groups) if "s" in used else 1.0
+        value = self.program.vector_math(op, a, b, c, scale)
+        return (value, "float") if is_float else (value, "vector")
+
+    def _hue_sat(self, node, output, groups):
+        args = [self._in(node, k, "float", groups) for k in ("Hue", "Saturation", "Value", "Fac")]
+        return self.program.hsv(self._in(node, "Color", "color", groups), *args), "color"
+
+    def _brightcontrast(self, node, output, groups):
+        """Cycles' svm_brightness_contrast: max((1 + contrast) color + bright - contrast / 2, 0)."""
+        p = self.program
+        color = self._in(node, "Color", "color", groups)
+        bright, contrast = self._in(node, "Bright", "float", groups), self._in(node, "Contrast", "float", groups)
+        slope = p.to_color(p.math("ADD", 1.0, contrast))
+        offset = p.to_color(p.math("SUBTRACT", bright, p.math("MULTIPLY", contrast, 0.5)))
+        return p.vector_math("MAXIMUM", p.vector_math("MULTIPLY_ADD", color, slope, offset), np.zeros(3)), "color"
+
+    def _gamma(self, node, output, groups):
+        color, gamma = self._in(node, "Color", "color", groups), self._in(node, "Gamma", "float", groups)
+        return self.program.vector_math("GAMMA", color, scale=gamma), "color"
+
+    def _curve_tables(self, node, curves):
+        """Cycles' curvemapping_color_to_array / curvemapping_float_to_array and
+        curvemapping_minmax (intern/cycles/blender/util.h): 256 samples over the range of all the
+        curves' points (the RGB ones through the combined curve first), and that range."""
+        mapping = node.mapping
+        mapping.initialize()
+        lo = min(c.points[0].location[0] for c in curves)
+        hi = max(c.points[len(c.points) - 1].location[0] for c in curves)
+        size = self.nodes.NODE_RAMP_SIZE
+        xs = [float(np.float32(lo + np.float32(i) / np.float32(size - 1) * np.float32(hi - lo))) for i in range(size)]
+        if len(curves) == 1:
+            table = [mapping.evaluate(curves[0], x) for x in xs]
+        else:
+            combined = [mapping.evaluate(curves[3], x) for x in xs]
+            table = [[mapping.evaluate(curves[k], y) for k in range(3)] for y in combined]
+        return np.array(table, np.float64), lo, hi, mapping.extend == "EXTRAPOLATED"
+
+    def _curve_rgb(self, node, output, groups):
+        table, lo, hi, extrapolate = self._curve_tables(node, node.mapping.curves[:4])
+        fac, color = self._in(node, "Fac", "float", groups), self._in(node, "Color", "color", groups)
+        return self.program.curves(table, lo, hi, extrapolate, fac, color), "color"
+
+    def _curve_float(self, node, output, groups):
+        table, lo, hi, extrapolate = self._curve_tables(node, node.mapping.curves[:1])
+        fac, value = self._in(node, "Factor", "float", groups), self._in(node, "Value", "float", groups)
+        return self.program.curves(table, lo, hi, extrapolate, fac, value), "float"
 
     def _valtorgb(self, node, output, groups):
         ramp = node.color_ramp

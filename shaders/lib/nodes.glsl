@@ -222,6 +222,29 @@ vec4 node_brick(vec3 p, vec3 color1, vec3 color2, vec3 mortar_color, float morta
     return vec4(mix(mix(color1, color2, tint), mortar_color, mortar), mortar);
 }
 
+float node_safe_divide(float a, float b) { return b != 0.0 ? a / b : 0.0; }
+
+vec3 node_safe_normalize(vec3 a) { float t = length(a); return t != 0.0 ? a * (1.0 / t) : a; }
+
+// Cycles' safe_powf (compatible_powf): 0 for a negative base and a fractional exponent.
+float node_safe_pow(float a, float b) {
+    if (a < 0.0 && b != trunc(b)) return 0.0;
+    if (b == 0.0) return 1.0;
+    if (a == 0.0) return 0.0;
+    return a < 0.0 ? (mod(b, 2.0) == 0.0 ? 1.0 : -1.0) * pow(-a, b) : pow(a, b);
+}
+
+float node_wrap(float value, float high, float low) {  // Cycles' wrapf
+    float span = high - low;
+    return span != 0.0 ? value - span * floor((value - low) / span) : low;
+}
+
+float node_smooth_min(float a, float b, float k) {  // Cycles' smoothminf
+    if (k == 0.0) return min(a, b);
+    float h = max(k - abs(a - b), 0.0) / k;
+    return min(a, b) - h * h * h * k * (1.0 / 6.0);
+}
+
 // Blender's Math node as Cycles computes it (svm_math_float: division, root, power and modulo
 // are safe).
 float node_math(uint op, float a, float b, float c) {
@@ -247,8 +270,127 @@ float node_math(uint op, float a, float b, float c) {
     case 18u: return floor(a + 0.5);
     case 19u: return sign(a);
     case 20u: return exp(a);
-    default: return min(max(a, b), c);  // 21: Clamp (min max)
+    case 21u: return min(max(a, b), c);  // Clamp (min max)
+    case 22u: return a > 0.0 && b > 0.0 ? node_safe_divide(log(a), log(b)) : 0.0;  // safe_logf
+    case 23u: return a > 0.0 ? 1.0 / sqrt(a) : 0.0;
+    case 24u: return trunc(a);
+    case 25u: return floor(node_safe_divide(a, b)) * b;
+    case 26u: return node_wrap(a, b, c);
+    case 27u: return b != 0.0 ? abs(fract((a - b) / (b * 2.0)) * b * 2.0 - b) : 0.0;  // pingpongf
+    case 28u: return node_smooth_min(a, b, c);
+    case 29u: return -node_smooth_min(-a, -b, c);
+    case 30u: return a == b || abs(a - b) <= max(c, 1.1920929e-7) ? 1.0 : 0.0;  // Compare (FLT_EPSILON)
+    case 31u: return tan(a);
+    case 32u: a = clamp(a, -1.0, 1.0); return atan(a, sqrt((1.0 - a) * (1.0 + a)));  // asin, to float precision
+    case 33u: a = clamp(a, -1.0, 1.0); return atan(sqrt((1.0 - a) * (1.0 + a)), a);  // acos
+    case 34u: return atan(a);
+    case 35u: return a == 0.0 && b == 0.0 ? 0.0 : atan(a, b);  // compatible_atan2
+    case 36u: return sinh(a);
+    case 37u: return cosh(a);
+    case 38u: return tanh(a);
+    case 39u: return a * (3.14159265358979 / 180.0);
+    case 40u: return a * (180.0 / 3.14159265358979);
+    default: return b != 0.0 ? a - floor(a / b) * b : 0.0;  // 41: Floored Modulo
     }
+}
+
+// Blender's Vector Math node as Cycles computes it (svm_vector_math), op: VECTOR_MATH_OPS; a
+// float result (Dot Product, Distance, Length) in all three components. 29: the Gamma node
+// (svm_math_gamma_color of a by s).
+vec3 node_vector_math(uint op, vec3 a, vec3 b, vec3 c, float s) {
+    switch (op) {
+    case 0u: return a + b;
+    case 1u: return a - b;
+    case 2u: return a * b;
+    case 3u: return vec3(node_safe_divide(a.x, b.x), node_safe_divide(a.y, b.y), node_safe_divide(a.z, b.z));
+    case 4u: return a * b + c;
+    case 5u: return cross(a, b);
+    case 6u: return dot(b, b) != 0.0 ? dot(a, b) / dot(b, b) * b : vec3(0.0);  // project
+    case 7u: { vec3 n = node_safe_normalize(b); return a - 2.0 * n * dot(a, n); }
+    case 8u: return refract(a, node_safe_normalize(b), s);  // GLSL's is Cycles' refract
+    case 9u: return faceforward(a, b, c);  // a where dot(c, b) < 0, else -a
+    case 10u: return vec3(dot(a, b));
+    case 11u: return vec3(distance(a, b));
+    case 12u: return vec3(length(a));
+    case 13u: return a * s;
+    case 14u: return node_safe_normalize(a);
+    case 15u: return abs(a);
+    case 16u: return vec3(node_safe_pow(a.x, b.x), node_safe_pow(a.y, b.y), node_safe_pow(a.z, b.z));
+    case 17u: return sign(a);
+    case 18u: return min(a, b);
+    case 19u: return max(a, b);
+    case 20u: return floor(a);
+    case 21u: return ceil(a);
+    case 22u: return a - floor(a);
+    case 23u: return mix(a - b * trunc(a / b), vec3(0.0), equal(b, vec3(0.0)));  // safe_modulo
+    case 24u: return vec3(node_wrap(a.x, b.x, c.x), node_wrap(a.y, b.y, c.y), node_wrap(a.z, b.z, c.z));
+    case 25u: return floor(vec3(node_safe_divide(a.x, b.x), node_safe_divide(a.y, b.y), node_safe_divide(a.z, b.z))) * b;
+    case 26u: return sin(a);
+    case 27u: return cos(a);
+    case 28u: return tan(a);
+    default: return s == 0.0 ? vec3(1.0) : mix(a, pow(a, vec3(s)), greaterThan(a, vec3(0.0)));
+    }
+}
+
+// Cycles' rgb_to_hsv and hsv_to_rgb (util/color.h).
+vec3 node_rgb_to_hsv(vec3 rgb) {
+    float cmax = max(rgb.r, max(rgb.g, rgb.b)), delta = cmax - min(rgb.r, min(rgb.g, rgb.b));
+    float s = cmax != 0.0 ? delta / cmax : 0.0, h = 0.0;
+    if (s != 0.0) {
+        vec3 c = (vec3(cmax) - rgb) / delta;
+        h = (rgb.r == cmax ? c.b - c.g : (rgb.g == cmax ? 2.0 + c.r - c.b : 4.0 + c.g - c.r)) / 6.0;
+        if (h < 0.0) h += 1.0;
+    }
+    return vec3(h, s, cmax);
+}
+
+vec3 node_hsv_to_rgb(vec3 hsv) {
+    float s = hsv.y, v = hsv.z;
+    if (s == 0.0) return vec3(v);
+    float h = hsv.x == 1.0 ? 0.0 : hsv.x * 6.0, i = floor(h), f = h - i;
+    float p = v * (1.0 - s), q = v * (1.0 - s * f), t = v * (1.0 - s * (1.0 - f));
+    if (i == 0.0) return vec3(v, t, p);
+    if (i == 1.0) return vec3(q, v, p);
+    if (i == 2.0) return vec3(p, v, t);
+    if (i == 3.0) return vec3(p, q, v);
+    if (i == 4.0) return vec3(t, p, v);
+    return vec3(v, p, q);
+}
+
+// One channel of an interpolated table of `size` rows `stride` floats apart from word `at`
+// (Cycles' float_ramp_lookup / rgb_ramp_lookup): beyond 0..1 along its end segments if
+// extrapolate, else clamped.
+float node_curve_lookup(uint at, uint stride, uint size, float f, bool extrapolate) {
+    if (extrapolate && (f < 0.0 || f > 1.0)) {
+        bool low = f < 0.0;
+        float t0 = node_float(low ? at : at + (size - 1u) * stride);
+        float t1 = node_float(low ? at + stride : at + (size - 2u) * stride);
+        return t0 + (t0 - t1) * (low ? -f : f - 1.0) * float(size - 1u);
+    }
+    f = clamp(f, 0.0, 1.0) * float(size - 1u);
+    uint i = min(uint(f), size - 1u);
+    float t = f - float(i), v = node_float(at + i * stride);
+    return t > 0.0 ? (1.0 - t) * v + t * node_float(at + (i + 1u) * stride) : v;
+}
+
+// Map Range as Cycles' svm_node_map_range (then its Clamp node) or, on one component,
+// svm_node_vector_map_range; flags: NODE_MAP_RANGE's second word.
+float node_map_range(float v, float from_min, float from_max, float to_min, float to_max, float steps, uint flags) {
+    uint kind = (flags >> 8) & 0xffu;
+    bool vector = (flags >> 24) != 0u;
+    float span = from_max - from_min;
+    if (span == 0.0 && !vector) return 0.0;
+    float f = node_safe_divide(v - from_min, span);
+    if (kind == 1u) {
+        f = steps > 0.0 ? floor(f * (steps + 1.0)) / steps : 0.0;
+    } else if (kind >= 2u) {  // smoothstep / smootherstep, of the reversed range flipped
+        bool flip = from_min > from_max && !vector;
+        float t = clamp(flip ? (v - from_max) / -span : f, 0.0, 1.0);
+        t = kind == 2u ? (3.0 - 2.0 * t) * (t * t) : t * t * t * (t * (t * 6.0 - 15.0) + 10.0);
+        f = flip ? 1.0 - t : t;
+    }
+    float r = to_min + f * (to_max - to_min);
+    return (flags & 1u) != 0u ? clamp(r, min(to_min, to_max), max(to_min, to_max)) : r;
 }
 
 // Blender's Mix blend types as Cycles computes them (svm_mix), factor t.
@@ -515,12 +657,31 @@ void run_node_program(inout Material m, inout SurfaceHit sh, vec3 wo) {
             else reg[dst] = vec4(reg[a].xxx, 1.0);
             break;
         case NODE_MAP_RANGE: {
-            float from_min = reg[arg & 0xffu].x, from_max = reg[(arg >> 8) & 0xffu].x;
-            float to_min = reg[(arg >> 16) & 0xffu].x, to_max = reg[arg >> 24].x;
-            float v = from_max != from_min ? to_min + (reg[a].x - from_min) / (from_max - from_min) * (to_max - to_min) : 0.0;
-            if (node_words[pc] != 0u) v = clamp(v, min(to_min, to_max), max(to_min, to_max));
-            reg[dst].x = v;
+            uint flags = node_words[pc];
+            reg[dst].x = node_map_range(reg[a].x, reg[arg & 0xffu].x, reg[(arg >> 8) & 0xffu].x, reg[(arg >> 16) & 0xffu].x,
+                                        reg[arg >> 24].x, reg[(flags >> 16) & 0xffu].x, flags);
             pc += 1u;
+            break;
+        }
+        case NODE_VECTOR_MATH:
+            reg[dst] = vec4(node_vector_math(arg & 0xffu, reg[a].xyz, reg[b].xyz, reg[(arg >> 8) & 0xffu].xyz, reg[arg >> 16].x), 0.0);
+            break;
+        case NODE_CURVES: {  // Cycles' svm_node_curves (3 channels) and svm_node_curve (1)
+            uint size = arg & 0xffffu, channels = arg >> 24;
+            float min_x = node_float(pc), range_x = node_float(pc + 1u) - min_x;
+            vec3 x = reg[a].xyz, y = x;
+            for (uint k = 0u; k < channels; ++k)
+                y[k] = node_curve_lookup(pc + 2u + k, channels, size, (x[k] - min_x) / range_x, (arg & 0x10000u) != 0u);
+            reg[dst].xyz = (1.0 - reg[b].x) * x + reg[b].x * y;
+            pc += 2u + channels * size;
+            break;
+        }
+        case NODE_HSV: {  // Cycles' svm_node_hsv
+            vec3 color = reg[a].rgb, hsv = node_rgb_to_hsv(color);
+            float fac = reg[b].x;
+            hsv = vec3(fract(hsv.x + reg[arg & 0xffu].x + 0.5), clamp(hsv.y * reg[(arg >> 8) & 0xffu].x, 0.0, 1.0),
+                       hsv.z * reg[(arg >> 16) & 0xffu].x);
+            reg[dst].rgb = max(fac * node_hsv_to_rgb(hsv) + (1.0 - fac) * color, vec3(0.0));
             break;
         }
         case NODE_RAMP: {  // Cycles' rgb_ramp_lookup

@@ -241,8 +241,9 @@ PX_CONST uint NODE_MATH = 5;       // dst.x = MATH op (word & 0xff) of a.x, b.x,
 PX_CONST uint NODE_MIX = 6;        // dst = blend (word & 0xff) of b over a by reg (word >> 8 & 0xff).x;
                                    // word bit 16: clamp the result to 0..1
 PX_CONST uint NODE_INVERT = 7;     // dst = mix(a, 1 - a, b.x); word unused
-PX_CONST uint NODE_MAP_RANGE = 8;  // dst.x = a.x mapped linearly; word: registers of from min, max,
-                                   // to min, max (a byte each); next word: clamp
+PX_CONST uint NODE_MAP_RANGE = 8;  // dst.x = a.x mapped; word: registers of from min, max, to min, max
+                                   // (a byte each); next word: bit 0 clamp, bits 8-15 interpolation
+                                   // (nodes.MAP_RANGE_TYPES), 16-23 steps register, bit 24 vector
 PX_CONST uint NODE_RAMP = 9;       // dst = table of (word & 0xffff) rgba rows at a.x, interpolated
                                    // if word >> 16 (ColorRamp as Cycles' lookup table)
 PX_CONST uint NODE_SEPARATE = 10;  // dst.x = a[word]
@@ -262,6 +263,13 @@ PX_CONST uint NODE_BRICK = 18;     // dst = Cycles' Brick of a.xyz * b.x; word: 
                                    // mortar, mortar size; next: mortar smooth, bias, brick width, row
                                    // height; then offset, squash (floats); then offset frequency | squash
                                    // frequency << 8 | (Fac, not Color) << 16
+PX_CONST uint NODE_VECTOR_MATH = 19; // dst.xyz = VECTOR_MATH op (word & 0xff) of a.xyz, b.xyz, reg (word >> 8
+                                     // & 0xff).xyz, reg (word >> 16).x (Scale); a float result in all three
+PX_CONST uint NODE_CURVES = 20;    // dst = a, each of its (word >> 24) channels through an interpolated
+                                   // table of (word & 0xffff) rows over min x..max x (the next 2 words),
+                                   // mixed by b.x; bit 16: extrapolate (RGB Curves, Float Curve)
+PX_CONST uint NODE_HSV = 21;       // dst.rgb = Hue/Saturation/Value of a.rgb, fac b.x; word: registers
+                                   // of hue, saturation, value (a byte each)
 PX_CONST uint NODE_GEOMETRY = 22;  // dst = the hit's NODE_GEOMETRY_* (word & 0xff) at the bump offset
                                    // (word >> 8: see NODE_BUMP)
 PX_CONST uint NODE_BUMP = 23;      // dst.xyz = Cycles' bumped normal: strength a.x, distance b.x; word:
@@ -289,7 +297,9 @@ PX_CONST uint NODE_GEOMETRY_OBJECT_NORMAL = 5;  // object-space normal (Texture 
 PX_CONST uint NODE_GEOMETRY_BACKFACING = 6;   // 1 where the ray hit the back
 PX_CONST uint NODE_GEOMETRY_KINDS = 7;
 PX_CONST uint NODE_REGISTERS = 32;
-PX_CONST uint NODE_MATH_OPS = 22;   // parallax_core.nodes.MATH_OPS, in that order
+PX_CONST uint NODE_MATH_OPS = 42;   // parallax_core.nodes.MATH_OPS, in that order
+PX_CONST uint NODE_VECTOR_MATH_OPS = 30;  // parallax_core.nodes.VECTOR_MATH_OPS
+PX_CONST uint NODE_MAP_RANGE_TYPES = 4;   // parallax_core.nodes.MAP_RANGE_TYPES
 PX_CONST uint NODE_BLEND_MODES = 10;  // parallax_core.nodes.BLEND_MODES
 PX_CONST uint NODE_FIELDS = 10;     // parallax_core.nodes.FIELDS: base_color, roughness, metallic,
                                     // transmission, coat_weight, specular_ior_level, mix_weight,

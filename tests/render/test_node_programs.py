@@ -1,8 +1,9 @@
 """The node program machine (shaders/lib/nodes.glsl) against its numpy reference
-(parallax_core/nodes.py): every Math operation, blend mode, Map Range, ColorRamp, Invert,
-the socket conversions, Mapping, Separate/Combine, Image Texture and the procedural textures
-(Noise, Voronoi, Wave, Brick), run on the device at each pixel of a quad and read back
-through the Albedo pass (the stored Base Color).
+(parallax_core/nodes.py): every Math and Vector Math operation, blend mode, Map Range type,
+ColorRamp, RGB and Float Curves, Hue/Saturation/Value, Invert, the socket conversions, Mapping,
+Separate/Combine, Image Texture, the procedural textures (Noise, Voronoi, Wave, Brick), the
+geometry, Bump, Normal Map, Fresnel and Layer Weight, run on the device at each pixel of a quad
+and read back through the Albedo pass (the stored Base Color) or the Normal pass.
 
 The quad fills the image (orthographic, box filter), and each program first snaps its UVs to
 the pixel's centre, so every sample of a pixel computes the same value and the Albedo is that
@@ -350,3 +351,92 @@ def test_brick(device, output, offset_frequency, squash, squash_frequency, morta
     want = np.broadcast_to(want.reshape(W * W, -1), (W * W, 3)).reshape(W, W, 3)
     assert want.std() > 0.05
     assert_mostly_close(got, want)
+OFFSET = 64.0  # added before the store (Base Color clamps at 0): negative results come back too
+
+
+def run_signed(device, build):
+    """As run, for a result that may be negative: (what comes back) - OFFSET."""
+    return run(device, lambda p, u, v: p.mix("ADD", 1.0, build(p, u, v), OFFSET)) - OFFSET
+
+
+def vector_operands(p, u, v):
+    """Operands of the Vector Math tests (registers) and their values at the grid."""
+    mad = lambda x, m, c: p.math("MULTIPLY_ADD", x, m, c)
+    return (p.combine(mad(u, 6.0, -3.0), mad(v, 4.0, -1.5), 0.7), p.combine(mad(v, -2.0, 0.8625), mad(u, 2.0, -0.6123), -0.9),
+            p.combine(u, -0.35, mad(v, 3.0, -1.5)), mad(u, 1.3, -0.2))
+
+
+def vector_operand_values(u, v, nudge=1.0):
+    return ((nudge * (6 * u - 3), nudge * (4 * v - 1.5), 0.7), (-2 * v + 0.8625, 2 * u - 0.6123, -0.9), (u, -0.35, 3 * v - 1.5),
+            1.3 * u - 0.2)
+
+
+@pytest.mark.parametrize("op", nodes.VECTOR_MATH_OPS)
+def test_vector_math(device, op):
+    def build(p, u, v):
+        a, b, c, s = vector_operands(p, u, v)
+        return p.vector_math(op, a, b, c, s)
+
+    got = run_signed(device, build)
+    u, v = grid()
+    reference = lambda nudge: np.array([[np.broadcast_to(nodes.vector_math_reference(
+        op, *vector_operand_values(u[i, j], v[i, j], nudge)), 3) for j in range(W)] for i in range(W)])
+    want = reference(1.0)
+    assert np.isfinite(want).all() and np.abs(want).max() < OFFSET - 1.0
+    # Where a floor's argument lands within float rounding of an integer (Modulo, Wrap, Snap),
+    # either side of the step matches: the reference with a moved by 1e-5 decides.
+    close = lambda w: np.abs(got - w) <= 3e-5 + 2e-5 * np.abs(w)
+    ok = close(want) | close(reference(1.0 + 1e-5)) | close(reference(1.0 - 1e-5))
+    np.testing.assert_allclose(got[~ok], want[~ok], rtol=2e-5, atol=3e-5)
+    assert (~close(want)).sum() <= 3  # those are rare
+    assert np.abs(want).max() > 0.1
+
+
+@pytest.mark.parametrize("extrapolate", [True, False])
+def test_curves(device, extrapolate):
+    """RGB Curves (3 tables) and Float Curve (1) over -0.5..1.5, with inputs beyond that range."""
+    rng = np.random.default_rng(11)
+    rgb, single = rng.random((9, 3)), rng.random(6) * 2.0 - 0.5
+    u, v = grid()
+    got = run_signed(device, lambda p, u, v: p.curves(rgb, -0.5, 1.5, extrapolate, v, p.combine(
+        p.math("MULTIPLY_ADD", u, 3.0, -1.0), p.math("MULTIPLY_ADD", v, -2.6, 2.1), 0.3)))
+    want = np.array([[nodes.curves_reference(rgb, -0.5, 1.5, extrapolate, v[i, j], (3 * u[i, j] - 1, 2.1 - 2.6 * v[i, j], 0.3))
+                      for j in range(W)] for i in range(W)])
+    np.testing.assert_allclose(got, want, rtol=2e-5, atol=3e-5)
+    got = run_signed(device, lambda p, u, v: p.to_color(p.curves(single, -0.5, 1.5, extrapolate, 0.8, p.math(
+        "MULTIPLY_ADD", u, 3.0, -1.0))))
+    want = np.vectorize(lambda x: nodes.curves_reference(single, -0.5, 1.5, extrapolate, 0.8, x))(3 * u - 1)
+    np.testing.assert_allclose(got[..., 0], want, rtol=2e-5, atol=3e-5)
+    assert (np.abs(want - 0.2 * (3 * u - 1)) > 1e-3).any()  # the curve changes the value
+
+
+def test_hue_saturation_value(device):
+    u, v = grid()
+    got = run(device, lambda p, u, v: p.hsv(p.combine(u, p.math("MULTIPLY", v, 0.8), p.math("SUBTRACT", 1.0, u)),
+                                            p.math("MULTIPLY_ADD", u, 0.9, 0.05), p.math("MULTIPLY", v, 2.0),
+                                            p.math("ADD", u, 0.5), 0.8))
+    want = np.array([[nodes.hsv_reference((u[i, j], 0.8 * v[i, j], 1 - u[i, j]), 0.9 * u[i, j] + 0.05, 2 * v[i, j],
+                                          u[i, j] + 0.5, 0.8) for j in range(W)] for i in range(W)])
+    np.testing.assert_allclose(got, want, rtol=2e-5, atol=3e-5)
+
+
+@pytest.mark.parametrize("interpolation", nodes.MAP_RANGE_TYPES)
+@pytest.mark.parametrize("reverse", [False, True])
+def test_map_range_types(device, interpolation, reverse):
+    """The float node (red) and a vector component (green), clamped, from min and max
+    registers (reversed: from 0.9 to 0.1), steps a register."""
+    lo, hi = (0.9, 0.1) if reverse else (0.1, 0.9)
+
+    def build(p, u, v):
+        x = p.math("MULTIPLY_ADD", u, 2.4, -0.7)
+        fmin, fmax = p.math("ADD", p.math("MULTIPLY", v, 0.0), lo), p.math("ADD", p.math("MULTIPLY", v, 0.0), hi)
+        steps = p.math("ADD", p.math("MULTIPLY", v, 0.0), 3.0)
+        args = (x, fmin, fmax, p.math("MULTIPLY", v, 0.5), 1.5, True, interpolation, steps)
+        return p.combine(p.map_range(*args), p.map_range(*args, vector=True), 0.0)
+
+    got = run_signed(device, build)
+    u, v = grid()
+    for k, vector in enumerate((False, True)):
+        want = np.vectorize(lambda a, b: nodes.map_range_reference(2.4 * a - 0.7, lo, hi, 0.5 * b, 1.5, True, interpolation,
+                                                                   3.0, vector))(u, v)
+        np.testing.assert_allclose(got[..., k], want, rtol=2e-5, atol=3e-5)

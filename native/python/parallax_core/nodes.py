@@ -21,6 +21,7 @@ NODE_END, NODE_CONST, NODE_UV, NODE_TEXTURE, NODE_AFFINE, NODE_MATH, NODE_MIX = 
 NODE_INVERT, NODE_MAP_RANGE, NODE_RAMP, NODE_SEPARATE, NODE_COMBINE, NODE_STORE, NODE_CONVERT = 7, 8, 9, 10, 11, 12, 13
 NODE_GENERATED, NODE_NOISE = 14, 15
 NODE_VORONOI, NODE_WAVE, NODE_BRICK = 16, 17, 18
+NODE_VECTOR_MATH, NODE_CURVES, NODE_HSV = 19, 20, 21
 NODE_GEOMETRY, NODE_BUMP, NODE_FRESNEL, NODE_NORMAL_MAP = 22, 23, 24, 25
 # NODE_NORMAL_MAP's spaces: Blender's Normal Map space enum, in types.h's order.
 NORMAL_MAP_SPACES = ("TANGENT", "OBJECT", "WORLD", "BLENDER_OBJECT", "BLENDER_WORLD")
@@ -32,9 +33,29 @@ NODE_RAMP_SIZE = 256  # Cycles' RAMP_TABLE_SIZE: a ColorRamp is a table of its c
 # Blender's Math node operations (the enum names) -> NODE_MATH's operation ids.
 MATH_OPS = ("ADD", "SUBTRACT", "MULTIPLY", "DIVIDE", "POWER", "MINIMUM", "MAXIMUM", "LESS_THAN",
             "GREATER_THAN", "ABSOLUTE", "SQRT", "MULTIPLY_ADD", "FLOOR", "CEIL", "FRACT", "MODULO",
-            "SINE", "COSINE", "ROUND", "SIGN", "EXPONENT", "CLAMP")
+            "SINE", "COSINE", "ROUND", "SIGN", "EXPONENT", "CLAMP", "LOGARITHM", "INVERSE_SQRT", "TRUNC",
+            "SNAP", "WRAP", "PINGPONG", "SMOOTH_MIN", "SMOOTH_MAX", "COMPARE", "TANGENT", "ARCSINE",
+            "ARCCOSINE", "ARCTANGENT", "ARCTAN2", "SINH", "COSH", "TANH", "RADIANS", "DEGREES",
+            "FLOORED_MODULO")
+_TERNARY_MATH = {"MULTIPLY_ADD", "CLAMP", "WRAP", "SMOOTH_MIN", "SMOOTH_MAX", "COMPARE"}
 _BINARY_MATH = {"ADD", "SUBTRACT", "MULTIPLY", "DIVIDE", "POWER", "MINIMUM", "MAXIMUM", "LESS_THAN",
-                "GREATER_THAN", "MULTIPLY_ADD", "MODULO", "CLAMP"}
+                "GREATER_THAN", "MODULO", "LOGARITHM", "SNAP", "PINGPONG", "ARCTAN2",
+                "FLOORED_MODULO"} | _TERNARY_MATH
+# Blender's Vector Math operations (the enum names, in Blender's order) -> NODE_VECTOR_MATH's
+# operation ids; GAMMA (Cycles' svm_math_gamma_color, the Gamma node) is the machine's own.
+VECTOR_MATH_OPS = ("ADD", "SUBTRACT", "MULTIPLY", "DIVIDE", "MULTIPLY_ADD", "CROSS_PRODUCT", "PROJECT",
+                   "REFLECT", "REFRACT", "FACEFORWARD", "DOT_PRODUCT", "DISTANCE", "LENGTH", "SCALE",
+                   "NORMALIZE", "ABSOLUTE", "POWER", "SIGN", "MINIMUM", "MAXIMUM", "FLOOR", "CEIL",
+                   "FRACTION", "MODULO", "WRAP", "SNAP", "SINE", "COSINE", "TANGENT", "GAMMA")
+VECTOR_MATH_FLOAT_OPS = ("DOT_PRODUCT", "DISTANCE", "LENGTH")  # a Value, not a Vector
+# The operands each operation reads (a, b and c are vectors, s the Scale float).
+VECTOR_MATH_OPERANDS = {**{op: "ab" for op in VECTOR_MATH_OPS},
+                        **{op: "a" for op in ("LENGTH", "NORMALIZE", "ABSOLUTE", "SIGN", "FLOOR", "CEIL",
+                                              "FRACTION", "SINE", "COSINE", "TANGENT")},
+                        "MULTIPLY_ADD": "abc", "FACEFORWARD": "abc", "WRAP": "abc", "REFRACT": "abs",
+                        "SCALE": "as", "GAMMA": "as"}
+# Map Range's interpolation types (NODE_MAP_RANGE's flags, bits 8..15).
+MAP_RANGE_TYPES = ("LINEAR", "STEPPED", "SMOOTHSTEP", "SMOOTHERSTEP")
 # Blender's Mix node blend types (MixRGB's blend_type, Mix's blend_type for colours).
 BLEND_MODES = ("MIX", "ADD", "MULTIPLY", "SUBTRACT", "SCREEN", "DIFFERENCE", "DARKEN", "LIGHTEN", "OVERLAY",
                "DIVIDE")
@@ -72,7 +93,186 @@ def math_reference(op, a, b=0.0, c=0.0):
             "SINE": lambda: math.sin(a), "COSINE": lambda: math.cos(a), "ROUND": lambda: math.floor(a + 0.5),
             "SIGN": lambda: float(np.sign(a)), "EXPONENT": lambda: math.exp(a),
             "CLAMP": lambda: min(max(a, b), c),
+            "LOGARITHM": lambda: 0.0 if a <= 0 or b <= 0 else _safe_divide(math.log(a), math.log(b)),
+            "INVERSE_SQRT": lambda: 1.0 / math.sqrt(a) if a > 0 else 0.0, "TRUNC": lambda: float(math.trunc(a)),
+            "SNAP": lambda: math.floor(_safe_divide(a, b)) * b, "WRAP": lambda: _wrap(a, b, c),
+            "PINGPONG": lambda: abs(_fract((a - b) / (b * 2.0)) * b * 2.0 - b) if b != 0 else 0.0,
+            "SMOOTH_MIN": lambda: _smooth_min(a, b, c), "SMOOTH_MAX": lambda: -_smooth_min(-a, -b, c),
+            "COMPARE": lambda: float(a == b or abs(a - b) <= max(c, float(np.finfo(np.float32).eps))),
+            "TANGENT": lambda: math.tan(a), "ARCSINE": lambda: math.asin(min(max(a, -1.0), 1.0)),
+            "ARCCOSINE": lambda: math.acos(min(max(a, -1.0), 1.0)), "ARCTANGENT": lambda: math.atan(a),
+            "ARCTAN2": lambda: 0.0 if a == 0 and b == 0 else math.atan2(a, b),
+            "SINH": lambda: math.sinh(a), "COSH": lambda: math.cosh(a), "TANH": lambda: math.tanh(a),
+            "RADIANS": lambda: a * (math.pi / 180.0), "DEGREES": lambda: a * (180.0 / math.pi),
+            "FLOORED_MODULO": lambda: a - math.floor(a / b) * b if b != 0 else 0.0,
         }[op]()
+
+
+def _safe_divide(a, b):
+    return a / b if b != 0 else 0.0
+
+
+def _fract(x):
+    return x - math.floor(x)
+
+
+def _wrap(value, high, low):
+    """Cycles' wrapf(value, max, min)."""
+    span = high - low
+    return value - span * math.floor((value - low) / span) if span != 0 else low
+
+
+def _smooth_min(a, b, k):
+    """Cycles' smoothminf."""
+    if k == 0:
+        return min(a, b)
+    h = max(k - abs(a - b), 0.0) / k
+    return min(a, b) - h * h * h * k / 6.0
+
+
+def _safe_pow(a, b):
+    """Cycles' safe_powf (compatible_powf): 0 for a negative base and a fractional exponent,
+    x^0 = 1, 0^y = 0."""
+    if a < 0 and b != math.trunc(b):
+        return 0.0
+    if b == 0:
+        return 1.0
+    if a == 0:
+        return 0.0
+    with np.errstate(all="ignore"):
+        return float(np.power(a, b))
+
+
+def vector_math_reference(op, a, b=(0.0, 0.0, 0.0), c=(0.0, 0.0, 0.0), scale=1.0):
+    """Blender's Vector Math node as Cycles computes it (svm_vector_math): a vector, or a float
+    for VECTOR_MATH_FLOAT_OPS; GAMMA is Cycles' svm_math_gamma_color of a by scale."""
+    a, b, c = (np.asarray(x, np.float64).ravel()[:3] for x in (a, b, c))
+    s = float(scale)
+    per = lambda f, *xs: np.array([f(*(float(x[k]) for x in xs)) for k in range(3)])
+    normalize = lambda v: v / np.sqrt(v @ v) if v @ v != 0 else v  # safe_normalize
+    if op == "ADD":
+        return a + b
+    if op == "SUBTRACT":
+        return a - b
+    if op == "MULTIPLY":
+        return a * b
+    if op == "DIVIDE":
+        return per(_safe_divide, a, b)
+    if op == "MULTIPLY_ADD":
+        return a * b + c
+    if op == "CROSS_PRODUCT":
+        return np.cross(a, b)
+    if op == "PROJECT":
+        return (a @ b) / (b @ b) * b if b @ b != 0 else np.zeros(3)
+    if op == "REFLECT":
+        n = normalize(b)
+        return a - 2.0 * n * (a @ n)
+    if op == "REFRACT":
+        n = normalize(b)
+        k = 1.0 - s * s * (1.0 - (n @ a) ** 2)
+        return np.zeros(3) if k < 0 else s * a - (s * (n @ a) + math.sqrt(k)) * n
+    if op == "FACEFORWARD":
+        return a if c @ b < 0 else -a
+    if op == "DOT_PRODUCT":
+        return float(a @ b)
+    if op == "DISTANCE":
+        return float(np.sqrt((a - b) @ (a - b)))
+    if op == "LENGTH":
+        return float(np.sqrt(a @ a))
+    if op == "SCALE":
+        return a * s
+    if op == "NORMALIZE":
+        return normalize(a)
+    if op == "ABSOLUTE":
+        return np.abs(a)
+    if op == "POWER":
+        return per(_safe_pow, a, b)
+    if op == "SIGN":
+        return np.sign(a)
+    if op == "MINIMUM":
+        return np.minimum(a, b)
+    if op == "MAXIMUM":
+        return np.maximum(a, b)
+    if op == "FLOOR":
+        return np.floor(a)
+    if op == "CEIL":
+        return np.ceil(a)
+    if op == "FRACTION":
+        return a - np.floor(a)
+    if op == "MODULO":
+        return per(lambda x, y: math.fmod(x, y) if y != 0 else 0.0, a, b)
+    if op == "WRAP":
+        return per(_wrap, a, b, c)
+    if op == "SNAP":
+        return np.floor(per(_safe_divide, a, b)) * b
+    if op in ("SINE", "COSINE", "TANGENT"):
+        return {"SINE": np.sin, "COSINE": np.cos, "TANGENT": np.tan}[op](a)
+    if op == "GAMMA":
+        if s == 0:
+            return np.ones(3)
+        with np.errstate(all="ignore"):
+            return np.where(a > 0, np.power(np.where(a > 0, a, 1.0), s), a)
+    raise ValueError(f"unknown vector math operation {op!r}")
+
+
+def rgb_to_hsv(rgb):
+    """Cycles' rgb_to_hsv."""
+    r, g, b = (float(x) for x in rgb[:3])
+    cmax, cmin = max(r, g, b), min(r, g, b)
+    delta = cmax - cmin
+    s = delta / cmax if cmax != 0 else 0.0
+    h = 0.0
+    if s != 0:
+        cr, cg, cb = (cmax - r) / delta, (cmax - g) / delta, (cmax - b) / delta
+        h = (cb - cg if r == cmax else 2.0 + cr - cb if g == cmax else 4.0 + cg - cr) / 6.0
+        if h < 0:
+            h += 1.0
+    return np.array([h, s, cmax])
+
+
+def hsv_to_rgb(hsv):
+    """Cycles' hsv_to_rgb."""
+    h, s, v = (float(x) for x in hsv[:3])
+    if s == 0:
+        return np.array([v, v, v])
+    h = 0.0 if h == 1.0 else h * 6.0
+    i = math.floor(h)
+    f = h - i
+    p, q, t = v * (1 - s), v * (1 - s * f), v * (1 - s * (1 - f))
+    return np.array({0: (v, t, p), 1: (q, v, p), 2: (p, v, t), 3: (p, q, v), 4: (t, p, v)}.get(i, (v, p, q)))
+
+
+def hsv_reference(color, hue, saturation, value, fac):
+    """Blender's Hue/Saturation/Value node as Cycles' svm_node_hsv: hue shifted (0.5: none),
+    saturation scaled and clamped to 0..1, value scaled, mixed by fac, clamped to >= 0."""
+    color = np.asarray(color, np.float64)[:3]
+    h, s, v = rgb_to_hsv(color)
+    out = hsv_to_rgb((_fract(h + hue + 0.5), min(max(s * saturation, 0.0), 1.0), v * value))
+    return np.maximum(fac * out + (1.0 - fac) * color, 0.0)
+
+
+def curve_lookup_reference(table, f, extrapolate):
+    """Cycles' float_ramp_lookup (rgb_ramp_lookup, one channel) of an interpolated table:
+    beyond 0..1 continued along its end segments if extrapolate, else clamped."""
+    table = np.asarray(table, np.float64)
+    n = len(table)
+    if extrapolate and (f < 0.0 or f > 1.0):
+        t0, t1, d = (table[0], table[1], -f) if f < 0.0 else (table[-1], table[-2], f - 1.0)
+        return t0 + (t0 - t1) * d * (n - 1)
+    return ramp_reference(table, f, True)
+
+
+def curves_reference(tables, min_x, max_x, extrapolate, fac, value):
+    """Blender's RGB Curves (tables: 3 columns, R G B after C) or Float Curve (1 column) as
+    Cycles' svm_node_curves / svm_node_curve: each channel's table over min_x..max_x, mixed
+    with the input by fac."""
+    tables = np.asarray(tables, np.float64).reshape(len(tables), -1)
+    x = _vec4(value)[:tables.shape[1]]
+    with np.errstate(all="ignore"):
+        rel = (x - min_x) / (max_x - min_x)
+    y = np.array([curve_lookup_reference(tables[:, k], rel[k], extrapolate) for k in range(tables.shape[1])])
+    out = (1.0 - fac) * x + fac * y
+    return float(out[0]) if tables.shape[1] == 1 else out
 
 
 def blend_reference(mode, t, c1, c2):
@@ -102,11 +302,24 @@ def blend_reference(mode, t, c1, c2):
     raise ValueError(f"unknown blend mode {mode!r}")
 
 
-def map_range_reference(value, from_min, from_max, to_min, to_max, clamp):
-    """Blender's Map Range (linear), as Cycles: 0 where the input range is empty."""
-    if from_max == from_min:
+def map_range_reference(value, from_min, from_max, to_min, to_max, clamp, interpolation="LINEAR", steps=4.0,
+                        vector=False):
+    """Blender's Map Range as Cycles: svm_node_map_range (0 where the input range is empty;
+    clamped by the Clamp node MapRangeNode::expand adds) or, for one component of a vector,
+    svm_node_vector_map_range (safe division; the smooth types never clamp)."""
+    span = from_max - from_min
+    if span == 0 and not vector:
         return 0.0
-    out = to_min + (value - from_min) / (from_max - from_min) * (to_max - to_min)
+    factor = _safe_divide(value - from_min, span)
+    if interpolation == "STEPPED":
+        factor = math.floor(factor * (steps + 1.0)) / steps if steps > 0 else 0.0
+    elif interpolation in ("SMOOTHSTEP", "SMOOTHERSTEP"):
+        flip = from_min > from_max and not vector  # smoothstep(from_max, from_min, value), flipped
+        t = min(max((value - from_max) / -span if flip else factor, 0.0), 1.0)
+        t = (3.0 - 2.0 * t) * t * t if interpolation == "SMOOTHSTEP" else t * t * t * (t * (t * 6.0 - 15.0) + 10.0)
+        factor = 1.0 - t if flip else t
+        clamp = clamp and not vector
+    out = to_min + factor * (to_max - to_min)
     if clamp:
         out = min(max(out, min(to_min, to_max)), max(to_min, to_max))
     return out
@@ -388,14 +601,17 @@ def instructions(words):
 # instruction itself; bit shift), a byte each (NODE_COMBINE's third: the whole word).
 _READS = {NODE_TEXTURE: [(0, 16)], NODE_AFFINE: [(0, 16)], NODE_MATH: [(0, 16), (0, 24), (1, 16)],
           NODE_MIX: [(0, 16), (0, 24), (1, 8)], NODE_INVERT: [(0, 16), (0, 24)],
-          NODE_MAP_RANGE: [(0, 16), (1, 0), (1, 8), (1, 16), (1, 24)], NODE_RAMP: [(0, 16)],
+          NODE_MAP_RANGE: [(0, 16), (1, 0), (1, 8), (1, 16), (1, 24), (2, 16)], NODE_RAMP: [(0, 16)],
           NODE_SEPARATE: [(0, 16)], NODE_COMBINE: [(0, 16), (0, 24), (1, 0)], NODE_STORE: [(0, 16)],
           NODE_CONVERT: [(0, 16)], NODE_NOISE: [(0, 16), (1, 0), (1, 8), (1, 16)],
           NODE_VORONOI: [(0, 16), (0, 24), (1, 0), (1, 8), (1, 16), (1, 24), (2, 0), (2, 8)],
           NODE_WAVE: [(0, 16), (0, 24), (1, 0), (1, 8), (1, 16), (1, 24), (2, 0)],
           NODE_BRICK: [(0, 16), (0, 24), (1, 0), (1, 8), (1, 16), (1, 24), (2, 0), (2, 8), (2, 16), (2, 24)],
           NODE_BUMP: [(0, 16), (0, 24), (1, 0), (1, 8), (1, 16), (1, 24)], NODE_FRESNEL: [(0, 16), (0, 24)],
-          NODE_NORMAL_MAP: [(0, 16), (0, 24)]}
+          NODE_NORMAL_MAP: [(0, 16), (0, 24)],
+          NODE_VECTOR_MATH: [(0, 16), (0, 24), (1, 8), (1, 16)], NODE_CURVES: [(0, 16), (0, 24)],
+          NODE_HSV: [(0, 16), (0, 24), (1, 0), (1, 8), (1, 16)]}
+
 # Words after the instruction, where more than one.
 _SIZES = {NODE_CONST: 4, NODE_AFFINE: 12, NODE_MAP_RANGE: 2, NODE_VORONOI: 2, NODE_WAVE: 2, NODE_BRICK: 5, NODE_BUMP: 2}
 
@@ -438,6 +654,8 @@ def _instruction_starts(words):
         size = _SIZES.get(op, 1)
         if op == NODE_RAMP:
             size = 1 + 4 * (words[pc + 1] & 0xFFFF)
+        if op == NODE_CURVES:  # the word, min x, max x, the table
+            size = 3 + (words[pc + 1] >> 24) * (words[pc + 1] & 0xFFFF)
         pc += 1 + size
 
 
@@ -608,7 +826,7 @@ class Program:
             return math_reference(op, _vec4(a)[0], _vec4(b)[0], _vec4(c)[0])
         a = self._in(a)
         b = self._in(b) if op in _BINARY_MATH else a  # an operand the operation ignores: any register
-        c = self._in(c) if op in ("MULTIPLY_ADD", "CLAMP") else a
+        c = self._in(c) if op in _TERNARY_MATH else a
         return self._op(NODE_MATH, a, b, [MATH_OPS.index(op) | c << 16])
 
     def mix(self, mode, fac, a, b, clamp_result=False):
@@ -626,12 +844,18 @@ class Program:
         color, fac = self._in(color), self._in(fac)
         return self._op(NODE_INVERT, color, fac)
 
-    def map_range(self, value, from_min, from_max, to_min, to_max, clamp):
-        args = (value, from_min, from_max, to_min, to_max)
+    def map_range(self, value, from_min, from_max, to_min, to_max, clamp, interpolation="LINEAR", steps=4.0,
+                  vector=False):
+        """Map Range (map_range_reference); ``vector``: one component of Cycles' vector Map Range."""
+        args = (value, from_min, from_max, to_min, to_max, steps)
         if all(self.is_constant(x) for x in args):
-            return map_range_reference(*(_vec4(x)[0] for x in args), clamp)
-        value, fmin, fmax, tmin, tmax = (self._in(x) for x in args)
-        return self._op(NODE_MAP_RANGE, value, 0, [fmin | fmax << 8 | tmin << 16 | tmax << 24, int(bool(clamp))])
+            return map_range_reference(*(_vec4(x)[0] for x in args[:5]), clamp, interpolation, _vec4(steps)[0], vector)
+        value, fmin, fmax, tmin, tmax = (self._in(x) for x in args[:5])
+        steps = self._in(steps) if interpolation == "STEPPED" else value  # unread otherwise: any register
+        kind = MAP_RANGE_TYPES.index(interpolation)
+        clamp = clamp and not (vector and kind >= 2)  # the vector node's smooth types never clamp
+        return self._op(NODE_MAP_RANGE, value, 0, [fmin | fmax << 8 | tmin << 16 | tmax << 24,
+                                                   int(bool(clamp)) | kind << 8 | steps << 16 | int(bool(vector)) << 24])
 
     def ramp(self, fac, table, interpolate):
         table = np.asarray(table, np.float64).reshape(-1, 4)
@@ -639,6 +863,36 @@ class Program:
             return ramp_reference(table, _vec4(fac)[0], interpolate)
         return self._op(NODE_RAMP, fac, 0, [len(table) | int(bool(interpolate)) << 16] +
                         [_f32(x) for x in table.ravel()])
+
+    def vector_math(self, op, a, b=(0.0, 0.0, 0.0), c=(0.0, 0.0, 0.0), scale=1.0):
+        """Vector Math (vector_math_reference): a vector, or for VECTOR_MATH_FLOAT_OPS a float
+        (the register's x)."""
+        if all(self.is_constant(x) for x in (a, b, c, scale)):
+            return vector_math_reference(op, _vec4(a)[:3], _vec4(b)[:3], _vec4(c)[:3], _vec4(scale)[0])
+        used = VECTOR_MATH_OPERANDS[op]
+        a = self._in(a)
+        b, c, scale = (self._in(x) if k in used else a for x, k in ((b, "b"), (c, "c"), (scale, "s")))
+        return self._op(NODE_VECTOR_MATH, a, b, [VECTOR_MATH_OPS.index(op) | c << 8 | scale << 16])
+
+    def curves(self, tables, min_x, max_x, extrapolate, fac, value):
+        """RGB Curves (tables: rows of R, G, B) or Float Curve (one column): curves_reference."""
+        tables = np.asarray(tables, np.float64)
+        tables = tables.reshape(len(tables), -1)
+        if self.is_constant(fac) and self.is_constant(value):
+            return curves_reference(tables, min_x, max_x, extrapolate, _vec4(fac)[0], value)
+        if self.is_constant(fac) and _vec4(fac)[0] == 0.0:  # the input as it is (Cycles drops the node)
+            return value
+        value, fac = self._in(value), self._in(fac)
+        return self._op(NODE_CURVES, value, fac, [len(tables) | int(bool(extrapolate)) << 16 | tables.shape[1] << 24,
+                                                  _f32(min_x), _f32(max_x)] + [_f32(x) for x in tables.ravel()])
+
+    def hsv(self, color, hue, saturation, value, fac):
+        """Hue/Saturation/Value (hsv_reference)."""
+        args = (color, hue, saturation, value, fac)
+        if all(self.is_constant(x) for x in args):
+            return hsv_reference(_vec4(color), *(_vec4(x)[0] for x in args[1:]))
+        color, hue, saturation, value, fac = (self._in(x) for x in args)
+        return self._op(NODE_HSV, color, fac, [hue | saturation << 8 | value << 16])
 
     def separate(self, value, component):
         if self.is_constant(value):

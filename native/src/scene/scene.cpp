@@ -426,6 +426,7 @@ void check_node_program(const std::vector<uint>& words, uint32_t start, size_t t
         if (op == NODE_MAP_RANGE || op == NODE_VORONOI || op == NODE_WAVE || op == NODE_BUMP) size = 3;
         if (op == NODE_BRICK) size = 6;
         if (op == NODE_RAMP && pc + 1 < words.size()) size = 2 + 4 * size_t(words[pc + 1] & 0xffffu);
+        if (op == NODE_CURVES && pc + 1 < words.size()) size = 4 + size_t(words[pc + 1] >> 24) * (words[pc + 1] & 0xffffu);
         if (pc + size >= words.size()) bad(where + " runs past the end of material_node_programs");
         const uint arg = words[pc + 1];
         switch (op) {
@@ -457,7 +458,21 @@ void check_node_program(const std::vector<uint>& words, uint32_t start, size_t t
                 if ((arg & 0xffu) >= NODE_BLEND_MODES) bad(where + ": unknown blend mode " + std::to_string(arg & 0xffu));
                 break;
             case NODE_INVERT: reg(a), reg(b); break;
-            case NODE_MAP_RANGE: reg(a); for (int k = 0; k < 4; ++k) reg((arg >> (8 * k)) & 0xffu); break;
+            case NODE_MAP_RANGE:
+                reg(a), reg((words[pc + 2] >> 16) & 0xffu);
+                for (int k = 0; k < 4; ++k) reg((arg >> (8 * k)) & 0xffu);
+                if (((words[pc + 2] >> 8) & 0xffu) >= NODE_MAP_RANGE_TYPES) bad(where + ": unknown map range type");
+                break;
+            case NODE_VECTOR_MATH:
+                reg(a), reg(b), reg((arg >> 8) & 0xffu), reg(arg >> 16);
+                if ((arg & 0xffu) >= NODE_VECTOR_MATH_OPS) bad(where + ": unknown vector math operation " + std::to_string(arg & 0xffu));
+                break;
+            case NODE_CURVES:
+                reg(a), reg(b);
+                if ((arg & 0xffffu) < 2 || ((arg >> 24) != 1 && (arg >> 24) != 3)) bad(where + ": a curve needs 2 rows and 1 or 3 channels");
+                finite_words(pc + 2, size - 2);
+                break;
+            case NODE_HSV: reg(a), reg(b), reg(arg & 0xffu), reg((arg >> 8) & 0xffu), reg((arg >> 16) & 0xffu); break;
             case NODE_RAMP:
                 reg(a);
                 if ((arg & 0xffffu) < 2) bad(where + ": a ramp needs 2 rows at least");
