@@ -46,7 +46,7 @@ class SceneExporter:
         warnings = Warnings()
         self._materials = materials.MaterialTable(warnings)
         self._mesh_index = meshes.export_geometry(depsgraph, data, self._materials, warnings)
-        self._tangents_exported = self._tangent_needs()
+        self._geometry_needs_exported = self._geometry_needs()
         self._materials.build(data)
         lights.export_lights(depsgraph, data, warnings)
         world.export_world(depsgraph.scene.world, data, warnings)
@@ -59,10 +59,12 @@ class SceneExporter:
         self.data = data
         return data, list(warnings)
 
-    def _tangent_needs(self):
-        """Each material's UV maps whose tangents its Normal Maps use (the geometry holds
-        them: a change needs a geometry export)."""
-        return [self._materials.tangent_maps(i) for i in range(len(self._materials))]
+    def _geometry_needs(self):
+        """What each material's nodes read from the meshes: the UV maps whose tangents its
+        Normal Maps use, the attributes it reads (the geometry holds them: a change needs a
+        geometry export)."""
+        table = self._materials
+        return [(table.tangent_maps(i), table.attribute_requests(i)) for i in range(len(table))]
 
     def update(self, depsgraph, parts):
         """Re-exports ``parts`` (subset of PARTS) of the last full export into ``self.data``.
@@ -76,7 +78,7 @@ class SceneExporter:
             return {"geometry"}, self.full(depsgraph, self.data.width, self.data.height,
                                            view_camera=self.data.camera)[1]
         if "materials" in parts:
-            if self._tangent_needs() != self._tangents_exported:  # a Normal Map added or removed
+            if self._geometry_needs() != self._geometry_needs_exported:  # e.g. a Normal Map added
                 return {"geometry"}, self.full(depsgraph, self.data.width, self.data.height,
                                                view_camera=self.data.camera)[1]
             self._materials.build(self.data, warnings)

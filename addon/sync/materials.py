@@ -24,7 +24,7 @@ diffuse surface of its colour.
 import numpy as np
 
 from .images import image_rgb
-from .node_graph import GraphCompiler, Unsupported, tangent_uv_maps
+from .node_graph import GraphCompiler, Unsupported, attribute_requests, tangent_uv_maps
 
 DEFAULT_COLOR = (0.8, 0.8, 0.8)  # Cycles' surface for objects without a material
 
@@ -46,6 +46,9 @@ class MaterialTable:
         self._warnings = warnings
         self._materials = []  # Blender materials (None: no material), by head index
         self._index = {}
+        # Mesh data the node graphs read (node_graph.attribute_requests keys), by attribute
+        # slot: the mesh export adds them as it meets them.
+        self.attribute_keys = []
         self.has_emission = False
 
     def index(self, material):
@@ -63,6 +66,19 @@ class MaterialTable:
         need (the mesh export computes them)."""
         material = self._materials[index]
         return frozenset(tangent_uv_maps(node_tree(material))) if material is not None else frozenset()
+
+    def attribute_requests(self, index):
+        """The attribute_requests keys of material ``index``'s node tree."""
+        material = self._materials[index]
+        return frozenset(attribute_requests(node_tree(material))) if material is not None else frozenset()
+
+    def attribute_slot(self, key, add=False):
+        """The slot of attribute key ``key`` (added when ``add``; else None if no mesh has it)."""
+        if key not in self.attribute_keys:
+            if not add:
+                return None
+            self.attribute_keys.append(key)
+        return self.attribute_keys.index(key)
 
     def build(self, data, warnings=None):
         """(Re)reads every material's node tree into ``data.materials``/``data.textures``."""
@@ -88,7 +104,7 @@ class MaterialTable:
         output = tree.get_output_node("CYCLES") if tree is not None else None
         if output is None:
             return material.name, [(1.0, _lobe("diffuse", tuple(material.diffuse_color[:3])))], np.zeros(3)
-        reader = _NodeReader(material.name, self._warnings, self._texture)
+        reader = _NodeReader(material.name, self._warnings, self._texture, self.attribute_slot)
         lobes, emission = reader.shader(output.inputs.get("Surface"))
         self._program = reader.program
         return material.name, lobes, emission
@@ -203,14 +219,14 @@ def _lobe(type, base_color, roughness=0.5, ior=1.45, texture=None, multiscatter=
 class _NodeReader:
     """Walks one material's node tree from its output's Surface socket."""
 
-    def __init__(self, material_name, warnings, texture_loader):
+    def __init__(self, material_name, warnings, texture_loader, attribute_slot):
         from ..core import load
 
         self.name = material_name
         self.warnings = warnings
         self.texture_loader = texture_loader
         self.program = load().nodes.Program()
-        self.graph = GraphCompiler(self.program, texture_loader, material_name)
+        self.graph = GraphCompiler(self.program, texture_loader, material_name, attribute_slot)
 
     def driven(self, node, name, default, kind="float"):
         """The value at input ``name``: a constant, or a register of the material's node
@@ -291,11 +307,9 @@ class _NodeReader:
         if source is None:
             return constant, None
         src, out = source
-        if src.type == "TEX_IMAGE" and out.name == "Color" and src.image is not None:
-            label = f"material '{self.name}'"
-            if self._source(src.inputs["Vector"]) is not None:
-                self.warn(f"image texture '{src.name}' has a mapped Vector input; "
-                          "using the UV map as is")
+        mapped = self._source(src.inputs["Vector"]) is not None if src.type == "TEX_IMAGE" else False
+        if src.type == "TEX_IMAGE" and out.name == "Color" and src.image is not None and not mapped:
+            label = f"material '{self.name}'"  # the texture slot: a mapped one is a node program's
             if src.projection != "FLAT" or src.extension != "REPEAT":
                 self.warn(f"image texture '{src.name}' uses {src.projection} projection / "
                           f"{src.extension} extension; rendered as flat, repeating")

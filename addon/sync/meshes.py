@@ -103,6 +103,7 @@ def _mesh_arrays(mesh, name, slots, material_table, warnings):
         if maps:
             tangents = _tangents(mesh, uv_layer, maps, name, warnings)
             tangents = tangents[loops] if tangents is not None else None
+    attributes = _attributes(mesh, loops, slots, material_table, name, warnings)
 
     if slots:
         table = np.asarray(slots, dtype=np.int64)
@@ -122,6 +123,7 @@ def _mesh_arrays(mesh, name, slots, material_table, warnings):
         indices, normals, material_indices = indices[keep], normals[keep], material_indices[keep]
         uvs = uvs[keep] if uvs is not None else None
         tangents = tangents[keep] if tangents is not None else None
+        attributes = {slot: values[keep] for slot, values in attributes.items()}
         positions = np.where(bad_vertex[:, None], 0.0, positions).astype(np.float32)
     # Generated texture coordinates' space (Blender keeps the automatic one at the bounds).
     location, size = getattr(mesh, "texspace_location", None), getattr(mesh, "texspace_size", None)
@@ -129,7 +131,79 @@ def _mesh_arrays(mesh, name, slots, material_table, warnings):
     if texspace is not None and not np.isfinite(texspace).all():
         texspace = None  # NaN vertices: the bounds of the ones kept
     return dict(positions=positions, indices=indices, normals=normals, uvs=uvs, tangents=tangents,
-                material_indices=material_indices, name=name, texspace=texspace)
+                attributes=attributes, material_indices=material_indices, name=name, texspace=texspace)
+
+
+# Blender attribute data types -> (foreach_get property, components).
+_ATTRIBUTE_TYPES = {"FLOAT_COLOR": ("color", 4), "BYTE_COLOR": ("color", 4), "FLOAT_VECTOR": ("vector", 3),
+                    "FLOAT2": ("vector", 2), "FLOAT": ("value", 1), "INT": ("value", 1), "INT8": ("value", 1),
+                    "BOOLEAN": ("value", 1)}
+
+
+def _attributes(mesh, loops, slots, material_table, name, warnings):
+    """{slot: (T, 3, 4)} of the attributes the mesh's materials read (MaterialTable
+    attribute_requests): colour attributes (linear), other attributes and UV maps by name, as
+    Cycles' Attribute, Color Attribute and UV Map nodes see them. A missing one gets no slot
+    data (it reads 0)."""
+    from ..core import load
+
+    keys = sorted(frozenset().union(*(material_table.attribute_requests(i) for i in slots)))
+    out = {}
+    for key in keys:
+        values = _attribute_values(mesh, key, name, warnings)
+        if values is None:
+            continue
+        slot = material_table.attribute_slot(key, add=len(material_table.attribute_keys) < load().scene.ATTRIBUTE_SLOTS)
+        if slot is None:
+            warnings.add(f"object '{name}': more than {load().scene.ATTRIBUTE_SLOTS} attributes and UV maps are read "
+                         f"by the scene's materials; '{key[1]}' reads 0")
+            continue
+        out[slot] = values[loops]
+    return out
+
+
+def _attribute_values(mesh, key, name, warnings):
+    """(loops, 4) values of attribute ``key`` (node_graph.attribute_requests), or None."""
+    kind, attribute_name = key
+    L = len(mesh.loops)
+    uv_layer = mesh.uv_layers.get(attribute_name) if attribute_name else None
+    attribute = None
+    if kind == "attribute":
+        if attribute_name:
+            attribute = mesh.attributes.get(attribute_name)
+        else:  # the default colour attribute (Blender's render colour)
+            colors = mesh.color_attributes
+            index = getattr(colors, "render_color_index", -1)
+            attribute = colors[index] if 0 <= index < len(colors) else getattr(colors, "active_color", None)
+    if attribute is None:
+        if uv_layer is None:
+            return None
+        out = np.zeros((L, 4), np.float32)
+        out[:, :2] = _get(uv_layer.data, "uv", L * 2, np.float32).reshape(L, 2)
+        out[:, 3] = 1.0
+        return out
+    kind = _ATTRIBUTE_TYPES.get(attribute.data_type)
+    if kind is None or attribute.domain not in ("POINT", "CORNER", "FACE"):
+        warnings.add(f"object '{name}': attribute '{attribute.name}' ({attribute.data_type}, {attribute.domain}) "
+                     "cannot be read by nodes; it reads 0")
+        return None
+    prop, n = kind
+    count = len(attribute.data)
+    raw = _get(attribute.data, prop, count * n, np.float32).reshape(count, n)
+    values = np.zeros((count, 4), np.float32)
+    values[:, 3] = 1.0
+    if n == 1:
+        values[:, :3] = raw
+    else:
+        values[:, :n] = raw
+    if attribute.domain == "POINT":
+        return values[_get(mesh.loops, "vertex_index", L, np.int32)]
+    if attribute.domain == "FACE":
+        starts = _get(mesh.polygons, "loop_start", len(mesh.polygons), np.int64)
+        totals = _get(mesh.polygons, "loop_total", len(mesh.polygons), np.int64)
+        order = np.argsort(starts, kind="stable")  # the faces' corners, face after face
+        return values[np.repeat(order, totals[order])]
+    return values
 
 
 def _tangents(mesh, uv_layer, maps, name, warnings):

@@ -37,6 +37,28 @@ def tangent_uv_maps(tree, seen=None):
     return maps
 
 
+def attribute_requests(tree, seen=None):
+    """The mesh data the tree's nodes read beyond the active UV map: ("uv", name) for a UV Map
+    node naming a map, ("attribute", name) for Attribute (geometry) and Color Attribute nodes
+    ('' for the mesh's default colour attribute). The mesh export fills an attribute slot for
+    each (parallax_core.scene Mesh.attributes)."""
+    seen = set() if seen is None else seen
+    keys = set()
+    if tree is None or tree.name_full in seen:
+        return keys
+    seen.add(tree.name_full)
+    for node in tree.nodes:
+        if node.type == "UVMAP" and node.uv_map:
+            keys.add(("uv", node.uv_map))
+        elif node.type == "ATTRIBUTE" and node.attribute_type == "GEOMETRY" and node.attribute_name:
+            keys.add(("attribute", node.attribute_name))
+        elif node.type == "VERTEX_COLOR":
+            keys.add(("attribute", node.layer_name))
+        elif node.type == "GROUP":
+            keys |= attribute_requests(node.node_tree, seen)
+    return keys
+
+
 class Unsupported(Exception):
     """A node (or a setting of one) the compiler does not translate; its message names it."""
 
@@ -46,13 +68,14 @@ _KINDS = {"VALUE": "float", "INT": "float", "BOOLEAN": "float", "RGBA": "color",
 
 
 class GraphCompiler:
-    def __init__(self, program, texture_loader, material_name):
+    def __init__(self, program, texture_loader, material_name, attribute_slot=lambda key: None):
         from ..core import load
 
         self.nodes = load().nodes
         self.program = program
         self.texture_loader = texture_loader
         self.material_name = material_name
+        self.attribute_slot = attribute_slot  # attribute_requests' key -> slot (None: no mesh has it)
         self._memo = {}
         # Where coordinates are taken: the hit (0, 0.0), or one of the two points a Bump
         # evaluates its height at (offset 1 or 2, filter width); see Program._place.
@@ -150,9 +173,36 @@ class GraphCompiler:
         return (self.program.separate(value, 0), "float") if output.name == "Backfacing" else (value, "vector")
 
     def _uvmap(self, node, output, groups):
-        if node.uv_map:
-            raise Unsupported(f"UV Map '{node.name}' naming the map '{node.uv_map}' (the active one is supported)")
-        return self._uv(), "vector"
+        if getattr(node, "from_instancer", False):
+            raise Unsupported(f"UV Map '{node.name}' from the instancer")
+        if not node.uv_map:
+            return self._uv(), "vector"
+        return self._mesh_attribute(("uv", node.uv_map)), "vector"
+
+    def _mesh_attribute(self, key):
+        """The attribute slot's value at the hit; 0 where no mesh has it (as Cycles' Attribute
+        node for a missing attribute)."""
+        slot = self.attribute_slot(key)
+        return np.zeros(4) if slot is None else self.program.attribute(slot, self.bump_offset)
+
+    def _attribute(self, node, output, groups):
+        """Cycles' Attribute node (svm_node_attr) for geometry attributes: Color and Vector the
+        value, Fac the mean of its three components, Alpha its fourth (1 for non-colours)."""
+        if node.attribute_type != "GEOMETRY":
+            raise Unsupported(f"Attribute '{node.name}' of type {node.attribute_type} (geometry attributes are supported)")
+        return self._attribute_output(self._mesh_attribute(("attribute", node.attribute_name)), output)
+
+    def _vertex_color(self, node, output, groups):
+        """Cycles' Color Attribute node: the named (or default) colour attribute and its alpha."""
+        return self._attribute_output(self._mesh_attribute(("attribute", node.layer_name)), output)
+
+    def _attribute_output(self, value, output):
+        p = self.program
+        if output.identifier == "Fac":
+            return p.to_float(value, "vector"), "float"
+        if output.identifier == "Alpha":
+            return p.separate(value, 3), "float"
+        return value, ("vector" if output.identifier == "Vector" else "color")
 
     def normal_input(self, node, groups, name="Normal"):
         """A Normal input: linked, else the hit's shading normal (Cycles' N)."""

@@ -15,6 +15,7 @@ layout(set = 0, binding = BINDING_INDICES, scalar) readonly buffer IndexBuffer {
 layout(set = 0, binding = BINDING_CORNER_NORMALS, scalar) readonly buffer NormalBuffer { vec3 corner_normals[]; };
 layout(set = 0, binding = BINDING_CORNER_UVS, scalar) readonly buffer UvBuffer { vec2 corner_uvs[]; };
 layout(set = 0, binding = BINDING_CORNER_TANGENTS, scalar) readonly buffer TangentBuffer { vec4 corner_tangents[]; };
+layout(set = 0, binding = BINDING_CORNER_ATTRIBUTES, scalar) readonly buffer AttributeBuffer { vec4 corner_attributes[]; };
 layout(set = 0, binding = BINDING_TRIANGLE_MATERIAL, scalar) readonly buffer TriMaterialBuffer { uint triangle_material[]; };
 layout(set = 0, binding = BINDING_MESHES, scalar) readonly buffer MeshBuffer { MeshInfo meshes[]; };
 layout(set = 0, binding = BINDING_INSTANCES, scalar) readonly buffer InstanceBuffer { InstanceInfo instances[]; };

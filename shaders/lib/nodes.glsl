@@ -456,7 +456,8 @@ vec3 object_point(SurfaceHit sh, vec2 b, out vec2 uv) {
     return w.x * positions[idx.x] + w.y * positions[idx.y] + w.z * positions[idx.z];
 }
 
-// NODE_UV, NODE_GENERATED, NODE_GEOMETRY: `word` = kind | offset << 8 | half filter width << 16.
+// NODE_UV, NODE_GENERATED, NODE_GEOMETRY, NODE_ATTRIBUTE: `word` = kind (attribute: slot) |
+// offset << 8 | half filter width << 16.
 vec4 node_geometry(uint op, uint word, SurfaceHit sh, vec3 wo) {
     uint kind = word & 0xffu, offset = (word >> 8) & 0xffu;
     bool back = dot(sh.ng, wo) < 0.0;  // Cycles' SD_BACKFACING: N and Ng face the viewer
@@ -476,6 +477,10 @@ vec4 node_geometry(uint op, uint word, SurfaceHit sh, vec3 wo) {
     if (offset == 0u && op == NODE_UV) return vec4(sh.uv, 0.0, 0.0);
     if (offset == 0u && op == NODE_GENERATED) return vec4(sh.generated, 0.0);
     if (op == NODE_GEOMETRY && kind == NODE_GEOMETRY_POSITION) return vec4(sh.p + moved, 0.0);
+    if (op == NODE_ATTRIBUTE) {
+        uint at = kind * scene.attribute_stride + 3u * (meshes[instances[sh.instance].mesh].first_triangle + sh.primitive);
+        return (1.0 - b.x - b.y) * corner_attributes[at] + b.x * corner_attributes[at + 1u] + b.y * corner_attributes[at + 2u];
+    }
     vec2 uv;
     vec3 p_object = object_point(sh, b, uv);
     if (op == NODE_UV) return vec4(uv, 0.0, 0.0);
@@ -587,6 +592,7 @@ void run_node_program(inout Material m, inout SurfaceHit sh, vec3 wo) {
         case NODE_UV:
         case NODE_GENERATED:
         case NODE_GEOMETRY:
+        case NODE_ATTRIBUTE:
             reg[dst] = node_geometry(op, arg, sh, wo);
             break;
         case NODE_BUMP: {

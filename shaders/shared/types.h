@@ -70,7 +70,8 @@ PX_CONST uint BINDING_PIXEL_FILTER = 41;
 // uint words: the materials' node programs (Material.program; shaders/lib/nodes.glsl)
 PX_CONST uint BINDING_NODE_PROGRAMS = 42;
 PX_CONST uint BINDING_CORNER_TANGENTS = 43;  // vec4 [3] per triangle: tangent, bitangent sign (Normal Map)
-PX_CONST uint BINDING_COUNT = 44;
+PX_CONST uint BINDING_CORNER_ATTRIBUTES = 44;  // vec4 [slots][3 per triangle] (SceneInfo.attribute_*)
+PX_CONST uint BINDING_COUNT = 45;
 
 // ---- shader binding table: miss shaders and hit groups (RayTracingPipeline group order) -
 PX_CONST uint MISS_SCENE = 0;         // miss.rmiss: the world
@@ -279,7 +280,10 @@ PX_CONST uint NODE_FRESNEL = 24;   // dst.x = word 0: Fresnel of IOR a.x, 1: Lay
                                    // 2: its Facing, of blend a.x; b: the normal
 PX_CONST uint NODE_NORMAL_MAP = 25;  // dst.xyz = Cycles' Normal Map of colour a.rgb, strength b.x; word:
                                      // space (NODE_NORMAL_MAP_*)
-PX_CONST uint NODE_OPS = 26;
+PX_CONST uint NODE_ATTRIBUTE = 26;  // dst = attribute slot (word & 0xff) at the hit, interpolated (0 where
+                                    // the mesh lacks it); word >> 8: bump offset, as NODE_GEOMETRY
+PX_CONST uint NODE_OPS = 27;
+PX_CONST uint NODE_ATTRIBUTE_SLOTS = 8;
 PX_CONST uint NODE_NORMAL_MAP_TANGENT = 0;
 PX_CONST uint NODE_NORMAL_MAP_OBJECT = 1;
 PX_CONST uint NODE_NORMAL_MAP_WORLD = 2;
@@ -402,6 +406,8 @@ struct SceneInfo {
     uint contact_box_count;
     vec3 contact_lo[CONTACT_BOX_MAX];
     vec3 contact_hi[CONTACT_BOX_MAX];
+    uint attribute_slots;   // node programs' attribute slots in BINDING_CORNER_ATTRIBUTES
+    uint attribute_stride;  // corners per slot (3 x triangles)
 };
 
 // Per-frame parameters (push constants).

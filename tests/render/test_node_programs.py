@@ -440,3 +440,27 @@ def test_map_range_types(device, interpolation, reverse):
         want = np.vectorize(lambda a, b: nodes.map_range_reference(2.4 * a - 0.7, lo, hi, 0.5 * b, 1.5, True, interpolation,
                                                                    3.0, vector))(u, v)
         np.testing.assert_allclose(got[..., k], want, rtol=2e-5, atol=3e-5)
+
+
+def test_attributes_interpolate_and_read_zero_where_missing(device):
+    """NODE_ATTRIBUTE: a slot's corner values interpolated over the triangle (here, the quad's
+    uv as (u, v, u v-free 0.25, 1) at its corners: linear, so the pixel centre's value), slot 1
+    absent from the mesh reads 0, and a program reading past the scene's slots is refused."""
+    session, scene, _ = device
+    mesh = scene.meshes[0]
+    corners = np.concatenate([mesh.uvs, np.full(mesh.uvs.shape[:2] + (1,), 0.25), np.ones(mesh.uvs.shape[:2] + (1,))], -1)
+    other = Mesh(mesh.positions + (0.0, 0.0, -50.0), mesh.indices, uvs=mesh.uvs, attributes={1: corners})
+    scene.meshes = [Mesh(mesh.positions, mesh.indices, uvs=mesh.uvs, attributes={0: corners}), other]
+    try:
+        got = run_plain(device, lambda p: p.attribute(0))
+        u, v = grid()
+        np.testing.assert_allclose(got, np.stack([u, v, np.full_like(u, 0.25)], -1), atol=2e-3)
+        got = run_plain(device, lambda p: p.mix("ADD", 1.0, p.attribute(1), 0.5))
+        np.testing.assert_allclose(got, 0.5, atol=1e-6)  # the quad lacks slot 1
+        p = nodes.Program()
+        p.store("base_color", p.attribute(2))
+        scene.materials = [Material("diffuse", node_program=tuple(p.finish()))]
+        with pytest.raises(ValueError, match="reads attribute slot 2 of 2"):
+            session.update(scene)
+    finally:
+        scene.meshes = [mesh]

@@ -78,6 +78,7 @@ def test_unknown_pass_and_params(session):
         (lambda a: a.__setitem__("world_map", np.zeros((0, 4, 3), np.float32)), "world_map has zero size"),
         (lambda a: a.__setitem__("corner_tangents", np.zeros((3, 3, 4), np.float32)), "corner_tangents must have 0 or"),
         (lambda a: a.__setitem__("mesh_has_tangents", np.zeros(1, np.uint32)), "mesh_\\* arrays differ in length"),
+        (lambda a: a.__setitem__("corner_attributes", np.zeros((5, 3, 4), np.float32)), "corner_attributes must have a multiple"),
     ],
 )
 def test_native_validation_names_the_problem(session, corrupt, message):

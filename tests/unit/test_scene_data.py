@@ -587,6 +587,33 @@ def test_tangents_round_trip_and_older_files(tmp_path):
         s.flatten()
 
 
+def test_attributes_round_trip_and_older_files(tmp_path):
+    s = scenes.cornell_box(width=32, height=24)
+    rng = np.random.default_rng(4)
+    T0, T2 = len(s.meshes[0].indices), len(s.meshes[2].indices)
+    paint, second = rng.random((T0, 3, 4)), rng.random((T2, 3, 4))
+    s.meshes[0].attributes = {1: paint}  # slot 1 only: slot 0 is another mesh's
+    s.meshes[2].attributes = {0: second, 1: rng.random((T2, 3, 4))}
+    flat = s.flatten()
+    T = len(flat["indices"])
+    assert flat["corner_attributes"].shape == (2 * T, 3, 4)
+    assert list(flat["mesh_attribute_mask"][:3]) == [2, 0, 3]
+    s.save(tmp_path / "attributes.npz")
+    loaded = SceneData.load(tmp_path / "attributes.npz")
+    assert sorted(loaded.meshes[0].attributes) == [1] and loaded.meshes[1].attributes == {}
+    np.testing.assert_allclose(loaded.meshes[0].attributes[1], paint, rtol=1e-6)
+    np.testing.assert_allclose(loaded.meshes[2].attributes[0], second, rtol=1e-6)
+    assert_flat_equal(flat, loaded.flatten())
+    del flat["corner_attributes"], flat["mesh_attribute_mask"]  # files before attributes
+    assert all(m.attributes == {} for m in SceneData.from_flat(flat).meshes)
+    s.meshes[0].attributes = {8: paint}
+    with pytest.raises(ValueError, match="attribute slot 8 is not an integer in 0..7"):
+        s.flatten()
+    s.meshes[0].attributes = {0: paint[:, :, :3]}
+    with pytest.raises(ValueError, match="attribute slot 0 has shape"):
+        s.flatten()
+
+
 def test_camera_lens_round_trip_and_older_files(tmp_path):
     s = scenes.cornell_box(width=32, height=24)
     s.camera = Camera(s.camera.camera_to_world, "panorama", (0.0, 1.0, 0.0, 1.0), 0.1, 100.0,

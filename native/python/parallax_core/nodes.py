@@ -22,7 +22,8 @@ NODE_INVERT, NODE_MAP_RANGE, NODE_RAMP, NODE_SEPARATE, NODE_COMBINE, NODE_STORE,
 NODE_GENERATED, NODE_NOISE = 14, 15
 NODE_VORONOI, NODE_WAVE, NODE_BRICK = 16, 17, 18
 NODE_VECTOR_MATH, NODE_CURVES, NODE_HSV = 19, 20, 21
-NODE_GEOMETRY, NODE_BUMP, NODE_FRESNEL, NODE_NORMAL_MAP = 22, 23, 24, 25
+NODE_GEOMETRY, NODE_BUMP, NODE_FRESNEL, NODE_NORMAL_MAP, NODE_ATTRIBUTE = 22, 23, 24, 25, 26
+NODE_ATTRIBUTE_SLOTS = 8  # parallax_core.scene.ATTRIBUTE_SLOTS
 # NODE_NORMAL_MAP's spaces: Blender's Normal Map space enum, in types.h's order.
 NORMAL_MAP_SPACES = ("TANGENT", "OBJECT", "WORLD", "BLENDER_OBJECT", "BLENDER_WORLD")
 # NODE_GEOMETRY's outputs (types.h NODE_GEOMETRY_*), in order.
@@ -720,6 +721,11 @@ class Program:
         """The hit's GEOMETRY_KINDS ``kind`` (normals and the incoming direction face the
         viewer, as Cycles' N, Ng and I)."""
         return self._op(NODE_GEOMETRY, extra=[self._place(GEOMETRY_KINDS.index(kind), bump_offset)])
+
+    def attribute(self, slot, bump_offset=(0, 0.0)):
+        """The mesh's attribute ``slot`` (SceneData Mesh.attributes) at the hit, interpolated
+        over the triangle: (rgb or xyz, alpha), 0 where the mesh lacks it."""
+        return self._op(NODE_ATTRIBUTE, extra=[self._place(slot, bump_offset)])
 
     def bump(self, strength, distance, heights, normal, invert, width):
         """Cycles' Bump: ``normal`` tilted by the gradient of the height, given at the hit and

@@ -45,11 +45,13 @@ FLAT_KEYS = {
     "corner_normals": (np.float32, "(T,3,3) or (0,3,3)"),
     "corner_uvs": (np.float32, "(T,3,2) or (0,3,2)"),
     "corner_tangents": (np.float32, "(T,3,4) or (0,3,4)"),  # object-space tangent, bitangent sign
+    "corner_attributes": (np.float32, "(S*T,3,4)"),  # S slots of T triangles' corner values (node programs)
     "mesh_first_triangle": (np.uint32, "(M,)"),
     "mesh_triangle_count": (np.uint32, "(M,)"),
     "mesh_has_normals": (np.uint32, "(M,)"),
     "mesh_has_uvs": (np.uint32, "(M,)"),
     "mesh_has_tangents": (np.uint32, "(M,)"),
+    "mesh_attribute_mask": (np.uint32, "(M,)"),  # bit s: the mesh holds attribute slot s
     "mesh_texspace": (np.float32, "(M,6)"),        # Generated coordinates' space: location, half size
     "instance_transform": (np.float32, "(I,3,4)"),
     "instance_mesh": (np.uint32, "(I,)"),
@@ -144,6 +146,8 @@ PRINCIPLED_FIELDS = (
 
 # Most materials one mix chain may hold, head included (MIX_CHAIN_MAX in shared/types.h).
 MIX_CHAIN_MAX = 16
+# Attribute slots a scene may hold (types.h NODE_ATTRIBUTE_SLOTS): Mesh.attributes' keys.
+ATTRIBUTE_SLOTS = 8
 
 _META_KEY = "__meta__"
 
@@ -262,6 +266,10 @@ class Mesh:
     # (T,3,4): the UVs' tangent (object space, MikkTSpace as Blender computes it) and the
     # bitangent's sign per corner, for tangent-space Normal Maps.
     tangents: np.ndarray | None = None
+    # Attribute slots (at most ATTRIBUTE_SLOTS) -> (T,3,4) corner values: colour attributes,
+    # other UV maps, generic attributes, as the node programs' NODE_ATTRIBUTE reads them (a slot
+    # a mesh lacks reads 0, as Cycles' Attribute node where the attribute is missing).
+    attributes: dict = field(default_factory=dict)
     material_indices: np.ndarray | None = None  # (T,) int
     name: str = ""
     texspace: tuple | None = None          # Generated coordinates' space: location, half size (None: the bounds)
@@ -742,6 +750,8 @@ class SceneData:
         any_n = any(m.normals is not None for m in self.meshes)
         any_uv = any(m.uvs is not None for m in self.meshes)
         any_t = any(m.tangents is not None for m in self.meshes)
+        slots = 1 + max((s for m in self.meshes for s in m.attributes), default=-1)
+        attributes, masks = [[] for _ in range(slots)], []
         v_off = t_off = 0
         for mesh, keep in zip(self.meshes, keeps):
             p = np.asarray(mesh.positions, dtype=np.float32).reshape(-1, 3)
@@ -765,6 +775,11 @@ class SceneData:
             has_n.append(mesh.normals is not None)
             has_uv.append(mesh.uvs is not None)
             has_t.append(mesh.tangents is not None)
+            for slot in range(slots):
+                values = mesh.attributes.get(slot)
+                attributes[slot].append(np.zeros((T, 3, 4), np.float32) if values is None
+                                        else np.asarray(values, dtype=np.float32)[keep])
+            masks.append(sum(1 << slot for slot in mesh.attributes))
             texspace.append(_bounds_texspace(p) if mesh.texspace is None else np.asarray(mesh.texspace, np.float64).ravel())
             v_off += len(p)
             t_off += T
@@ -778,11 +793,13 @@ class SceneData:
         out["corner_normals"] = cat(nrm, (0, 3, 3), np.float32)
         out["corner_uvs"] = cat(uvs, (0, 3, 2), np.float32)
         out["corner_tangents"] = cat(tangents, (0, 3, 4), np.float32)
+        out["corner_attributes"] = cat([cat(a, (0, 3, 4), np.float32) for a in attributes], (0, 3, 4), np.float32)
         out["mesh_first_triangle"] = np.array(first, dtype=np.uint32)
         out["mesh_triangle_count"] = np.array(count, dtype=np.uint32)
         out["mesh_has_normals"] = np.array(has_n, dtype=np.uint32)
         out["mesh_has_uvs"] = np.array(has_uv, dtype=np.uint32)
         out["mesh_has_tangents"] = np.array(has_t, dtype=np.uint32)
+        out["mesh_attribute_mask"] = np.array(masks, dtype=np.uint32)
         out["mesh_texspace"] = np.array(texspace, dtype=np.float32).reshape(-1, 6)
 
     def _flatten_materials(self, out):
@@ -920,7 +937,7 @@ class SceneData:
         if first_vertex is None or len(first_vertex) != M:
             first_vertex = _infer_first_vertex(a)
         names = meta.get("mesh_names") or [""] * M
-        V = len(a["positions"])
+        V, T = len(a["positions"]), len(a["indices"])
         meshes = []
         for m in range(M):
             t0 = int(a["mesh_first_triangle"][m])
@@ -933,6 +950,8 @@ class SceneData:
                 normals=a["corner_normals"][t0:t1].copy() if a["mesh_has_normals"][m] else None,
                 uvs=a["corner_uvs"][t0:t1].copy() if a["mesh_has_uvs"][m] else None,
                 tangents=a["corner_tangents"][t0:t1].copy() if a["mesh_has_tangents"][m] else None,
+                attributes={s: a["corner_attributes"][s * T + t0:s * T + t1].copy()
+                            for s in range(ATTRIBUTE_SLOTS) if int(a["mesh_attribute_mask"][m]) >> s & 1},
                 material_indices=a["triangle_material"][t0:t1].astype(np.int64),
                 name=names[m],
                 texspace=tuple(a["mesh_texspace"][m].tolist())))
@@ -1017,8 +1036,12 @@ def _check_mesh(mesh, i, K):
             t, c = np.argwhere(out)[0]
             raise ValueError(f"{lbl}: triangle {t} index {tri[t, c]} out of range "
                              f"({V} vertices)")
-    for attr, tail in (("normals", (3, 3)), ("uvs", (3, 2)), ("tangents", (3, 4))):
-        a = getattr(mesh, attr)
+    for slot in mesh.attributes:
+        if isinstance(slot, bool) or not isinstance(slot, (int, np.integer)) or not 0 <= slot < ATTRIBUTE_SLOTS:
+            raise ValueError(f"{lbl}: attribute slot {slot!r} is not an integer in 0..{ATTRIBUTE_SLOTS - 1}")
+    per_corner = [("normals", mesh.normals, (3, 3)), ("uvs", mesh.uvs, (3, 2)), ("tangents", mesh.tangents, (3, 4))]
+    per_corner += [(f"attribute slot {k}", v, (3, 4)) for k, v in mesh.attributes.items()]
+    for attr, a, tail in per_corner:
         if a is None:
             continue
         a = np.asarray(a)
@@ -1091,6 +1114,12 @@ def _check_flat(flat, meta):
     for k in ("corner_normals", "corner_uvs", "corner_tangents"):
         if len(a[k]) not in (0, T):
             raise ValueError(f"array '{k}' has {len(a[k])} rows, expected 0 or {T}")
+    slots = len(a["corner_attributes"]) // max(T, 1)
+    if len(a["corner_attributes"]) != slots * T or (T == 0 and len(a["corner_attributes"])) or slots > ATTRIBUTE_SLOTS:
+        raise ValueError(f"array 'corner_attributes' has {len(a['corner_attributes'])} rows, expected a multiple "
+                         f"of {T} (up to {ATTRIBUTE_SLOTS} slots)")
+    if np.any(a["mesh_attribute_mask"] >> np.uint32(slots)):
+        raise ValueError(f"mesh_attribute_mask names an attribute slot beyond the {slots} in corner_attributes")
     for k, n in (("world_color", 3), ("camera_to_world", 3), ("camera_type", 1), ("camera_window", 4),
                  ("camera_clip", 2), ("camera_aperture", 5), ("camera_panorama_type", 1),
                  ("camera_panorama_range", 4), ("camera_fisheye", 9)):
@@ -1184,9 +1213,12 @@ def _with_optional_defaults(flat):
             used = np.asarray(flat["indices"])[first:first + count].ravel().astype(np.int64)
             rows.append(_bounds_texspace(np.asarray(flat["positions"])[used]))
         flat["mesh_texspace"] = np.array(rows, np.float32).reshape(-1, 6)
-    if "mesh_has_tangents" not in flat and "mesh_first_triangle" in flat:  # files before tangents
-        flat["mesh_has_tangents"] = np.zeros(len(flat["mesh_first_triangle"]), np.uint32)
-        flat.setdefault("corner_tangents", np.zeros((0, 3, 4), np.float32))
+    if "mesh_first_triangle" in flat:  # files before tangents and attributes
+        M = len(flat["mesh_first_triangle"])
+        for k in ("mesh_has_tangents", "mesh_attribute_mask"):
+            flat.setdefault(k, np.zeros(M, np.uint32))
+        for k in ("corner_tangents", "corner_attributes"):
+            flat.setdefault(k, np.zeros((0, 3, 4), np.float32))
     pinhole = Camera()
     for k, row in (("camera_aperture", _camera_aperture(pinhole)), ("camera_panorama_type", (0,)),
                    ("camera_panorama_range", pinhole.panorama_range), ("camera_fisheye", _camera_fisheye(pinhole))):

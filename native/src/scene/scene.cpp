@@ -286,6 +286,7 @@ std::shared_ptr<const SceneGeometry> prepare_geometry(const SceneArrays& a, bool
     auto normals = get<float>(a, "corner_normals", 'f', {3, 3});
     auto uvs = get<float>(a, "corner_uvs", 'f', {3, 2});
     auto tangents = get<float>(a, "corner_tangents", 'f', {3, 4}, true);
+    auto attributes = get<float>(a, "corner_attributes", 'f', {3, 4}, true);
     auto mesh_first = get<uint32_t>(a, "mesh_first_triangle", 'u', {});
     auto mesh_count = get<uint32_t>(a, "mesh_triangle_count", 'u', {});
     auto mesh_has_n = get<uint32_t>(a, "mesh_has_normals", 'u', {});
@@ -299,6 +300,10 @@ std::shared_ptr<const SceneGeometry> prepare_geometry(const SceneArrays& a, bool
     if (uvs.rows != 0 && uvs.rows != T) bad("corner_uvs must have 0 or " + std::to_string(T) + " rows");
     if (tangents.data && tangents.rows != 0 && tangents.rows != T)
         bad("corner_tangents must have 0 or " + std::to_string(T) + " rows");
+    const size_t slots = attributes.data && T ? attributes.rows / T : 0;
+    if (attributes.data && (slots * T != attributes.rows || slots > NODE_ATTRIBUTE_SLOTS))
+        bad("corner_attributes must have a multiple of " + std::to_string(T) + " rows (up to " +
+            std::to_string(NODE_ATTRIBUTE_SLOTS) + " slots of the triangles' corners)");
     if (mesh_count.rows != M || mesh_has_n.rows != M || mesh_has_uv.rows != M || (mesh_has_t.data && mesh_has_t.rows != M))
         bad("mesh_* arrays differ in length");
     for (size_t i = 0; i < V; ++i) {
@@ -343,6 +348,12 @@ std::shared_ptr<const SceneGeometry> prepare_geometry(const SceneArrays& a, bool
             g.corner_tangents[i] = ok ? vec4{t[0], t[1], t[2], t[3] < 0.0f ? -1.0f : 1.0f} : vec4{0, 0, 0, 1};
         }
     }
+    g.attribute_slots = uint32_t(slots);
+    g.corner_attributes.resize(3 * T * slots);
+    for (size_t i = 0; i < 3 * T * slots; ++i) {  // a non-finite value reads 0
+        const float* v = attributes.data + 4 * i;
+        g.corner_attributes[i] = finite3(v) && std::isfinite(v[3]) ? vec4{v[0], v[1], v[2], v[3]} : vec4{0, 0, 0, 0};
+    }
     g.meshes.resize(M);
     for (size_t m = 0; m < M; ++m) {
         uint64_t first = mesh_first.data[m], count = mesh_count.data[m];
@@ -361,18 +372,19 @@ std::shared_ptr<const SceneGeometry> prepare_geometry(const SceneArrays& a, bool
             tri_hi[i] = vmax(g.positions[tri.x], vmax(g.positions[tri.y], g.positions[tri.z]));
         }
         auto order = bvh_order(tri_lo, tri_hi);
-        auto permute = [&](auto& vec, size_t per) {
+        auto permute = [&](auto& vec, size_t per, size_t base = 0) {  // base: an attribute slot's start
             if (vec.empty()) return;
             std::vector<typename std::decay_t<decltype(vec)>::value_type> tmp(count * per);
             for (size_t i = 0; i < count; ++i)
-                for (size_t k = 0; k < per; ++k) tmp[i * per + k] = vec[(first + order[i]) * per + k];
-            std::copy(tmp.begin(), tmp.end(), vec.begin() + first * per);
+                for (size_t k = 0; k < per; ++k) tmp[i * per + k] = vec[base + (first + order[i]) * per + k];
+            std::copy(tmp.begin(), tmp.end(), vec.begin() + base + first * per);
         };
         permute(g.indices, 1);
         permute(g.triangle_material, 1);
         permute(g.corner_normals, 3);
         permute(g.corner_uvs, 3);
         permute(g.corner_tangents, 3);
+        for (size_t slot = 0; slot < slots; ++slot) permute(g.corner_attributes, 3, slot * 3 * T);
     }
     // Object-space bounds (instance placement) and the materials the triangles need.
     g.mesh_lo.assign(M, {INFINITY, INFINITY, INFINITY});
@@ -402,7 +414,8 @@ std::shared_ptr<const SceneGeometry> prepare_geometry(const SceneArrays& a, bool
 // Materials and textures; the triangles' material indices must stay in range.
 // A node program (types.h NODE_*) from word `start`: known operations, registers written
 // before they are read, finite constants, textures that exist, and NODE_END before the end.
-void check_node_program(const std::vector<uint>& words, uint32_t start, size_t textures, const std::string& id) {
+void check_node_program(const std::vector<uint>& words, uint32_t start, size_t textures, uint32_t attribute_slots,
+                        const std::string& id) {
     const std::string where = id + ": node program at word " + std::to_string(start);
     uint64_t written = 0;  // registers set so far, a bit each
     auto reg = [&](uint r) {
@@ -439,6 +452,11 @@ void check_node_program(const std::vector<uint>& words, uint32_t start, size_t t
                     bad(where + ": unknown geometry output " + std::to_string(arg & 0xffu));
                 break;
             case NODE_BUMP: reg(a), reg(b); for (int k = 0; k < 4; ++k) reg((arg >> (8 * k)) & 0xffu); break;
+            case NODE_ATTRIBUTE:
+                if ((arg >> 8 & 0xffu) > 2) bad(where + ": unknown bump offset " + std::to_string(arg >> 8 & 0xffu));
+                if ((arg & 0xffu) >= attribute_slots)
+                    bad(where + " reads attribute slot " + std::to_string(arg & 0xffu) + " of " + std::to_string(attribute_slots));
+                break;
             case NODE_NORMAL_MAP:
                 reg(a), reg(b);
                 if (arg > NODE_NORMAL_MAP_BLENDER_WORLD) bad(where + ": unknown normal map space " + std::to_string(arg));
@@ -591,7 +609,7 @@ std::shared_ptr<const SceneMaterials> prepare_materials(const SceneArrays& a, co
         m.mix_weight = 1.0f;
         m.program = NO_INDEX;
         if (program.data && program.data[k] >= 0) {
-            check_node_program(s.node_programs, uint32_t(program.data[k]), s.textures.size(), id);
+            check_node_program(s.node_programs, uint32_t(program.data[k]), s.textures.size(), g.attribute_slots, id);
             m.program = uint32_t(program.data[k]);
         }
         m.flags = (multiscatter.data && multiscatter.data[k] != 0) ? MATERIAL_FLAG_MULTISCATTER : 0u;
@@ -1129,7 +1147,7 @@ uint32_t scene_part_of_array(const std::string& name) {
     if (starts("light_") || starts("world_")) return PART_LIGHTS;
     if (starts("camera_")) return PART_CAMERA;
     if (starts("mesh_") || name == "positions" || name == "indices" || name == "triangle_material" ||
-        name == "corner_normals" || name == "corner_uvs" || name == "corner_tangents")
+        name == "corner_normals" || name == "corner_uvs" || name == "corner_tangents" || name == "corner_attributes")
         return PART_GEOMETRY;
     return 0;
 }
@@ -1154,7 +1172,11 @@ SceneHost update_scene(const SceneHost& previous, const SceneArrays& a, bool spa
     // Every other part refers to the geometry (mesh and triangle indices): it redoes all.
     if ((parts & PART_GEOMETRY) || !previous.geometry) parts = PART_ALL;
     SceneHost s = parts == PART_ALL ? SceneHost{} : previous;  // shares the parts kept
-    if (parts & PART_GEOMETRY) s.geometry = prepare_geometry(a, spatial_order);
+    if (parts & PART_GEOMETRY) {
+        s.geometry = prepare_geometry(a, spatial_order);
+        s.info.attribute_slots = s.geometry->attribute_slots;
+        s.info.attribute_stride = uint(3 * s.geometry->indices.size());
+    }
     if (parts & PART_MATERIALS) s.materials = prepare_materials(a, *s.geometry);
     if (parts & PART_INSTANCES) {
         s.placement = prepare_instances(a, spatial_order, *s.geometry);
@@ -1197,7 +1219,7 @@ Scene::Scene(Context& ctx, SceneHost host, const Scene* previous) : host_(std::m
     const bool same_geometry = old && old->geometry == host_.geometry;
     if (same_geometry) {
         reuse({BINDING_POSITIONS, BINDING_INDICES, BINDING_CORNER_NORMALS, BINDING_CORNER_UVS,
-               BINDING_CORNER_TANGENTS, BINDING_TRIANGLE_MATERIAL, BINDING_MESHES});
+               BINDING_CORNER_TANGENTS, BINDING_CORNER_ATTRIBUTES, BINDING_TRIANGLE_MATERIAL, BINDING_MESHES});
     } else {
         const VkBufferUsageFlags as_input = kStorageUsage | VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR;
         put(BINDING_POSITIONS, g.positions, as_input);
@@ -1205,6 +1227,7 @@ Scene::Scene(Context& ctx, SceneHost host, const Scene* previous) : host_(std::m
         put(BINDING_CORNER_NORMALS, g.corner_normals);
         put(BINDING_CORNER_UVS, g.corner_uvs);
         put(BINDING_CORNER_TANGENTS, g.corner_tangents);
+        put(BINDING_CORNER_ATTRIBUTES, g.corner_attributes);
         put(BINDING_TRIANGLE_MATERIAL, g.triangle_material);
         put(BINDING_MESHES, g.meshes);
     }

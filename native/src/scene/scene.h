@@ -85,6 +85,8 @@ struct SceneGeometry {  // "geometry"
     std::vector<vec3> corner_normals;  // 3 per triangle, or empty
     std::vector<vec2> corner_uvs;      // 3 per triangle, or empty
     std::vector<vec4> corner_tangents;  // 3 per triangle (tangent, bitangent sign), or empty
+    std::vector<vec4> corner_attributes;  // attribute_slots blocks of 3 per triangle (NODE_ATTRIBUTE)
+    uint32_t attribute_slots = 0;
     std::vector<uint> triangle_material;
     std::vector<MeshInfo> meshes;
     std::vector<vec3> mesh_lo, mesh_hi;  // object-space bounds per mesh
