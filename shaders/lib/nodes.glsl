@@ -591,29 +591,33 @@ void run_node_program(inout Material m, inout SurfaceHit sh, vec3 wo) {
             break;
         case NODE_UV:
         case NODE_GENERATED:
+            if (!HAS(FEATURE_NODE_SURFACE)) {  // at the hit itself (no bump offset)
+                reg[dst] = op == NODE_UV ? vec4(sh.uv, 0.0, 0.0) : vec4(sh.generated, 0.0);
+                break;
+            }
         case NODE_GEOMETRY:
         case NODE_ATTRIBUTE:
-            reg[dst] = node_geometry(op, arg, sh, wo);
+            if (HAS(FEATURE_NODE_SURFACE)) reg[dst] = node_geometry(op, arg, sh, wo);
             break;
         case NODE_BUMP: {
             vec3 h = vec3(reg[arg & 0xffu].x, reg[(arg >> 8) & 0xffu].x, reg[(arg >> 16) & 0xffu].x);
-            reg[dst].xyz = node_bump(sh, reg[arg >> 24].xyz, h, reg[a].x, reg[b].x, node_words[pc]);
+            if (HAS(FEATURE_NODE_SURFACE)) reg[dst].xyz = node_bump(sh, reg[arg >> 24].xyz, h, reg[a].x, reg[b].x, node_words[pc]);
             pc += 1u;
             break;
         }
         case NODE_NORMAL_MAP:
-            reg[dst].xyz = node_normal_map(sh, reg[a].rgb, reg[b].x, arg, dot(sh.ng, wo) < 0.0);
+            if (HAS(FEATURE_NODE_SURFACE)) reg[dst].xyz = node_normal_map(sh, reg[a].rgb, reg[b].x, arg, dot(sh.ng, wo) < 0.0);
             break;
         case NODE_FRESNEL:
-            reg[dst].x = node_fresnel(arg, reg[a].x, reg[b].xyz, wo, dot(sh.ng, wo) < 0.0);
+            if (HAS(FEATURE_NODE_SURFACE)) reg[dst].x = node_fresnel(arg, reg[a].x, reg[b].xyz, wo, dot(sh.ng, wo) < 0.0);
             break;
         case NODE_NOISE:
-            reg[dst].x = noise_fbm(reg[a].xyz, reg[arg & 0xffu].x, reg[(arg >> 8) & 0xffu].x, reg[(arg >> 16) & 0xffu].x,
+            if (HAS(FEATURE_NODE_TEXTURES)) reg[dst].x = noise_fbm(reg[a].xyz, reg[arg & 0xffu].x, reg[(arg >> 8) & 0xffu].x, reg[(arg >> 16) & 0xffu].x,
                                    (arg >> 24) != 0u);
             break;
         case NODE_VORONOI: {
             uint more = node_words[pc];
-            reg[dst] = node_voronoi(reg[a].xyz, reg[b].x, reg[arg & 0xffu].x, reg[(arg >> 8) & 0xffu].x,
+            if (HAS(FEATURE_NODE_TEXTURES)) reg[dst] = node_voronoi(reg[a].xyz, reg[b].x, reg[arg & 0xffu].x, reg[(arg >> 8) & 0xffu].x,
                                     reg[(arg >> 16) & 0xffu].x, reg[arg >> 24].x, reg[more & 0xffu].x,
                                     reg[(more >> 8) & 0xffu].x, more >> 16);
             pc += 1u;
@@ -621,17 +625,19 @@ void run_node_program(inout Material m, inout SurfaceHit sh, vec3 wo) {
         }
         case NODE_WAVE: {
             uint more = node_words[pc];
-            reg[dst] = vec4(node_wave(reg[a].xyz * reg[b].x, more >> 8, reg[arg & 0xffu].x, reg[(arg >> 8) & 0xffu].x,
+            if (HAS(FEATURE_NODE_TEXTURES)) reg[dst] = vec4(node_wave(reg[a].xyz * reg[b].x, more >> 8, reg[arg & 0xffu].x, reg[(arg >> 8) & 0xffu].x,
                                       reg[(arg >> 16) & 0xffu].x, reg[arg >> 24].x, reg[more & 0xffu].x));
             pc += 1u;
             break;
         }
         case NODE_BRICK: {
             uint more = node_words[pc];
-            vec4 c = node_brick(reg[a].xyz * reg[b].x, reg[arg & 0xffu].rgb, reg[(arg >> 8) & 0xffu].rgb,
-                                reg[(arg >> 16) & 0xffu].rgb, reg[arg >> 24].x, reg[more & 0xffu].x, reg[(more >> 8) & 0xffu].x,
-                                reg[(more >> 16) & 0xffu].x, reg[more >> 24].x, pc + 1u);
-            reg[dst] = (node_words[pc + 3u] & 0x10000u) != 0u ? vec4(c.w) : vec4(c.rgb, 1.0);
+            if (HAS(FEATURE_NODE_TEXTURES)) {
+                vec4 c = node_brick(reg[a].xyz * reg[b].x, reg[arg & 0xffu].rgb, reg[(arg >> 8) & 0xffu].rgb,
+                                    reg[(arg >> 16) & 0xffu].rgb, reg[arg >> 24].x, reg[more & 0xffu].x,
+                                    reg[(more >> 8) & 0xffu].x, reg[(more >> 16) & 0xffu].x, reg[more >> 24].x, pc + 1u);
+                reg[dst] = (node_words[pc + 3u] & 0x10000u) != 0u ? vec4(c.w) : vec4(c.rgb, 1.0);
+            }
             pc += 4u;
             break;
         }
@@ -670,10 +676,11 @@ void run_node_program(inout Material m, inout SurfaceHit sh, vec3 wo) {
             break;
         }
         case NODE_VECTOR_MATH:
-            reg[dst] = vec4(node_vector_math(arg & 0xffu, reg[a].xyz, reg[b].xyz, reg[(arg >> 8) & 0xffu].xyz, reg[arg >> 16].x), 0.0);
+            if (HAS(FEATURE_NODE_COLOR)) reg[dst] = vec4(node_vector_math(arg & 0xffu, reg[a].xyz, reg[b].xyz, reg[(arg >> 8) & 0xffu].xyz, reg[arg >> 16].x), 0.0);
             break;
         case NODE_CURVES: {  // Cycles' svm_node_curves (3 channels) and svm_node_curve (1)
             uint size = arg & 0xffffu, channels = arg >> 24;
+            if (!HAS(FEATURE_NODE_COLOR)) channels = 0u;  // (no program of the scene has curves)
             float min_x = node_float(pc), range_x = node_float(pc + 1u) - min_x;
             vec3 x = reg[a].xyz, y = x;
             for (uint k = 0u; k < channels; ++k)
@@ -683,6 +690,7 @@ void run_node_program(inout Material m, inout SurfaceHit sh, vec3 wo) {
             break;
         }
         case NODE_HSV: {  // Cycles' svm_node_hsv
+            if (!HAS(FEATURE_NODE_COLOR)) break;
             vec3 color = reg[a].rgb, hsv = node_rgb_to_hsv(color);
             float fac = reg[b].x;
             hsv = vec3(fract(hsv.x + reg[arg & 0xffu].x + 0.5), clamp(hsv.y * reg[(arg >> 8) & 0xffu].x, 0.0, 1.0),

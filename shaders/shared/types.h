@@ -166,6 +166,12 @@ PX_CONST uint FEATURE_TRANSMISSION = 1u << 13;
 // is the pinhole's alone, which lavapipe runs 1.5-2% faster (bench/results/issue37_camera_nodes).
 PX_CONST uint FEATURE_LENS = 1u << 14;
 PX_CONST uint FEATURE_NODES = 1u << 15;  // some used material has a node program (nodes.glsl)
+// The node programs' heavier operations, by group (scene.cpp node_program_features): a scene
+// whose programs use none of a group runs an interpreter without its code, which the H200
+// runs at about half the cost per hit (bench/results/issue37_camera_nodes).
+PX_CONST uint FEATURE_NODE_TEXTURES = 1u << 16;  // Noise, Voronoi, Wave, Brick
+PX_CONST uint FEATURE_NODE_SURFACE = 1u << 17;   // geometry, attributes, bump offsets, Bump, Normal Map, Fresnel
+PX_CONST uint FEATURE_NODE_COLOR = 1u << 18;     // Vector Math, Curves, Hue/Saturation/Value
 PX_CONST uint FEATURE_ALL = 0xffffffffu;
 
 // The light-path limits a pipeline carries (LIGHT_PATH_LIMITS, tested by LIMITS()): only where

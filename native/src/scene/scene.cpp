@@ -259,7 +259,7 @@ uint scene_features(const SceneHost& s) {
         if (m.type == MATERIAL_PRINCIPLED) f |= FEATURE_PRINCIPLED;
         if (material_transmits(m)) f |= FEATURE_TRANSMISSION;
         if (m.base_color_texture >= 0) f |= FEATURE_TEXTURES;
-        if (m.program != NO_INDEX) f |= FEATURE_NODES;
+        if (m.program != NO_INDEX) f |= FEATURE_NODES | s.materials->program_features[k];
     }
     if (camera_has_lens(s.info)) f |= FEATURE_LENS;
     for (const auto& l : s.lights->lights) {
@@ -414,10 +414,12 @@ std::shared_ptr<const SceneGeometry> prepare_geometry(const SceneArrays& a, bool
 // Materials and textures; the triangles' material indices must stay in range.
 // A node program (types.h NODE_*) from word `start`: known operations, registers written
 // before they are read, finite constants, textures that exist, and NODE_END before the end.
-void check_node_program(const std::vector<uint>& words, uint32_t start, size_t textures, uint32_t attribute_slots,
+// Returns the FEATURE_NODE_* groups of the operations it uses.
+uint check_node_program(const std::vector<uint>& words, uint32_t start, size_t textures, uint32_t attribute_slots,
                         const std::string& id) {
     const std::string where = id + ": node program at word " + std::to_string(start);
     uint64_t written = 0;  // registers set so far, a bit each
+    uint features = 0;
     auto reg = [&](uint r) {
         if (r >= NODE_REGISTERS || !(written >> r & 1u)) bad(where + " reads register " + std::to_string(r) + " before it is set");
     };
@@ -431,7 +433,12 @@ void check_node_program(const std::vector<uint>& words, uint32_t start, size_t t
     for (size_t pc = start;;) {
         if (pc >= words.size()) bad(where + " runs past the end of material_node_programs");
         const uint word = words[pc], op = word & 0xffu, dst = (word >> 8) & 0xffu, a = (word >> 16) & 0xffu, b = word >> 24;
-        if (op == NODE_END) return;
+        if (op == NODE_END) return features;
+        if (op == NODE_NOISE || op == NODE_VORONOI || op == NODE_WAVE || op == NODE_BRICK) features |= FEATURE_NODE_TEXTURES;
+        if (op == NODE_GEOMETRY || op == NODE_ATTRIBUTE || op == NODE_BUMP || op == NODE_NORMAL_MAP || op == NODE_FRESNEL ||
+            ((op == NODE_UV || op == NODE_GENERATED) && (words[pc + 1] >> 8 & 0xffu) != 0))
+            features |= FEATURE_NODE_SURFACE;
+        if (op == NODE_VECTOR_MATH || op == NODE_CURVES || op == NODE_HSV) features |= FEATURE_NODE_COLOR;
         if (op >= NODE_OPS) bad(where + ": unknown operation " + std::to_string(op));
         size_t size = 2;  // the instruction and its word
         if (op == NODE_CONST) size = 5;
@@ -608,8 +615,10 @@ std::shared_ptr<const SceneMaterials> prepare_materials(const SceneArrays& a, co
         m.mix_next = -1;
         m.mix_weight = 1.0f;
         m.program = NO_INDEX;
+        s.program_features.push_back(0);
         if (program.data && program.data[k] >= 0) {
-            check_node_program(s.node_programs, uint32_t(program.data[k]), s.textures.size(), g.attribute_slots, id);
+            s.program_features.back() =
+                check_node_program(s.node_programs, uint32_t(program.data[k]), s.textures.size(), g.attribute_slots, id);
             m.program = uint32_t(program.data[k]);
         }
         m.flags = (multiscatter.data && multiscatter.data[k] != 0) ? MATERIAL_FLAG_MULTISCATTER : 0u;

@@ -97,6 +97,7 @@ struct SceneMaterials {  // "materials"
     std::vector<TextureInfo> textures;
     std::vector<uint> texels;
     std::vector<uint> node_programs;  // the materials' node programs (Material.program)
+    std::vector<uint> program_features;  // per material: the FEATURE_NODE_* groups its program uses
 };
 struct ScenePlacement {  // "instances": the TLAS contents
     std::vector<InstanceInfo> instances;  // in TLAS order; light_offset = NO_INDEX
