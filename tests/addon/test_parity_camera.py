@@ -138,3 +138,29 @@ def test_panorama_matches_cycles(bpy, tmp_path, builder):
     ratio, _, ours, theirs = compare(bpy, tmp_path, builder, samples=min(SAMPLES, 128))
     assert ours == pytest.approx(theirs, rel=0.03)
     assert ratio < 3.0
+
+
+def room_dof(b):
+    """The room through a 50 mm lens at f/0.8 focused on the middle box (a focus object): the
+    near box and the far wall blurred; a hexagonal aperture."""
+    import bpy
+
+    focus = _room(b)
+    camera = b.add_camera((0.4, -2.6, 1.2), (0.0, 0.8, 0.6), 50.0)
+    dof = camera.data.dof
+    dof.use_dof, dof.focus_object, dof.aperture_fstop, dof.aperture_blades = True, focus, 0.8, 6
+    bpy.context.view_layer.update()
+
+
+def test_depth_of_field_at_the_issue_size(bpy, tmp_path):
+    """Issue 37's check for depth of field, as test_parity_nodes.py checks the node grid:
+    160 x 120, 256 samples, 8 x 8-block relMSE below 0.005 and the mean within 2%."""
+    from blender_helpers import block_means, render_engine
+
+    scene = build_scene(bpy, room_dof, 160, 120)
+    ours, theirs = (render_engine(bpy, tmp_path, scene, engine, 0, 256) for engine in ("PARALLAX", "CYCLES"))
+    P, C = block_means(ours, 8), block_means(theirs, 8)
+    rel_mse = float(((P - C) ** 2).sum() / max((C ** 2).sum(), 1e-30))
+    print(f"room_dof: mean {ours.mean():.4f} vs Cycles {theirs.mean():.4f}, 8x8-block relMSE {rel_mse:.5f}")
+    assert rel_mse < 0.005
+    assert ours.mean() == pytest.approx(theirs.mean(), rel=0.02)
