@@ -4,12 +4,13 @@ maths nodes that drive a shader's inputs, evaluated per hit on the device as Cyc
 ``GraphCompiler.socket(socket, kind)`` gives the value arriving at a shader input: a constant
 (folded on the host) or a register of the program. Nodes it cannot compile raise
 ``Unsupported``; the caller then names the node in a warning and uses the socket's own value.
-Supported: Value, RGB, Image Texture (Color; flat, repeating, the active UV map), Noise
+Supported: Value, RGB, Image Texture (Color; flat, repeating, any Vector), Noise
 Texture (3D fBm, as Cycles: same hash, same noise), Checker Texture, Gradient Texture (linear,
 quadratic, easing, diagonal), Voronoi Texture (3D; F1, F2, Smooth F1; every distance metric;
 fractal detail; Distance, Color, Position), Wave Texture (bands and rings, every direction and
 profile, distortion), Brick Texture (Color, Fac), Texture Coordinate (UV, Generated, Object,
-Normal), Geometry (Position, Normal, True Normal, Incoming, Backfacing), UV Map, Mapping (point,
+Normal), Geometry (Position, Normal, True Normal, Incoming, Backfacing), UV Map (any map),
+Attribute and Color Attribute (mesh attributes: attribute_requests), Mapping (point,
 texture, vector), Math (every operation), Vector Math (every operation), Clamp, Mix and MixRGB
 (the blend modes of parallax_core.nodes.BLEND_MODES), Invert, Hue/Saturation/Value,
 Bright/Contrast, Gamma, Map Range (float and vector; linear, stepped, smooth step, smoother
@@ -21,41 +22,37 @@ Reroute and node groups (flattened).
 import numpy as np
 
 
-def tangent_uv_maps(tree, seen=None):
-    """The UV maps ('' for the active one) whose tangents the tree's tangent-space Normal Map
-    nodes use, node groups included: what the mesh export computes tangents for."""
+def _tree_nodes(tree, seen=None):
+    """Every node of ``tree`` and of the node groups inside it (each tree once)."""
     seen = set() if seen is None else seen
-    maps = set()
     if tree is None or tree.name_full in seen:
-        return maps
+        return
     seen.add(tree.name_full)
     for node in tree.nodes:
-        if node.type == "NORMAL_MAP" and node.space == "TANGENT":
-            maps.add(node.uv_map)
-        elif node.type == "GROUP":
-            maps |= tangent_uv_maps(node.node_tree, seen)
-    return maps
+        yield node
+        if node.type == "GROUP":
+            yield from _tree_nodes(node.node_tree, seen)
 
 
-def attribute_requests(tree, seen=None):
+def tangent_uv_maps(tree):
+    """The UV maps ('' for the active one) whose tangents the tree's tangent-space Normal Map
+    nodes use, node groups included: what the mesh export computes tangents for."""
+    return {node.uv_map for node in _tree_nodes(tree) if node.type == "NORMAL_MAP" and node.space == "TANGENT"}
+
+
+def attribute_requests(tree):
     """The mesh data the tree's nodes read beyond the active UV map: ("uv", name) for a UV Map
     node naming a map, ("attribute", name) for Attribute (geometry) and Color Attribute nodes
     ('' for the mesh's default colour attribute). The mesh export fills an attribute slot for
     each (parallax_core.scene Mesh.attributes)."""
-    seen = set() if seen is None else seen
     keys = set()
-    if tree is None or tree.name_full in seen:
-        return keys
-    seen.add(tree.name_full)
-    for node in tree.nodes:
+    for node in _tree_nodes(tree):
         if node.type == "UVMAP" and node.uv_map:
             keys.add(("uv", node.uv_map))
         elif node.type == "ATTRIBUTE" and node.attribute_type == "GEOMETRY" and node.attribute_name:
             keys.add(("attribute", node.attribute_name))
         elif node.type == "VERTEX_COLOR":
             keys.add(("attribute", node.layer_name))
-        elif node.type == "GROUP":
-            keys |= attribute_requests(node.node_tree, seen)
     return keys
 
 

@@ -411,7 +411,8 @@ def test_every_flat_key_is_in_exactly_one_part():
     assert set(PART_KEYS["geometry"]) == {"positions", "indices", "triangle_material", "corner_normals",
                                           "corner_uvs", "mesh_first_triangle", "mesh_triangle_count",
                                           "mesh_has_normals", "mesh_has_uvs", "mesh_texspace",
-                                          "corner_tangents", "mesh_has_tangents"}
+                                          "corner_tangents", "mesh_has_tangents", "corner_attributes",
+                                          "mesh_attribute_mask"}
 
 
 def test_flatten_parts_sends_only_those_keys():
