@@ -399,3 +399,48 @@ def test_mix_shader_keeps_principled_in_its_chain(fresh, bpy):
     assert head.mix_weight == pytest.approx(0.75)
     assert data.materials[head.mix_next].type == "conductor"
     assert data.materials[head.mix_next].coat_weight == 0.0
+
+
+def test_normal_maps_and_attributes_reach_the_meshes_and_edits_reexport_them(fresh, bpy):
+    """A tangent-space Normal Map gives the meshes of its material MikkTSpace tangents, an
+    Attribute node a slot of the named colour attribute (other meshes: none); a viewport edit
+    that adds such a node needs the geometry again (SceneExporter.update answers "geometry")."""
+    from addon.sync import SceneExporter
+
+    material, bsdf = _material(bpy, "Bumpy", "ShaderNodeBsdfDiffuse")
+    cube = _cube(bpy, fresh, material=material)
+    plain = _cube(bpy, fresh, "Plain", location=(4, 0, 0))
+    paint = cube.data.color_attributes.new("Paint", "FLOAT_COLOR", "CORNER")
+    for k, corner in enumerate(paint.data):
+        corner.color = (k / len(paint.data), 0.5, 0.25, 1.0)
+    exporter = SceneExporter()
+    data, _ = exporter.full(bpy.context.evaluated_depsgraph_get(), 32, 32)
+    assert all(m.tangents is None and m.attributes == {} for m in data.meshes)
+
+    tree = material.node_tree
+    normal_map, attribute = tree.nodes.new("ShaderNodeNormalMap"), tree.nodes.new("ShaderNodeAttribute")
+    attribute.attribute_name = "Paint"
+    tree.links.new(normal_map.outputs["Normal"], bsdf.inputs["Normal"])
+    tree.links.new(attribute.outputs["Color"], bsdf.inputs["Color"])
+    parts, warnings = exporter.update(bpy.context.evaluated_depsgraph_get(), {"materials"})
+    assert parts == {"geometry"}, parts
+    data = exporter.data
+    bumpy = next(m for m in data.meshes if m.name == cube.name)
+    other = next(m for m in data.meshes if m.name == plain.name)
+    assert bumpy.tangents is not None and bumpy.tangents.shape == (12, 3, 4)
+    np.testing.assert_allclose(np.linalg.norm(bumpy.tangents[..., :3], axis=-1), 1.0, atol=1e-4)
+    assert set(np.unique(bumpy.tangents[..., 3])) <= {-1.0, 1.0}
+    assert list(bumpy.attributes) == [0] and other.attributes == {} and other.tangents is None
+    values = bumpy.attributes[0]
+    assert values.shape == (12, 3, 4) and np.allclose(values[..., 1:], (0.5, 0.25, 1.0))
+    assert len(np.unique(values[..., 0])) > 6  # a value per corner
+    program = data.materials[bumpy.material_indices[0]].node_program
+    from parallax_core import nodes
+
+    ops = {op for op, *_ in nodes.instructions(program)}
+    assert {nodes.NODE_NORMAL_MAP, nodes.NODE_ATTRIBUTE} <= ops
+    assert not [w for w in warnings if "Normal Map" in w or "attribute" in w], warnings
+    # An edit that changes no mesh data stays a materials update.
+    normal_map.inputs["Strength"].default_value = 0.5
+    parts, _ = exporter.update(bpy.context.evaluated_depsgraph_get(), {"materials"})
+    assert parts == {"materials"}
