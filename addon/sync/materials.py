@@ -151,7 +151,7 @@ class MaterialTable:
                 color = link.mix("MULTIPLY", 1.0, color, link.to_color(total))  # the lobes' weights add up to total
             principled = {k: field(k, v, 1.0 if k == "transmission" else 0.0) for k, v in lobe["principled"].items()}
             if lobe["normal"] is not None:
-                field("normal", lobe["normal"], None)
+                link.store("normal", lobe["normal"])
             # The next lobe is appended after this one (after the head: at the end).
             next_index = len(materials) + (0 if i == 0 else 1)
             material = Material(
@@ -256,10 +256,14 @@ class _NodeReader:
         if socket is None or self._source(socket) is None:
             return None
         try:
-            return self.graph.socket(socket, "vector")
+            normal = self.graph.socket(socket, "vector")
         except (Unsupported, ValueError) as e:
             self.warn(f"'{node.name}' {name} is driven by {e}, which is not supported; using the surface's normal")
             return None
+        if self.program.is_constant(normal):
+            self.warn(f"'{node.name}': a constant {name} is not supported; using the surface's normal")
+            return None
+        return normal
 
     def ior(self, node, default):
         """The node's IOR clamped into the core's range (scene.IOR_RANGE; Blender allows 0, and
