@@ -434,11 +434,6 @@ uint check_node_program(const std::vector<uint>& words, uint32_t start, size_t t
         if (pc >= words.size()) bad(where + " runs past the end of material_node_programs");
         const uint word = words[pc], op = word & 0xffu, dst = (word >> 8) & 0xffu, a = (word >> 16) & 0xffu, b = word >> 24;
         if (op == NODE_END) return features;
-        if (op == NODE_NOISE || op == NODE_VORONOI || op == NODE_WAVE || op == NODE_BRICK) features |= FEATURE_NODE_TEXTURES;
-        if (op == NODE_GEOMETRY || op == NODE_ATTRIBUTE || op == NODE_BUMP || op == NODE_NORMAL_MAP || op == NODE_FRESNEL ||
-            ((op == NODE_UV || op == NODE_GENERATED) && (words[pc + 1] >> 8 & 0xffu) != 0))
-            features |= FEATURE_NODE_SURFACE;
-        if (op == NODE_VECTOR_MATH || op == NODE_CURVES || op == NODE_HSV) features |= FEATURE_NODE_COLOR;
         if (op >= NODE_OPS) bad(where + ": unknown operation " + std::to_string(op));
         size_t size = 2;  // the instruction and its word
         if (op == NODE_CONST) size = 5;
@@ -449,21 +444,24 @@ uint check_node_program(const std::vector<uint>& words, uint32_t start, size_t t
         if (op == NODE_CURVES && pc + 1 < words.size()) size = 4 + size_t(words[pc + 1] >> 24) * (words[pc + 1] & 0xffffu);
         if (pc + size >= words.size()) bad(where + " runs past the end of material_node_programs");
         const uint arg = words[pc + 1];
+        if (op == NODE_NOISE || op == NODE_VORONOI || op == NODE_WAVE || op == NODE_BRICK) features |= FEATURE_NODE_TEXTURES;
+        if (op == NODE_GEOMETRY || op == NODE_ATTRIBUTE || op == NODE_BUMP || op == NODE_NORMAL_MAP || op == NODE_FRESNEL ||
+            ((op == NODE_UV || op == NODE_GENERATED) && (arg >> 8 & 0xffu) != 0))
+            features |= FEATURE_NODE_SURFACE;
+        if (op == NODE_VECTOR_MATH || op == NODE_CURVES || op == NODE_HSV) features |= FEATURE_NODE_COLOR;
         switch (op) {
             case NODE_CONST: finite_words(pc + 1, 4); break;
             case NODE_UV:
             case NODE_GENERATED:
             case NODE_GEOMETRY:
+            case NODE_ATTRIBUTE:
                 if ((arg >> 8 & 0xffu) > 2) bad(where + ": unknown bump offset " + std::to_string(arg >> 8 & 0xffu));
                 if (op == NODE_GEOMETRY && (arg & 0xffu) >= NODE_GEOMETRY_KINDS)
                     bad(where + ": unknown geometry output " + std::to_string(arg & 0xffu));
-                break;
-            case NODE_BUMP: reg(a), reg(b); for (int k = 0; k < 4; ++k) reg((arg >> (8 * k)) & 0xffu); break;
-            case NODE_ATTRIBUTE:
-                if ((arg >> 8 & 0xffu) > 2) bad(where + ": unknown bump offset " + std::to_string(arg >> 8 & 0xffu));
-                if ((arg & 0xffu) >= attribute_slots)
+                if (op == NODE_ATTRIBUTE && (arg & 0xffu) >= attribute_slots)
                     bad(where + " reads attribute slot " + std::to_string(arg & 0xffu) + " of " + std::to_string(attribute_slots));
                 break;
+            case NODE_BUMP: reg(a), reg(b); for (int k = 0; k < 4; ++k) reg((arg >> (8 * k)) & 0xffu); break;
             case NODE_NORMAL_MAP:
                 reg(a), reg(b);
                 if (arg > NODE_NORMAL_MAP_BLENDER_WORLD) bad(where + ": unknown normal map space " + std::to_string(arg));
