@@ -10,6 +10,36 @@ import numpy as np
 AREA_SHAPES = {"SQUARE": "rectangle", "RECTANGLE": "rectangle", "DISK": "ellipse", "ELLIPSE": "ellipse"}
 
 
+def _node_emission(tree, label, warnings):
+    """The factor a light's node tree puts on its colour x power: the Emission's Color x
+    Strength at its Surface output, as Cycles multiplies them. The graph is folded on the host
+    (parallax_core.node_fields); one that varies over the light (texture coordinates, IES,
+    ...) or another shader is named in a warning, and its sockets' own values are used."""
+    from ..core import load
+
+    from .node_graph import GraphCompiler, Unsupported
+    from .world import _linked_node
+
+    core = load()
+    output = tree.get_output_node("CYCLES")
+    emission = _linked_node(output.inputs.get("Surface")) if output is not None else None
+    if emission is None:
+        return np.ones(3)
+    if emission.type != "EMISSION":
+        warnings.add(f"{label}: '{emission.bl_label}' as the light's surface is not supported; colour x power is used")
+        return np.ones(3)
+    color, strength = emission.inputs["Color"], emission.inputs["Strength"]
+    own = np.asarray(color.default_value[:3], np.float64) * float(strength.default_value)
+    program = core.node_fields.FieldProgram(1, {})  # no coordinates: a light's graph must fold
+    compiler = GraphCompiler(program, lambda *args: None, label)
+    try:
+        rgb, scale = compiler.socket(color, "color"), compiler.socket(strength, "float")
+    except (Unsupported, ValueError) as e:
+        warnings.add(f"{label}: the Emission is driven by {e}, which is not supported; using its values")
+        return own
+    return core.nodes._vec4(rgb)[:3] * float(core.nodes._vec4(scale)[0])
+
+
 def export_lights(depsgraph, data, warnings):
     from ..core import load
 
@@ -32,7 +62,7 @@ def export_lights(depsgraph, data, warnings):
         if not getattr(light, "normalize", True) and light.type != "AREA":
             warnings.add(f"{label}: Normalize off is ignored (power is used as if on)")
         if getattr(light, "use_nodes", False) and light.node_tree is not None:
-            warnings.add(f"{label}: light node trees are ignored (colour x power is used)")
+            common["color"] = tuple(np.asarray(common["color"]) * _node_emission(light.node_tree, label, warnings))
         if light.type in ("POINT", "SPOT"):
             kind = "point" if light.type == "POINT" else "spot"
             extra = dict(radius=float(light.shadow_soft_size),

@@ -207,14 +207,23 @@ def _attribute_values(mesh, key, name, warnings):
 
 
 def _tangents(mesh, uv_layer, maps, name, warnings):
-    """(loops, 4) MikkTSpace tangents of the exported UV map and bitangent signs, as Blender
-    computes them for Cycles' Normal Map; None (with a warning) where Blender cannot."""
-    other = sorted(m for m in maps if m and m != uv_layer.name)
-    if other:
-        warnings.add(f"object '{name}': a Normal Map names the UV map '{other[0]}'; the tangents of the "
-                     f"active map '{uv_layer.name}' are used (one UV map is exported)")
+    """(loops, 4) MikkTSpace tangents and bitangent signs of the UV map the mesh's Normal Maps
+    name ('' the active one), as Blender computes them for Cycles' Normal Map; None (with a
+    warning) where Blender cannot. One set per mesh: Normal Maps naming different maps on one
+    mesh use the active map's (or the first named), with a warning."""
+    wanted = sorted({m or uv_layer.name for m in maps})
+    missing = [m for m in wanted if m not in mesh.uv_layers]
+    if missing:
+        warnings.add(f"object '{name}': a Normal Map names the UV map '{missing[0]}', which the mesh lacks; "
+                     f"the tangents of the active map '{uv_layer.name}' are used")
+    present = [m for m in wanted if m in mesh.uv_layers] or [uv_layer.name]
+    chosen = uv_layer.name if uv_layer.name in present else present[0]
+    if len(present) > 1:
+        others = ", ".join(f"'{m}'" for m in present if m != chosen)
+        warnings.add(f"object '{name}': its Normal Maps name the UV maps '{chosen}' and {others}; one set of "
+                     f"tangents is exported per mesh: those of '{chosen}'")
     try:
-        mesh.calc_tangents(uvmap=uv_layer.name)
+        mesh.calc_tangents(uvmap=chosen)
     except RuntimeError as e:
         warnings.add(f"object '{name}': no tangents for its Normal Map ({e}); the surface's normal is used")
         return None

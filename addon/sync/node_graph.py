@@ -16,8 +16,10 @@ texture, vector), Math (every operation), Vector Math (every operation), Clamp, 
 Bright/Contrast, Gamma, Map Range (float and vector; linear, stepped, smooth step, smoother
 step), ColorRamp (any interpolation, as Cycles: a 256-entry table), RGB Curves and Float Curve
 (as Cycles: 256-entry tables over the curves' range, extrapolated or not), Separate/Combine
-Color (RGB) and XYZ, Fresnel, Layer Weight, Bump, Normal Map (tangent, object and world space),
-Reroute and node groups (flattened).
+Color (RGB) and XYZ, Blackbody (a constant temperature), Fresnel, Layer Weight, Bump, Normal
+Map (tangent, object and world space), Reroute and node groups (flattened). In a world
+(parallax_core.node_fields evaluates the graph on the host): also Environment Texture, Sky
+Texture and Blackbody of any temperature.
 """
 import numpy as np
 
@@ -123,10 +125,15 @@ class GraphCompiler:
 
     def _output(self, node, output, groups):
         """(value, kind) of ``output`` of ``node``."""
+        from ..core import load
+
         handler = getattr(self, "_" + node.type.lower(), None)
         if handler is None:
             raise Unsupported(f"'{node.bl_label}' node '{node.name}'")
-        return handler(node, output, groups)
+        try:
+            return handler(node, output, groups)
+        except load().node_fields.NotOnHost as e:  # a world's or light's graph (FieldProgram)
+            raise Unsupported(f"'{node.bl_label}' node '{node.name}' ({e} here)") from None
 
     def _value(self, node, output, groups):
         return float(output.default_value), "float"
@@ -250,6 +257,41 @@ class GraphCompiler:
             raise Unsupported(f"Image Texture '{node.name}' without pixels")
         vector = self._in(node, "Vector", "vector", groups) if node.inputs["Vector"].is_linked else self._uv()
         return self.program.texture(vector, texture), "color"
+
+    def _tex_environment(self, node, output, groups):
+        """Cycles' Environment Texture (equirectangular) in a world: the image in the direction
+        of its Vector (the view direction by default)."""
+        if not hasattr(self.program, "environment"):
+            raise Unsupported(f"'Environment Texture' node '{node.name}' outside a world")
+        if output.name != "Color":
+            raise Unsupported(f"Environment Texture '{node.name}' output {output.name}")
+        if node.image is None:
+            return np.zeros(4), "color"
+        if node.projection != "EQUIRECTANGULAR":
+            raise Unsupported(f"Environment Texture '{node.name}' with {node.projection} projection")
+        interpolation = "closest" if node.interpolation == "Closest" else "linear"
+        image = self.texture_loader(node.image, self.material_name, interpolation)
+        if image is None:
+            raise Unsupported(f"Environment Texture '{node.name}' without pixels")
+        linked = node.inputs["Vector"].is_linked
+        vector = self._in(node, "Vector", "vector", groups) if linked else self.program.geometry("position")
+        return self.program.environment(vector, image), "color"
+
+    def _tex_sky(self, node, output, groups):
+        """Blender's Sky Texture in a world (parallax_core.sky: single and multiple scattering,
+        Preetham), its sun disc left to the world export (a sun light)."""
+        sky = self.nodes_sky()
+        if not hasattr(self.program, "sky"):
+            raise Unsupported(f"'Sky Texture' node '{node.name}' outside a world")
+        if node.sky_type not in sky.SKY_TYPES:
+            raise Unsupported(f"Sky Texture '{node.name}' of type {node.sky_type}")
+        return self.program.sky(self._texture_vector(node, groups), sky.SkyParams.from_node(node)), "color"
+
+    @staticmethod
+    def nodes_sky():
+        from ..core import load
+
+        return load().sky
 
     def _offset(self, vector, seed):
         """vector + Cycles' random_float3_offset(seed): a noise's own seed."""
@@ -459,6 +501,16 @@ class GraphCompiler:
         scale = self.socket(sockets["Scale"], "float", groups) if "s" in used else 1.0
         value = self.program.vector_math(op, a, b, c, scale)
         return (value, "float") if is_float else (value, "vector")
+
+    def _blackbody(self, node, output, groups):
+        """Blender's Blackbody (nodes.blackbody_reference): folded on the host where the
+        temperature is a constant, evaluated per point in a world; not on the device."""
+        temperature = self._in(node, "Temperature", "float", groups)
+        if self.program.is_constant(temperature):
+            return self.nodes.blackbody_reference(float(self.nodes._vec4(temperature)[0])), "color"
+        if not hasattr(self.program, "blackbody"):
+            raise Unsupported(f"Blackbody '{node.name}' with a varying temperature")
+        return self.program.blackbody(temperature), "color"
 
     def _hue_sat(self, node, output, groups):
         args = [self._in(node, k, "float", groups) for k in ("Hue", "Saturation", "Value", "Fac")]

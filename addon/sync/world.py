@@ -1,9 +1,16 @@
-"""Blender world -> Parallax World: Background colour x strength, or an equirectangular
-Environment Texture x strength (importance-sampled by the core)."""
+"""Blender world -> Parallax World: Background colour x strength, an equirectangular
+Environment Texture x strength (importance-sampled by the core), or any other graph into the
+Background's Colour and Strength (Sky Texture, gradients, mapped or tinted images, ...) baked
+on the host into an equirectangular map (parallax_core.node_fields), as Cycles bakes its
+world for importance sampling. A Sky Texture's sun disc becomes a sun light."""
 import numpy as np
 
 from .images import image_rgb, srgb_to_linear
 from .materials import node_tree
+from .node_graph import GraphCompiler, Unsupported, _tree_nodes
+
+# Baked maps: this width (2:1) unless an image in the graph is wider (up to BAKE_MAX_WIDTH).
+BAKE_WIDTH, BAKE_MAX_WIDTH = 1024, 4096
 
 
 def export_world(world, data, warnings):
@@ -28,20 +35,17 @@ def export_world(world, data, warnings):
         data.world = World(color=(0.0, 0.0, 0.0), strength=0.0)
         return
     strength = background.inputs["Strength"]
-    if strength.is_linked:
-        warnings.add(f"world '{world.name}': a linked Strength is not supported; using its value")
     color_socket = background.inputs["Color"]
     color = tuple(color_socket.default_value[:3])
-    env_map = None
     source = _linked_node(color_socket)
-    if source is not None:
-        if source.type == "TEX_ENVIRONMENT" and source.image is not None:
-            env_map = _environment_map(source, world.name, warnings)
-            color = (1.0, 1.0, 1.0)
-        else:
-            warnings.add(f"world '{world.name}': '{source.bl_label}' into the Background colour is "
-                         "not supported; using the colour value")
-    data.world = World(color=color, strength=float(strength.default_value), map=env_map)
+    if source is None and not strength.is_linked:
+        data.world = World(color=color, strength=float(strength.default_value))
+    elif _plain_environment(source) and not strength.is_linked:  # the image itself, unresampled
+        env_map = _environment_map(source, world.name, warnings)
+        data.world = World(color=(1.0, 1.0, 1.0) if env_map is not None else color,
+                           strength=float(strength.default_value), map=env_map)
+    else:
+        _bake(world, background, data, warnings)
 
 
 def is_black(world):
@@ -57,14 +61,101 @@ def _linked_node(socket):
     return None
 
 
+def _plain_environment(node):
+    return (node is not None and node.type == "TEX_ENVIRONMENT" and node.image is not None and
+            node.projection == "EQUIRECTANGULAR" and not node.inputs["Vector"].is_linked)
+
+
+def _texel_directions(width, height):
+    """World directions at the texel centres of a (height, width) equirectangular map laid
+    out as parallax_core.scene.World's: (N, 3), row by row from the top."""
+    u = (np.arange(width) + 0.5) / width
+    v = 1.0 - (np.arange(height) + 0.5) / height
+    phi, latitude = np.meshgrid((0.5 - u) * 2.0 * np.pi, (v - 0.5) * np.pi)
+    return np.stack([np.cos(latitude) * np.cos(phi), np.cos(latitude) * np.sin(phi), np.sin(latitude)],
+                    -1).reshape(-1, 3)
+
+
+def _bake(world, background, data, warnings):
+    """The Background's Colour x Strength evaluated in every direction of an equirectangular
+    map (Cycles' background shader point: P = the direction, N = I = -direction)."""
+    from ..core import load
+
+    core = load()
+    label = f"world '{world.name}'"
+    widths = [n.image.size[0] for n in _tree_nodes(world.node_tree)
+              if n.type in ("TEX_ENVIRONMENT", "TEX_IMAGE") and n.image is not None]
+    width = int(min(max([BAKE_WIDTH] + widths), BAKE_MAX_WIDTH))
+    height = max(width // 2, 1)
+    d = _texel_directions(width, height)
+    program = core.node_fields.FieldProgram(len(d), {
+        "position": d, "generated": d, "object": d, "normal": -d, "true_normal": -d, "incoming": -d,
+        "object_normal": -d, "uv": np.zeros_like(d)})
+    compiler = GraphCompiler(program, lambda image, node_label, interpolation: _host_image(
+        image, label, interpolation, warnings), label)
+    try:
+        color = compiler.socket(background.inputs["Color"], "color")
+        strength = compiler.socket(background.inputs["Strength"], "float")
+    except (Unsupported, ValueError) as e:
+        warnings.add(f"{label}: the Background is driven by {e}, which is not supported; using its "
+                     "colour and strength values")
+        data.world = core.scene.World(color=tuple(background.inputs["Color"].default_value[:3]),
+                                      strength=float(background.inputs["Strength"].default_value))
+        return
+    if program.is_constant(color) and program.is_constant(strength):
+        data.world = core.scene.World(color=tuple(float(x) for x in core.nodes._vec4(color)[:3]),
+                                      strength=float(core.nodes._vec4(strength)[0]))
+    else:
+        radiance = program.evaluate(color, "color")[:, :3] * program.evaluate(strength, "float")[:, None]
+        radiance = np.nan_to_num(np.maximum(radiance, 0.0), nan=0.0, posinf=0.0)
+        data.world = core.scene.World(color=(1.0, 1.0, 1.0), strength=1.0,
+                                      map=np.ascontiguousarray(radiance.reshape(height, width, 3), np.float32))
+    _sun_discs(world, background, program, strength, d, data, warnings)
+
+
+def _sun_discs(world, background, program, strength, directions, data, warnings):
+    """A Sky Texture straight into the Background's Colour: its sun disc as a sun light of the
+    disc's angular diameter and mean radiance (x the Strength in its direction). A disc whose
+    colour passes through other nodes is left out, with a warning."""
+    from ..core import load
+
+    core = load()
+    source = _linked_node(background.inputs["Color"])
+    for node in _tree_nodes(world.node_tree):
+        if node.type != "TEX_SKY" or node.sky_type not in core.sky.SKY_TYPES:
+            continue
+        sun = core.node_fields.sky_model(core.sky.SkyParams.from_node(node)).sun()
+        if sun is None:
+            continue
+        if node != source or node.inputs["Vector"].is_linked:
+            warnings.add(f"world '{world.name}': the sun disc of Sky Texture '{node.name}' is left out (only a "
+                         "Sky Texture straight into the Background's Colour gives its sun)")
+            continue
+        direction, diameter, radiance = sun
+        scale = program.evaluate(strength, "float")[int(np.argmax(directions @ direction))]
+        half = 0.5 * diameter  # the core turns power into radiance: power / (pi sin^2 half)
+        data.lights.append(core.scene.Light(
+            type="sun", power=float(scale * np.pi * np.sin(half) ** 2), color=tuple(float(x) for x in radiance),
+            direction=tuple(float(x) for x in -np.asarray(direction)), angle=float(diameter),
+            name=f"{world.name} sun", camera_visible=True))
+
+
+def _host_image(image, label, interpolation, warnings):
+    """A node's image for the host bake (node_fields.HostImage), None without pixels."""
+    from ..core import load
+
+    loaded = image_rgb(image)
+    if loaded is None:
+        warnings.add(f"{label}: image '{image.name}' has no pixels (missing file?)")
+        return None
+    pixels, stored_as_srgb = loaded
+    return load().node_fields.HostImage(np.nan_to_num(pixels, nan=0.0, posinf=0.0), stored_as_srgb, interpolation)
+
+
 def _environment_map(node, world_name, warnings):
     """The image as linear float (H, W, 3), row 0 at the top (the zenith); None if empty."""
     image = node.image
     label = f"world '{world_name}'"
-    if node.projection != "EQUIRECTANGULAR":
-        warnings.add(f"{label}: {node.projection} projection is rendered as equirectangular")
-    if node.inputs["Vector"].is_linked:
-        warnings.add(f"{label}: a mapped Vector input of the Environment Texture is ignored")
     loaded = image_rgb(image)
     if loaded is None:
         warnings.add(f"{label}: image '{image.name}' has no pixels (missing file?); using white")

@@ -444,3 +444,37 @@ def test_normal_maps_and_attributes_reach_the_meshes_and_edits_reexport_them(fre
     normal_map.inputs["Strength"].default_value = 0.5
     parts, _ = exporter.update(bpy.context.evaluated_depsgraph_get(), {"materials"})
     assert parts == {"materials"}
+
+
+def test_a_normal_map_naming_a_uv_map_gets_that_maps_tangents(fresh, bpy):
+    """The tangents follow the UV map the Normal Map names (Blender's calc_tangents of it), not
+    the active one; naming a map the mesh lacks is a warning (the active map's are used)."""
+    from addon.sync import export_scene
+
+    material, bsdf = _material(bpy, "Mapped", "ShaderNodeBsdfDiffuse")
+    cube = _cube(bpy, fresh, material=material)
+    turned = cube.data.uv_layers.new(name="Turned")
+    for loop in turned.data:
+        loop.uv = (loop.uv[1], 1.0 - loop.uv[0])  # the active map turned 90 degrees
+    cube.data.uv_layers.active_index = 0
+    normal_map = material.node_tree.nodes.new("ShaderNodeNormalMap")
+    normal_map.uv_map = "Turned"
+    material.node_tree.links.new(normal_map.outputs["Normal"], bsdf.inputs["Normal"])
+
+    def exported():
+        data, warnings = export_scene(bpy.context.evaluated_depsgraph_get(), 16, 16)
+        return data.meshes[0].tangents, warnings
+
+    tangents, warnings = exported()
+    mesh = cube.data
+    mesh.calc_tangents(uvmap="Turned")
+    want = np.array([mesh.loops[i].tangent for tri in mesh.loop_triangles for i in tri.loops])
+    np.testing.assert_allclose(tangents[..., :3].reshape(-1, 3), want, atol=1e-5)
+    assert not [w for w in warnings if "UV map" in w], warnings
+    normal_map.uv_map = "Missing"
+    tangents, warnings = exported()
+    mesh.calc_tangents(uvmap=mesh.uv_layers.active.name)
+    active = np.array([mesh.loops[i].tangent for tri in mesh.loop_triangles for i in tri.loops])
+    np.testing.assert_allclose(tangents[..., :3].reshape(-1, 3), active, atol=1e-5)
+    assert not np.allclose(want, active, atol=1e-3)  # the two maps' tangents differ
+    assert any("'Missing', which the mesh lacks" in w for w in warnings), warnings

@@ -23,6 +23,7 @@ from ._native import Session as _NativeSession
 from ._native import _PASSES, _SETTINGS, _make_params, _setting_index
 from . import denoise  # noqa: F401  (OIDN: parallax_core.denoise)
 from . import nodes  # noqa: F401  (material node programs: parallax_core.nodes)
+from . import node_fields, sky  # noqa: F401  (graphs evaluated on the host: worlds, lights)
 from .scene import PART_KEYS, PARTS, parts_set
 
 __all__ = ["Session", "RenderParams", "UNBIASED_LIGHT_PATHS", "SETTINGS", "PASSES", "setting", "devices", "METHODS",

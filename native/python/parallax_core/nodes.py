@@ -78,207 +78,211 @@ def _f32(x):
     return int(np.float32(x).view(np.uint32))
 
 
-def math_reference(op, a, b=0.0, c=0.0):
-    """Blender's Math node as Cycles computes it (svm_math_float: safe division, power, ...)."""
-    a, b, c = np.float64(a), np.float64(b), np.float64(c)
-    with np.errstate(all="ignore"):
-        return {
-            "ADD": lambda: a + b, "SUBTRACT": lambda: a - b, "MULTIPLY": lambda: a * b,
-            "DIVIDE": lambda: a / b if b != 0 else 0.0,
-            "POWER": lambda: 0.0 if a < 0 and b != math.floor(b) else float(np.power(a, b)),
-            "MINIMUM": lambda: min(a, b), "MAXIMUM": lambda: max(a, b),
-            "LESS_THAN": lambda: float(a < b), "GREATER_THAN": lambda: float(a > b),
-            "ABSOLUTE": lambda: abs(a), "SQRT": lambda: math.sqrt(a) if a > 0 else 0.0,
-            "MULTIPLY_ADD": lambda: a * b + c, "FLOOR": lambda: math.floor(a), "CEIL": lambda: math.ceil(a),
-            "FRACT": lambda: a - math.floor(a), "MODULO": lambda: math.fmod(a, b) if b != 0 else 0.0,
-            "SINE": lambda: math.sin(a), "COSINE": lambda: math.cos(a), "ROUND": lambda: math.floor(a + 0.5),
-            "SIGN": lambda: float(np.sign(a)), "EXPONENT": lambda: math.exp(a),
-            "CLAMP": lambda: min(max(a, b), c),
-            "LOGARITHM": lambda: 0.0 if a <= 0 or b <= 0 else _safe_divide(math.log(a), math.log(b)),
-            "INVERSE_SQRT": lambda: 1.0 / math.sqrt(a) if a > 0 else 0.0, "TRUNC": lambda: float(math.trunc(a)),
-            "SNAP": lambda: math.floor(_safe_divide(a, b)) * b, "WRAP": lambda: _wrap(a, b, c),
-            "PINGPONG": lambda: abs(_fract((a - b) / (b * 2.0)) * b * 2.0 - b) if b != 0 else 0.0,
-            "SMOOTH_MIN": lambda: _smooth_min(a, b, c), "SMOOTH_MAX": lambda: -_smooth_min(-a, -b, c),
-            "COMPARE": lambda: float(a == b or abs(a - b) <= max(c, float(np.finfo(np.float32).eps))),
-            "TANGENT": lambda: math.tan(a), "ARCSINE": lambda: math.asin(min(max(a, -1.0), 1.0)),
-            "ARCCOSINE": lambda: math.acos(min(max(a, -1.0), 1.0)), "ARCTANGENT": lambda: math.atan(a),
-            "ARCTAN2": lambda: 0.0 if a == 0 and b == 0 else math.atan2(a, b),
-            "SINH": lambda: math.sinh(a), "COSH": lambda: math.cosh(a), "TANH": lambda: math.tanh(a),
-            "RADIANS": lambda: a * (math.pi / 180.0), "DEGREES": lambda: a * (180.0 / math.pi),
-            "FLOORED_MODULO": lambda: a - math.floor(a / b) * b if b != 0 else 0.0,
-        }[op]()
+def _result(x):
+    """A reference's result: a numpy scalar for scalar inputs, else the array."""
+    x = np.array(x, np.float64)
+    return x[()] if x.ndim == 0 else x
+
+
+def _where_nonzero(b):
+    """b with its zeros replaced by 1 (a divisor for np.where's other branch)."""
+    return np.where(b != 0, b, 1.0)
 
 
 def _safe_divide(a, b):
-    return a / b if b != 0 else 0.0
+    return np.where(b != 0, a / _where_nonzero(b), 0.0)
 
 
 def _fract(x):
-    return x - math.floor(x)
+    return x - np.floor(x)
 
 
 def _wrap(value, high, low):
     """Cycles' wrapf(value, max, min)."""
     span = high - low
-    return value - span * math.floor((value - low) / span) if span != 0 else low
+    return np.where(span != 0, value - span * np.floor((value - low) / _where_nonzero(span)), low)
 
 
 def _smooth_min(a, b, k):
     """Cycles' smoothminf."""
-    if k == 0:
-        return min(a, b)
-    h = max(k - abs(a - b), 0.0) / k
-    return min(a, b) - h * h * h * k / 6.0
+    h = np.maximum(k - np.abs(a - b), 0.0) / _where_nonzero(k)
+    return np.where(k != 0, np.minimum(a, b) - h * h * h * k / 6.0, np.minimum(a, b))
 
 
 def _safe_pow(a, b):
     """Cycles' safe_powf (compatible_powf): 0 for a negative base and a fractional exponent,
     x^0 = 1, 0^y = 0."""
-    if a < 0 and b != math.trunc(b):
-        return 0.0
-    if b == 0:
-        return 1.0
-    if a == 0:
-        return 0.0
+    power = np.power(np.where(a == 0, 1.0, a), b)
+    return np.where((a < 0) & (b != np.trunc(b)), 0.0, np.where(b == 0, 1.0, np.where(a == 0, 0.0, power)))
+
+
+# Blender's Math node as Cycles computes it (svm_math_float), elementwise over numpy arrays.
+_MATH = {
+    "ADD": lambda a, b, c: a + b, "SUBTRACT": lambda a, b, c: a - b, "MULTIPLY": lambda a, b, c: a * b,
+    "DIVIDE": lambda a, b, c: _safe_divide(a, b),
+    "POWER": lambda a, b, c: np.where((a < 0) & (b != np.floor(b)), 0.0, np.power(a, b)),
+    "MINIMUM": lambda a, b, c: np.minimum(a, b), "MAXIMUM": lambda a, b, c: np.maximum(a, b),
+    "LESS_THAN": lambda a, b, c: (a < b) * 1.0, "GREATER_THAN": lambda a, b, c: (a > b) * 1.0,
+    "ABSOLUTE": lambda a, b, c: np.abs(a), "SQRT": lambda a, b, c: np.where(a > 0, np.sqrt(np.abs(a)), 0.0),
+    "MULTIPLY_ADD": lambda a, b, c: a * b + c, "FLOOR": lambda a, b, c: np.floor(a),
+    "CEIL": lambda a, b, c: np.ceil(a), "FRACT": lambda a, b, c: _fract(a),
+    "MODULO": lambda a, b, c: np.where(b != 0, np.fmod(a, _where_nonzero(b)), 0.0),
+    "SINE": lambda a, b, c: np.sin(a), "COSINE": lambda a, b, c: np.cos(a),
+    "ROUND": lambda a, b, c: np.floor(a + 0.5), "SIGN": lambda a, b, c: np.sign(a),
+    "EXPONENT": lambda a, b, c: np.exp(a), "CLAMP": lambda a, b, c: np.minimum(np.maximum(a, b), c),
+    "LOGARITHM": lambda a, b, c: np.where((a <= 0) | (b <= 0), 0.0, _safe_divide(np.log(np.abs(a)), np.log(np.abs(b)))),
+    "INVERSE_SQRT": lambda a, b, c: np.where(a > 0, 1.0 / np.sqrt(np.abs(a)), 0.0),
+    "TRUNC": lambda a, b, c: np.trunc(a), "SNAP": lambda a, b, c: np.floor(_safe_divide(a, b)) * b,
+    "WRAP": lambda a, b, c: _wrap(a, b, c),
+    "PINGPONG": lambda a, b, c: np.where(b != 0, np.abs(_fract((a - b) / _where_nonzero(b * 2.0)) * b * 2.0 - b), 0.0),
+    "SMOOTH_MIN": lambda a, b, c: _smooth_min(a, b, c), "SMOOTH_MAX": lambda a, b, c: -_smooth_min(-a, -b, c),
+    "COMPARE": lambda a, b, c: ((a == b) | (np.abs(a - b) <= np.maximum(c, float(np.finfo(np.float32).eps)))) * 1.0,
+    "TANGENT": lambda a, b, c: np.tan(a), "ARCSINE": lambda a, b, c: np.arcsin(np.clip(a, -1.0, 1.0)),
+    "ARCCOSINE": lambda a, b, c: np.arccos(np.clip(a, -1.0, 1.0)), "ARCTANGENT": lambda a, b, c: np.arctan(a),
+    "ARCTAN2": lambda a, b, c: np.where((a == 0) & (b == 0), 0.0, np.arctan2(a, b)),
+    "SINH": lambda a, b, c: np.sinh(a), "COSH": lambda a, b, c: np.cosh(a), "TANH": lambda a, b, c: np.tanh(a),
+    "RADIANS": lambda a, b, c: a * (math.pi / 180.0), "DEGREES": lambda a, b, c: a * (180.0 / math.pi),
+    "FLOORED_MODULO": lambda a, b, c: np.where(b != 0, a - np.floor(a / _where_nonzero(b)) * b, 0.0),
+}
+
+
+def math_reference(op, a, b=0.0, c=0.0):
+    """Blender's Math node as Cycles computes it (svm_math_float: safe division, power, ...),
+    on floats or elementwise on arrays."""
+    a, b, c = (np.asarray(x, np.float64) for x in (a, b, c))
     with np.errstate(all="ignore"):
-        return float(np.power(a, b))
+        out = _MATH[op](a, b, c)
+    return _result(np.broadcast_to(out, np.broadcast(a, b, c).shape))
+
+
+def _dot(a, b):
+    return np.sum(a * b, axis=-1)
+
+
+def _safe_normalize(v):
+    length = np.sqrt(_dot(v, v))[..., None]
+    return np.where(length != 0, v / np.where(length != 0, length, 1.0), v)
 
 
 def vector_math_reference(op, a, b=(0.0, 0.0, 0.0), c=(0.0, 0.0, 0.0), scale=1.0):
     """Blender's Vector Math node as Cycles computes it (svm_vector_math): a vector, or a float
-    for VECTOR_MATH_FLOAT_OPS; GAMMA is Cycles' svm_math_gamma_color of a by scale."""
-    a, b, c = (np.asarray(x, np.float64).ravel()[:3] for x in (a, b, c))
-    s = float(scale)
-    per = lambda f, *xs: np.array([f(*(float(x[k]) for x in xs)) for k in range(3)])
-    normalize = lambda v: v / np.sqrt(v @ v) if v @ v != 0 else v  # safe_normalize
-    if op == "ADD":
-        return a + b
-    if op == "SUBTRACT":
-        return a - b
-    if op == "MULTIPLY":
-        return a * b
-    if op == "DIVIDE":
-        return per(_safe_divide, a, b)
-    if op == "MULTIPLY_ADD":
-        return a * b + c
-    if op == "CROSS_PRODUCT":
-        return np.cross(a, b)
+    for VECTOR_MATH_FLOAT_OPS; GAMMA is Cycles' svm_math_gamma_color of a by scale. Vectors
+    are (..., 3+) arrays (the first three components are used), scale a float or (...)."""
+    a, b, c = (np.asarray(x, np.float64)[..., :3] for x in (a, b, c))
+    s = np.asarray(scale, np.float64)[..., None]
+    with np.errstate(all="ignore"):
+        out = _vector_math(op, a, b, c, s)
+    shape = np.broadcast(a, b, c, s).shape
+    return _result(np.broadcast_to(out, shape[:-1] if op in VECTOR_MATH_FLOAT_OPS else shape))
+
+
+def _vector_math(op, a, b, c, s):
+    simple = {"ADD": lambda: a + b, "SUBTRACT": lambda: a - b, "MULTIPLY": lambda: a * b,
+              "DIVIDE": lambda: _safe_divide(a, b), "MULTIPLY_ADD": lambda: a * b + c,
+              "CROSS_PRODUCT": lambda: np.cross(a, b), "DOT_PRODUCT": lambda: _dot(a, b),
+              "DISTANCE": lambda: np.sqrt(_dot(a - b, a - b)), "LENGTH": lambda: np.sqrt(_dot(a, a)),
+              "SCALE": lambda: a * s, "NORMALIZE": lambda: _safe_normalize(a), "ABSOLUTE": lambda: np.abs(a),
+              "POWER": lambda: _safe_pow(a, b), "SIGN": lambda: np.sign(a), "MINIMUM": lambda: np.minimum(a, b),
+              "MAXIMUM": lambda: np.maximum(a, b), "FLOOR": lambda: np.floor(a), "CEIL": lambda: np.ceil(a),
+              "FRACTION": lambda: _fract(a), "MODULO": lambda: np.where(b != 0, np.fmod(a, _where_nonzero(b)), 0.0),
+              "WRAP": lambda: _wrap(a, b, c), "SNAP": lambda: np.floor(_safe_divide(a, b)) * b,
+              "SINE": lambda: np.sin(a), "COSINE": lambda: np.cos(a), "TANGENT": lambda: np.tan(a)}
+    if op in simple:
+        return simple[op]()
     if op == "PROJECT":
-        return (a @ b) / (b @ b) * b if b @ b != 0 else np.zeros(3)
+        bb = _dot(b, b)[..., None]
+        return np.where(bb != 0, _dot(a, b)[..., None] / np.where(bb != 0, bb, 1.0) * b, 0.0)
     if op == "REFLECT":
-        n = normalize(b)
-        return a - 2.0 * n * (a @ n)
+        n = _safe_normalize(b)
+        return a - 2.0 * n * _dot(a, n)[..., None]
     if op == "REFRACT":
-        n = normalize(b)
-        k = 1.0 - s * s * (1.0 - (n @ a) ** 2)
-        return np.zeros(3) if k < 0 else s * a - (s * (n @ a) + math.sqrt(k)) * n
+        n = _safe_normalize(b)
+        na = _dot(n, a)[..., None]
+        k = 1.0 - s * s * (1.0 - na * na)
+        return np.where(k < 0, 0.0, s * a - (s * na + np.sqrt(np.maximum(k, 0.0))) * n)
     if op == "FACEFORWARD":
-        return a if c @ b < 0 else -a
-    if op == "DOT_PRODUCT":
-        return float(a @ b)
-    if op == "DISTANCE":
-        return float(np.sqrt((a - b) @ (a - b)))
-    if op == "LENGTH":
-        return float(np.sqrt(a @ a))
-    if op == "SCALE":
-        return a * s
-    if op == "NORMALIZE":
-        return normalize(a)
-    if op == "ABSOLUTE":
-        return np.abs(a)
-    if op == "POWER":
-        return per(_safe_pow, a, b)
-    if op == "SIGN":
-        return np.sign(a)
-    if op == "MINIMUM":
-        return np.minimum(a, b)
-    if op == "MAXIMUM":
-        return np.maximum(a, b)
-    if op == "FLOOR":
-        return np.floor(a)
-    if op == "CEIL":
-        return np.ceil(a)
-    if op == "FRACTION":
-        return a - np.floor(a)
-    if op == "MODULO":
-        return per(lambda x, y: math.fmod(x, y) if y != 0 else 0.0, a, b)
-    if op == "WRAP":
-        return per(_wrap, a, b, c)
-    if op == "SNAP":
-        return np.floor(per(_safe_divide, a, b)) * b
-    if op in ("SINE", "COSINE", "TANGENT"):
-        return {"SINE": np.sin, "COSINE": np.cos, "TANGENT": np.tan}[op](a)
+        return np.where(_dot(c, b)[..., None] < 0, a, -a)
     if op == "GAMMA":
-        if s == 0:
-            return np.ones(3)
-        with np.errstate(all="ignore"):
-            return np.where(a > 0, np.power(np.where(a > 0, a, 1.0), s), a)
+        return np.where(s == 0, 1.0, np.where(a > 0, np.power(np.where(a > 0, a, 1.0), s), a))
     raise ValueError(f"unknown vector math operation {op!r}")
 
 
 def rgb_to_hsv(rgb):
-    """Cycles' rgb_to_hsv."""
-    r, g, b = (float(x) for x in rgb[:3])
-    cmax, cmin = max(r, g, b), min(r, g, b)
+    """Cycles' rgb_to_hsv, of (..., 3+) colours."""
+    rgb = np.asarray(rgb, np.float64)
+    r, g, b = rgb[..., 0], rgb[..., 1], rgb[..., 2]
+    cmax, cmin = np.maximum(np.maximum(r, g), b), np.minimum(np.minimum(r, g), b)
     delta = cmax - cmin
-    s = delta / cmax if cmax != 0 else 0.0
-    h = 0.0
-    if s != 0:
-        cr, cg, cb = (cmax - r) / delta, (cmax - g) / delta, (cmax - b) / delta
-        h = (cb - cg if r == cmax else 2.0 + cr - cb if g == cmax else 4.0 + cg - cr) / 6.0
-        if h < 0:
-            h += 1.0
-    return np.array([h, s, cmax])
+    s = _safe_divide(delta, cmax)
+    with np.errstate(all="ignore"):
+        cr, cg, cb = ((cmax - x) / np.where(delta != 0, delta, 1.0) for x in (r, g, b))
+    h = np.where(r == cmax, cb - cg, np.where(g == cmax, 2.0 + cr - cb, 4.0 + cg - cr)) / 6.0
+    h = np.where(s != 0, np.where(h < 0, h + 1.0, h), 0.0)
+    return np.stack([h, s, cmax], -1)
 
 
 def hsv_to_rgb(hsv):
-    """Cycles' hsv_to_rgb."""
-    h, s, v = (float(x) for x in hsv[:3])
-    if s == 0:
-        return np.array([v, v, v])
-    h = 0.0 if h == 1.0 else h * 6.0
-    i = math.floor(h)
+    """Cycles' hsv_to_rgb, of (..., 3) values."""
+    hsv = np.asarray(hsv, np.float64)
+    h, s, v = hsv[..., 0], hsv[..., 1], hsv[..., 2]
+    h = np.where(h == 1.0, 0.0, h * 6.0)
+    i = np.floor(h)
     f = h - i
     p, q, t = v * (1 - s), v * (1 - s * f), v * (1 - s * (1 - f))
-    return np.array({0: (v, t, p), 1: (q, v, p), 2: (p, v, t), 3: (p, q, v), 4: (t, p, v)}.get(i, (v, p, q)))
+    sextants = [(v, t, p), (q, v, p), (p, v, t), (p, q, v), (t, p, v)]
+    out = np.stack([v, p, q], -1)  # i = 5 and beyond
+    for k in reversed(range(5)):
+        out = np.where((i == k)[..., None], np.stack(sextants[k], -1), out)
+    return np.where((s == 0)[..., None], np.stack([v, v, v], -1), out)
 
 
 def hsv_reference(color, hue, saturation, value, fac):
     """Blender's Hue/Saturation/Value node as Cycles' svm_node_hsv: hue shifted (0.5: none),
     saturation scaled and clamped to 0..1, value scaled, mixed by fac, clamped to >= 0."""
-    color = np.asarray(color, np.float64)[:3]
-    h, s, v = rgb_to_hsv(color)
-    out = hsv_to_rgb((_fract(h + hue + 0.5), min(max(s * saturation, 0.0), 1.0), v * value))
-    return np.maximum(fac * out + (1.0 - fac) * color, 0.0)
+    color = np.asarray(color, np.float64)[..., :3]
+    hue, saturation, value, fac = (np.asarray(x, np.float64) for x in (hue, saturation, value, fac))
+    h, s, v = np.moveaxis(rgb_to_hsv(color), -1, 0)
+    out = hsv_to_rgb(np.stack(np.broadcast_arrays(_fract(h + hue + 0.5), np.clip(s * saturation, 0.0, 1.0),
+                                                  v * value), -1))
+    return np.maximum(fac[..., None] * out + (1.0 - fac[..., None]) * color, 0.0)
 
 
 def curve_lookup_reference(table, f, extrapolate):
     """Cycles' float_ramp_lookup (rgb_ramp_lookup, one channel) of an interpolated table:
     beyond 0..1 continued along its end segments if extrapolate, else clamped."""
     table = np.asarray(table, np.float64)
+    f = np.asarray(f, np.float64)
     n = len(table)
-    if extrapolate and (f < 0.0 or f > 1.0):
-        t0, t1, d = (table[0], table[1], -f) if f < 0.0 else (table[-1], table[-2], f - 1.0)
-        return t0 + (t0 - t1) * d * (n - 1)
-    return ramp_reference(table, f, True)
+    inside = ramp_reference(table, f, True)
+    if not extrapolate:
+        return inside
+    below = table[0] + (table[0] - table[1]) * -f * (n - 1)
+    above = table[-1] + (table[-1] - table[-2]) * (f - 1.0) * (n - 1)
+    return _result(np.where(f < 0.0, below, np.where(f > 1.0, above, inside)))
 
 
 def curves_reference(tables, min_x, max_x, extrapolate, fac, value):
     """Blender's RGB Curves (tables: 3 columns, R G B after C) or Float Curve (1 column) as
     Cycles' svm_node_curves / svm_node_curve: each channel's table over min_x..max_x, mixed
-    with the input by fac."""
+    with the input by fac. value: a float or (..., 3+) colour; fac a float or (...)."""
     tables = np.asarray(tables, np.float64).reshape(len(tables), -1)
-    x = _vec4(value)[:tables.shape[1]]
+    channels = tables.shape[1]
+    value = np.asarray(value, np.float64)
+    x = value[..., None] if channels == 1 else value[..., :channels]  # Float Curve: a float
     with np.errstate(all="ignore"):
         rel = (x - min_x) / (max_x - min_x)
-    y = np.array([curve_lookup_reference(tables[:, k], rel[k], extrapolate) for k in range(tables.shape[1])])
+    y = np.stack([curve_lookup_reference(tables[:, k], rel[..., k], extrapolate) for k in range(channels)], -1)
+    fac = np.asarray(fac, np.float64)[..., None]
     out = (1.0 - fac) * x + fac * y
-    return float(out[0]) if tables.shape[1] == 1 else out
+    return _result(out[..., 0]) if channels == 1 else out
 
 
 def blend_reference(mode, t, c1, c2):
-    """Blender's Mix (colour) blend types as Cycles computes them (svm_mix), factor t."""
-    c1, c2, tm = np.asarray(c1, np.float64)[:3], np.asarray(c2, np.float64)[:3], 1.0 - t
+    """Blender's Mix (colour) blend types as Cycles computes them (svm_mix), factor t (a float
+    or (...)), colours (..., 3+)."""
+    c1, c2 = np.asarray(c1, np.float64)[..., :3], np.asarray(c2, np.float64)[..., :3]
+    t = np.asarray(t, np.float64)[..., None]
+    tm = 1.0 - t
     if mode == "MIX":
         return tm * c1 + t * c2
     if mode == "ADD":
@@ -307,57 +311,95 @@ def map_range_reference(value, from_min, from_max, to_min, to_max, clamp, interp
                         vector=False):
     """Blender's Map Range as Cycles: svm_node_map_range (0 where the input range is empty;
     clamped by the Clamp node MapRangeNode::expand adds) or, for one component of a vector,
-    svm_node_vector_map_range (safe division; the smooth types never clamp)."""
+    svm_node_vector_map_range (safe division; the smooth types never clamp). Floats or arrays."""
+    value, from_min, from_max, to_min, to_max, steps = (
+        np.asarray(x, np.float64) for x in (value, from_min, from_max, to_min, to_max, steps))
     span = from_max - from_min
-    if span == 0 and not vector:
-        return 0.0
-    factor = _safe_divide(value - from_min, span)
-    if interpolation == "STEPPED":
-        factor = math.floor(factor * (steps + 1.0)) / steps if steps > 0 else 0.0
-    elif interpolation in ("SMOOTHSTEP", "SMOOTHERSTEP"):
-        flip = from_min > from_max and not vector  # smoothstep(from_max, from_min, value), flipped
-        t = min(max((value - from_max) / -span if flip else factor, 0.0), 1.0)
-        t = (3.0 - 2.0 * t) * t * t if interpolation == "SMOOTHSTEP" else t * t * t * (t * (t * 6.0 - 15.0) + 10.0)
-        factor = 1.0 - t if flip else t
-        clamp = clamp and not vector
-    out = to_min + factor * (to_max - to_min)
+    with np.errstate(all="ignore"):
+        factor = _safe_divide(value - from_min, span)
+        if interpolation == "STEPPED":
+            factor = np.where(steps > 0, np.floor(factor * (steps + 1.0)) / np.where(steps > 0, steps, 1.0), 0.0)
+        elif interpolation in ("SMOOTHSTEP", "SMOOTHERSTEP"):
+            flip = (from_min > from_max) & (not vector)  # smoothstep(from_max, from_min, value), flipped
+            t = np.clip(np.where(flip, (value - from_max) / -_where_nonzero(span), factor), 0.0, 1.0)
+            t = (3.0 - 2.0 * t) * t * t if interpolation == "SMOOTHSTEP" else t * t * t * (t * (t * 6.0 - 15.0) + 10.0)
+            factor = np.where(flip, 1.0 - t, t)
+            clamp = clamp and not vector
+        out = to_min + factor * (to_max - to_min)
     if clamp:
-        out = min(max(out, min(to_min, to_max)), max(to_min, to_max))
-    return out
+        out = np.clip(out, np.minimum(to_min, to_max), np.maximum(to_min, to_max))
+    if not vector:
+        out = np.where(span == 0, 0.0, out)
+    return _result(np.broadcast_to(out, np.broadcast(value, from_min, from_max, to_min, to_max, steps).shape))
 
 
 def ramp_reference(table, fac, interpolate):
-    """Cycles' rgb_ramp_lookup: the table at fac (clamped to 0..1), interpolated or not."""
+    """Cycles' rgb_ramp_lookup: the table (n, ...) at fac (clamped to 0..1; a float or an array),
+    interpolated or not."""
     table = np.asarray(table, np.float64)
-    f = min(max(float(fac), 0.0), 1.0) * (len(table) - 1)
-    i = min(max(int(f), 0), len(table) - 1)
-    t = f - i
+    f = np.clip(np.nan_to_num(np.asarray(fac, np.float64)), 0.0, 1.0) * (len(table) - 1)
+    i = np.clip(f.astype(np.int64), 0, len(table) - 1)
+    t = (f - i).reshape(f.shape + (1,) * (table.ndim - 1))
     out = table[i]
-    if interpolate and t > 0.0:
-        out = (1.0 - t) * out + t * table[i + 1]
-    return out
+    if interpolate:
+        out = np.where(t > 0.0, (1.0 - t) * out + t * table[np.minimum(i + 1, len(table) - 1)], out)
+    return _result(out) if table.ndim == 1 else out
+
+
+def _cie_lobe(wavelength, mean, below, above):
+    width = np.where(wavelength < mean, below, above)
+    return np.exp(-0.5 * ((wavelength - mean) / width) ** 2)
+
+
+def cie_1931(wavelength):
+    """The CIE 1931 2-degree colour matching functions (x, y, z) at ``wavelength`` nm (an
+    array): Wyman, Sloan and Shirley's multi-lobe fit (JCGT 2(2), 2013, equation 2)."""
+    l = np.asarray(wavelength, np.float64)
+    return np.stack([1.056 * _cie_lobe(l, 599.8, 37.9, 31.0) + 0.362 * _cie_lobe(l, 442.0, 16.0, 26.7) -
+                     0.065 * _cie_lobe(l, 501.1, 20.4, 26.2),
+                     0.821 * _cie_lobe(l, 568.8, 46.9, 40.5) + 0.286 * _cie_lobe(l, 530.9, 16.3, 31.1),
+                     1.217 * _cie_lobe(l, 437.0, 11.8, 36.0) + 0.681 * _cie_lobe(l, 459.0, 26.0, 13.8)], -1)
+
+
+# CIE XYZ -> linear Rec.709 (sRGB primaries, D65; IEC 61966-2-1).
+XYZ_TO_REC709 = np.array([[3.2404542, -1.5371385, -0.4985314],
+                          [-0.9692660, 1.8760108, 0.0415560],
+                          [0.0556434, -0.2040259, 1.0572252]])
+
+
+def blackbody_reference(temperature):
+    """Blender's Blackbody node: the colour of Planck's spectrum at ``temperature`` K (a float
+    or an array) in linear Rec.709, scaled to luminance 1 and clamped to >= 0, as Cycles'
+    svm_math_blackbody_color_rec709 (which holds the colour of 800 K below 800 K and of
+    12000 K above). Integrated here from 360 to 830 nm (Cycles uses a fit of the same)."""
+    t = np.clip(np.asarray(temperature, np.float64), 800.0, 12000.0)
+    wavelength = np.arange(360.0, 831.0, 2.0)
+    metres = wavelength * 1e-9
+    second_radiation_constant = 6.62607015e-34 * 2.99792458e8 / 1.380649e-23  # h c / k (m K)
+    planck = 1.0 / (metres ** 5 * np.expm1(second_radiation_constant / (metres * t[..., None])))
+    rgb = (planck @ cie_1931(wavelength)) @ XYZ_TO_REC709.T
+    return np.maximum(rgb / (rgb @ (0.2126, 0.7152, 0.0722))[..., None], 0.0)
 
 
 def _rotate(x, k):
-    return ((x << k) | (x >> (32 - k))) & 0xFFFFFFFF
+    return (x << np.uint32(k)) | (x >> np.uint32(32 - k))
 
 
 def hash_uint(*keys):
-    """Bob Jenkins' lookup3 hash of 1 to 3 words, as Cycles' hash_uint, hash_uint2, hash_uint3."""
-    a = b = c = (0xDEADBEEF + (len(keys) << 2) + 13) & 0xFFFFFFFF
-    a = (a + keys[0]) & 0xFFFFFFFF
-    if len(keys) > 1:
-        b = (b + keys[1]) & 0xFFFFFFFF
-    if len(keys) > 2:
-        c = (c + keys[2]) & 0xFFFFFFFF
-    for x, y, z, k in (("c", "b", "c", 14), ("a", "c", "a", 11), ("b", "a", "b", 25), ("c", "b", "c", 16),
-                       ("a", "c", "a", 4), ("b", "a", "b", 14), ("c", "b", "c", 24)):
-        regs = {"a": a, "b": b, "c": c}
-        value = regs[x] ^ regs[y]
-        value = (value - _rotate(regs[y], k)) & 0xFFFFFFFF
-        regs[x] = value
-        a, b, c = regs["a"], regs["b"], regs["c"]
-    return c
+    """Bob Jenkins' lookup3 hash of 1 to 3 words, as Cycles' hash_uint, hash_uint2, hash_uint3:
+    ints or arrays of them (uint32 arithmetic)."""
+    keys = [np.asarray(np.asarray(k, np.int64) & 0xFFFFFFFF, np.uint32) for k in keys]
+    start = np.uint32((0xDEADBEEF + (len(keys) << 2) + 13) & 0xFFFFFFFF)
+    shape = np.broadcast(*keys).shape
+    keys = [np.broadcast_to(k, shape).reshape(-1) for k in keys]  # arrays: uint32 wraps silently
+    regs = {name: np.full(keys[0].shape, start, np.uint32) for name in "abc"}
+    for name, key in zip("abc", keys):
+        regs[name] = regs[name] + key
+    for x, y, k in (("c", "b", 14), ("a", "c", 11), ("b", "a", 25), ("c", "b", 16), ("a", "c", 4),
+                    ("b", "a", 14), ("c", "b", 24)):
+        regs[x] = (regs[x] ^ regs[y]) - _rotate(regs[y], k)
+    c = regs["c"].reshape(shape)
+    return int(c) if c.ndim == 0 else c.astype(np.int64)
 
 
 def random_offset(seed, k):
@@ -367,46 +409,53 @@ def random_offset(seed, k):
 
 
 def perlin_reference(p):
-    """Cycles' perlin_3d at point p (floats)."""
+    """Cycles' perlin_3d at point p ((..., 3) floats)."""
     p = np.asarray(p, np.float64)
     cell = np.floor(p)
     f = p - cell
     w = f * f * f * (f * (f * 6.0 - 15.0) + 10.0)
+    cell = cell.astype(np.int64)
     corners = []
     for k in range(8):
         o = np.array([k & 1, (k >> 1) & 1, k >> 2])
-        h = hash_uint(*(int(c) & 0xFFFFFFFF for c in cell.astype(np.int64) + o)) & 15
+        h = hash_uint(*(cell[..., j] + o[j] for j in range(3))) & 15
         q = f - o
-        u = q[0] if h < 8 else q[1]
-        v = q[1] if h < 4 else (q[0] if h in (12, 14) else q[2])
-        corners.append((-u if h & 1 else u) + (-v if h & 2 else v))
+        u = np.where(h < 8, q[..., 0], q[..., 1])
+        v = np.where(h < 4, q[..., 1], np.where((h == 12) | (h == 14), q[..., 0], q[..., 2]))
+        corners.append(np.where(h & 1, -u, u) + np.where(h & 2, -v, v))
     lerp = lambda a, b, t: a * (1 - t) + b * t
-    x = [lerp(corners[2 * j], corners[2 * j + 1], w[0]) for j in range(4)]
-    return lerp(lerp(x[0], x[1], w[1]), lerp(x[2], x[3], w[1]), w[2])
+    x = [lerp(corners[2 * j], corners[2 * j + 1], w[..., 0]) for j in range(4)]
+    return _result(lerp(lerp(x[0], x[1], w[..., 1]), lerp(x[2], x[3], w[..., 1]), w[..., 2]))
 
 
 def noise_reference(p, detail, roughness, lacunarity, normalize):
-    """Cycles' 3D fBm noise_fbm (detail clamped to 0..15, roughness to >= 0)."""
-    detail, roughness = min(max(detail, 0.0), 15.0), max(roughness, 0.0)
+    """Cycles' 3D fBm noise_fbm (detail clamped to 0..15, roughness to >= 0) at p ((..., 3));
+    detail, roughness and lacunarity floats or (...) arrays."""
+    detail = np.clip(np.asarray(detail, np.float64), 0.0, 15.0)
+    roughness, lacunarity = np.maximum(np.asarray(roughness, np.float64), 0.0), np.asarray(lacunarity, np.float64)
     p = np.asarray(p, np.float64)
 
-    def signed(q):
+    def signed(scale):
+        q = scale[..., None] * p
         q = np.fmod(q, 100000.0) + 0.5 * (np.abs(q) >= 1000000.0)
         return 0.9820 * perlin_reference(q)
 
-    scale, amplitude, max_amplitude, total = 1.0, 1.0, 0.0, 0.0
-    for _ in range(int(detail) + 1):
-        total += signed(scale * p) * amplitude
-        max_amplitude += amplitude
-        amplitude *= roughness
-        scale *= lacunarity
+    octaves = np.floor(detail)
+    scale, amplitude, max_amplitude, total = (np.ones(np.broadcast(detail, roughness, lacunarity, p[..., 0]).shape),
+                                              1.0, 0.0, 0.0)
+    for i in range(int(np.max(octaves)) + 1):
+        active = i <= octaves
+        total = total + np.where(active, signed(scale) * amplitude, 0.0)
+        max_amplitude = max_amplitude + np.where(active, amplitude, 0.0)
+        amplitude = np.where(active, amplitude * roughness, amplitude)
+        scale = np.where(active, scale * lacunarity, scale)
     value = 0.5 * total / max_amplitude + 0.5 if normalize else total
-    remainder = detail - math.floor(detail)
-    if remainder != 0.0:
-        total2 = total + signed(scale * p) * amplitude
+    remainder = detail - octaves
+    if np.any(remainder != 0.0):
+        total2 = total + signed(scale) * amplitude
         value2 = 0.5 * total2 / (max_amplitude + amplitude) + 0.5 if normalize else total2
-        value = value * (1 - remainder) + value2 * remainder
-    return value
+        value = np.where(remainder != 0.0, value * (1 - remainder) + value2 * remainder, value)
+    return _result(value)
 
 
 def _s32(x):
