@@ -77,8 +77,10 @@ def changed_parts(depsgraph):
                     parts.add("instances")
                 if update.is_updated_shading:
                     parts.add("materials")
-        elif isinstance(data, (bpy.types.Material, bpy.types.ShaderNodeTree, bpy.types.Image)):
-            parts.update(("materials", "lights"))  # images may be the world's too
+        elif isinstance(data, bpy.types.Material):
+            parts.add("materials")  # not the world: its bake costs a fraction of a second
+        elif isinstance(data, (bpy.types.ShaderNodeTree, bpy.types.Image)):
+            parts.update(("materials", "lights"))  # node groups and images may be the world's too
         elif isinstance(data, (bpy.types.Light, bpy.types.World)):
             parts.add("lights")
         elif isinstance(data, (bpy.types.Mesh, bpy.types.Curve, bpy.types.MetaBall, bpy.types.Collection)):

@@ -58,6 +58,13 @@ def attribute_requests(tree):
     return keys
 
 
+def vector_linked(node):
+    """Whether the node's Vector input is available and linked (Blender 5's inputs["Vector"]
+    skips an unavailable socket)."""
+    socket = next((s for s in node.inputs if s.identifier == "Vector"), None)
+    return socket is not None and getattr(socket, "enabled", True) and socket.is_linked
+
+
 class Unsupported(Exception):
     """A node (or a setting of one) the compiler does not translate; its message names it."""
 
@@ -255,7 +262,7 @@ class GraphCompiler:
         texture = self.texture_loader(node.image, f"material '{self.material_name}'", interpolation)
         if texture is None:
             raise Unsupported(f"Image Texture '{node.name}' without pixels")
-        vector = self._in(node, "Vector", "vector", groups) if node.inputs["Vector"].is_linked else self._uv()
+        vector = self._in(node, "Vector", "vector", groups) if vector_linked(node) else self._uv()
         return self.program.texture(vector, texture), "color"
 
     def _tex_environment(self, node, output, groups):
@@ -273,8 +280,7 @@ class GraphCompiler:
         image = self.texture_loader(node.image, self.material_name, interpolation)
         if image is None:
             raise Unsupported(f"Environment Texture '{node.name}' without pixels")
-        linked = node.inputs["Vector"].is_linked
-        vector = self._in(node, "Vector", "vector", groups) if linked else self.program.geometry("position")
+        vector = self._in(node, "Vector", "vector", groups) if vector_linked(node) else self.program.geometry("position")
         return self.program.environment(vector, image), "color"
 
     def _tex_sky(self, node, output, groups):
@@ -320,8 +326,9 @@ class GraphCompiler:
                                   for seed in (3.0, 4.0))), "color"
 
     def _texture_vector(self, node, groups):
-        """A procedural texture's Vector: linked, else Generated coordinates (Blender's default)."""
-        if node.inputs["Vector"].is_linked:
+        """A procedural texture's Vector: linked, else Generated coordinates (Blender's default;
+        also where the input is unavailable, as the scattering Sky Texture's is)."""
+        if vector_linked(node):
             return self._in(node, "Vector", "vector", groups)
         return self.program.generated(self.bump_offset)
 

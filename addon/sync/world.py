@@ -7,7 +7,7 @@ import numpy as np
 
 from .images import image_rgb, srgb_to_linear
 from .materials import node_tree
-from .node_graph import GraphCompiler, Unsupported, _tree_nodes
+from .node_graph import GraphCompiler, Unsupported, _tree_nodes, vector_linked
 
 # Baked maps: this width (2:1) unless an image in the graph is wider (up to BAKE_MAX_WIDTH).
 BAKE_WIDTH, BAKE_MAX_WIDTH = 1024, 4096
@@ -63,7 +63,7 @@ def _linked_node(socket):
 
 def _plain_environment(node):
     return (node is not None and node.type == "TEX_ENVIRONMENT" and node.image is not None and
-            node.projection == "EQUIRECTANGULAR" and not node.inputs["Vector"].is_linked)
+            node.projection == "EQUIRECTANGULAR" and not vector_linked(node))
 
 
 def _texel_directions(width, height):
@@ -127,7 +127,7 @@ def _sun_discs(world, background, program, strength, directions, data, warnings)
         sun = core.node_fields.sky_model(core.sky.SkyParams.from_node(node)).sun()
         if sun is None:
             continue
-        if node != source or node.inputs["Vector"].is_linked:
+        if node != source or vector_linked(node):
             warnings.add(f"world '{world.name}': the sun disc of Sky Texture '{node.name}' is left out (only a "
                          "Sky Texture straight into the Background's Colour gives its sun)")
             continue
