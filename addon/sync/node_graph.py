@@ -266,22 +266,20 @@ class GraphCompiler:
         return self.program.texture(vector, texture), "color"
 
     def _tex_environment(self, node, output, groups):
-        """Cycles' Environment Texture (equirectangular) in a world: the image in the direction
-        of its Vector (the view direction by default)."""
+        """Cycles' Environment Texture (equirectangular or mirror ball) in a world: the image in
+        the direction of its Vector (the view direction by default)."""
         if not hasattr(self.program, "environment"):
             raise Unsupported(f"'Environment Texture' node '{node.name}' outside a world")
         if output.name != "Color":
             raise Unsupported(f"Environment Texture '{node.name}' output {output.name}")
         if node.image is None:
             return np.zeros(4), "color"
-        if node.projection != "EQUIRECTANGULAR":
-            raise Unsupported(f"Environment Texture '{node.name}' with {node.projection} projection")
         interpolation = "closest" if node.interpolation == "Closest" else "linear"
         image = self.texture_loader(node.image, self.material_name, interpolation)
         if image is None:
             raise Unsupported(f"Environment Texture '{node.name}' without pixels")
         vector = self._in(node, "Vector", "vector", groups) if vector_linked(node) else self.program.geometry("position")
-        return self.program.environment(vector, image), "color"
+        return self.program.environment(vector, image, node.projection), "color"
 
     def _tex_sky(self, node, output, groups):
         """Blender's Sky Texture in a world (parallax_core.sky: single and multiple scattering,
@@ -291,7 +289,7 @@ class GraphCompiler:
             raise Unsupported(f"'Sky Texture' node '{node.name}' outside a world")
         if node.sky_type not in sky.SKY_TYPES:
             raise Unsupported(f"Sky Texture '{node.name}' of type {node.sky_type}")
-        return self.program.sky(self._texture_vector(node, groups), sky.SkyParams.from_node(node)), "color"
+        return self.program.sky(self._texture_vector(node, groups), sky.SkyParams.from_node(node), node.name), "color"
 
     @staticmethod
     def nodes_sky():

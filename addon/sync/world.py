@@ -114,21 +114,20 @@ def _bake(world, background, data, warnings):
 
 
 def _sun_discs(world, background, program, strength, directions, data, warnings):
-    """A Sky Texture straight into the Background's Colour: its sun disc as a sun light of the
-    disc's angular diameter and mean radiance (x the Strength in its direction). A disc whose
-    colour passes through other nodes is left out, with a warning."""
+    """The sun disc of a Sky Texture straight into the Background's Colour as a sun light of
+    the disc's angular diameter and mean radiance (x the Strength in its direction). The disc of
+    a sky whose colour passes through other nodes is left out, with a warning."""
     from ..core import load
 
     core = load()
     source = _linked_node(background.inputs["Color"])
-    for node in _tree_nodes(world.node_tree):
-        if node.type != "TEX_SKY" or node.sky_type not in core.sky.SKY_TYPES:
-            continue
-        sun = core.node_fields.sky_model(core.sky.SkyParams.from_node(node)).sun()
+    direct = source is not None and source.type == "TEX_SKY" and not vector_linked(source)
+    for name, params in program.skies:
+        sun = core.node_fields.sky_model(params).sun()
         if sun is None:
             continue
-        if node != source or vector_linked(node):
-            warnings.add(f"world '{world.name}': the sun disc of Sky Texture '{node.name}' is left out (only a "
+        if not (direct and name == source.name):
+            warnings.add(f"world '{world.name}': the sun disc of Sky Texture '{name}' is left out (only a "
                          "Sky Texture straight into the Background's Colour gives its sun)")
             continue
         direction, diameter, radiance = sun

@@ -113,6 +113,18 @@ def render_seed_pairs(bpy, tmp_path, scene, samples):
     return p0, p1, c0, c1
 
 
+def parity_figures(bpy, tmp_path, name, scene, samples, block):
+    """(R, block relMSE, our mean, Cycles' mean) of ``scene`` rendered by both engines with seeds
+    0 and 1 (parity_ratio), printed and the two engines' mean images saved as NAME.npy."""
+    p0, p1, c0, c1 = render_seed_pairs(bpy, tmp_path, scene, samples)
+    ratio, rel_mse = parity_ratio(p0, p1, c0, c1, block)
+    ours, theirs = float((p0 + p1).mean() / 2), float((c0 + c1).mean() / 2)
+    print(f"{name}: mean {ours:.4f} vs Cycles {theirs:.4f}, block relMSE {rel_mse:.5f}, "
+          f"difference / noise {ratio:.2f}")
+    np.save(tmp_path / f"{name}.npy", np.stack([p0 + p1, c0 + c1]) / 2)
+    return ratio, rel_mse, ours, theirs
+
+
 def parity_ratio(p0, p1, c0, c1, block):
     """(difference / noise ratio R, block relMSE) of two seed pairs (test_parity.py explains R:
     about 1 without a systematic difference)."""

@@ -11,9 +11,8 @@ mistake shows.
 import math
 import os
 
-import numpy as np
 import pytest
-from blender_helpers import build_scene, parity_ratio, render_seed_pairs
+from blender_helpers import build_scene, parity_figures
 
 WIDTH, HEIGHT, BLOCK = 48, 32, 4
 SAMPLES = int(os.environ.get("PARALLAX_PARITY_SAMPLES", 256))
@@ -115,14 +114,7 @@ PANORAMAS += [_with_depth_of_field(PANORAMAS[0]), _with_depth_of_field(PANORAMAS
 
 def compare(bpy, tmp_path, builder, samples=SAMPLES, size=(WIDTH, HEIGHT), block=BLOCK):
     """(R, block relMSE, our mean, Cycles' mean) of the scene ``builder`` makes."""
-    scene = build_scene(bpy, builder, *size)
-    p0, p1, c0, c1 = render_seed_pairs(bpy, tmp_path, scene, samples)
-    ratio, rel_mse = parity_ratio(p0, p1, c0, c1, block)
-    ours, theirs = float((p0 + p1).mean() / 2), float((c0 + c1).mean() / 2)
-    print(f"{builder.__name__}: mean {ours:.4f} vs Cycles {theirs:.4f}, block relMSE {rel_mse:.5f}, "
-          f"difference / noise {ratio:.2f}")
-    np.save(tmp_path / f"{builder.__name__}.npy", np.stack([p0 + p1, c0 + c1]) / 2)
-    return ratio, rel_mse, ours, theirs
+    return parity_figures(bpy, tmp_path, builder.__name__, build_scene(bpy, builder, *size), samples, block)
 
 
 @pytest.mark.parametrize("builder", [perspective_dof, orthographic_dof], ids=lambda f: f.__name__)

@@ -1,5 +1,5 @@
 """Parity with Cycles for node graphs into the world and into lights (issue 37): a gradient
-world, a rotated and tinted Environment Texture, Blender's Sky Texture (single and multiple
+world, a rotated and tinted Environment Texture, a mirror-ball one, Blender's Sky Texture (single and multiple
 scattering, Preetham) with its sun disc, and a light whose node tree sets its colour and
 strength. The world's graph is baked on the host into an equirectangular map
 (addon/sync/world.py, parallax_core.node_fields), the sky's sun disc becomes a sun light.
@@ -13,7 +13,7 @@ import os
 
 import numpy as np
 import pytest
-from blender_helpers import build_scene, export_current, parity_ratio, render_seed_pairs
+from blender_helpers import build_scene, export_current, parity_figures
 
 WIDTH, HEIGHT, BLOCK = 64, 48, 8
 SAMPLES = int(os.environ.get("PARALLAX_PARITY_SAMPLES", 128))
@@ -86,6 +86,25 @@ def rotated_environment(b):
     links.new(hue.outputs["Color"], background.inputs["Color"])
 
 
+def mirror_ball_environment(b):
+    """An Environment Texture in mirror-ball projection (a bright patch off centre, a rim dark)."""
+    import bpy
+
+    _ground(b)
+    nodes, links, background = _world(bpy)
+    n = 48
+    u, v = np.meshgrid((np.arange(n) + 0.5) / n, (np.arange(n) + 0.5) / n)
+    rgba = np.ones((n, n, 4), np.float32)
+    rgba[..., 0], rgba[..., 1], rgba[..., 2] = 0.3 + 0.5 * u, 0.4 + 0.3 * v, 0.8 - 0.4 * u * v
+    rgba[30:36, 12:18, :3] = (9.0, 8.0, 5.0)
+    image = bpy.data.images.new("Ball", n, n, alpha=False, float_buffer=True)
+    image.pixels.foreach_set(rgba.ravel())
+    environment = nodes.new("ShaderNodeTexEnvironment")
+    environment.image, environment.projection = image, "MIRROR_BALL"
+    links.new(environment.outputs["Color"], background.inputs["Color"])
+    background.inputs["Strength"].default_value = 1.3
+
+
 def _sky(sky_type, strength, **settings):
     def build(b):
         import bpy
@@ -134,16 +153,12 @@ def compare(bpy, tmp_path, builder):
     scene.render.engine = "PARALLAX"
     data, warnings = export_current(bpy)
     assert not warnings, warnings
-    p0, p1, c0, c1 = render_seed_pairs(bpy, tmp_path, scene, SAMPLES)
-    ratio, rel_mse = parity_ratio(p0, p1, c0, c1, BLOCK)
-    ours, theirs = float((p0 + p1).mean() / 2), float((c0 + c1).mean() / 2)
-    print(f"{builder.__name__}: mean {ours:.4f} vs Cycles {theirs:.4f}, block relMSE {rel_mse:.5f}, "
-          f"difference / noise {ratio:.2f}")
-    np.save(tmp_path / f"{builder.__name__}.npy", np.stack([p0 + p1, c0 + c1]) / 2)
+    _, rel_mse, ours, theirs = parity_figures(bpy, tmp_path, builder.__name__, scene, SAMPLES, BLOCK)
     return data, rel_mse, ours, theirs
 
 
-@pytest.mark.parametrize("builder", [gradient_world, rotated_environment] + SKIES, ids=lambda f: f.__name__)
+@pytest.mark.parametrize("builder", [gradient_world, rotated_environment, mirror_ball_environment] + SKIES,
+                         ids=lambda f: f.__name__)
 def test_world_graphs_match_cycles(bpy, tmp_path, builder):
     data, rel_mse, ours, theirs = compare(bpy, tmp_path, builder)
     assert data.world.map is not None  # baked

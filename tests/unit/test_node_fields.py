@@ -107,3 +107,7 @@ def test_host_images_sample_as_the_device_does():
     u, v = node_fields.equirectangular_uv(np.array([[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]]))
     np.testing.assert_allclose(u, [0.5, 0.25, 0.5])
     np.testing.assert_allclose(v, [0.5, 0.5, 1.0])
+    # Blender's mirror ball: the ball's centre reflects -Y, its rim's points at 45 degrees +X, +Z.
+    u, v = node_fields.mirror_ball_uv(np.array([[0, -2.0, 0], [1.0, 0, 0], [0, 0, 1.0]]))
+    np.testing.assert_allclose(u, [0.5, 0.5 + 0.5 * np.sqrt(0.5), 0.5])
+    np.testing.assert_allclose(v, [0.5, 0.5, 0.5 + 0.5 * np.sqrt(0.5)])

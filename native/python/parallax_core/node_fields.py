@@ -85,6 +85,17 @@ def sky_model(params):
     return sky.Sky(params)
 
 
+def mirror_ball_uv(directions):
+    """Blender's direction_to_mirrorball: the point of a mirror ball seen along -Y that
+    reflects ``directions`` (the ball's image spans u, v in 0..1 over x, z)."""
+    d = np.asarray(directions, np.float64)
+    d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-30)
+    d[:, 1] -= 1.0
+    div = 2.0 * np.sqrt(np.maximum(-0.5 * d[:, 1], 0.0))
+    d /= np.where(div > 0.0, div, 1.0)[:, None]
+    return 0.5 * (d[:, 0] + 1.0), 0.5 * (d[:, 2] + 1.0)
+
+
 class FieldProgram(nodes.Program):
     """A Program evaluated at N points. ``coordinates`` maps the coordinate sources a graph
     may read ("uv", "generated" and nodes.GEOMETRY_KINDS) to (N, 3) arrays; a source it lacks
@@ -94,6 +105,7 @@ class FieldProgram(nodes.Program):
         super().__init__()
         self.count = count
         self.coordinates = coordinates
+        self.skies = []  # (node name, SkyParams) of each Sky Texture evaluated
 
     @staticmethod
     def is_constant(value):
@@ -178,14 +190,16 @@ class FieldProgram(nodes.Program):
         v = self._vector(vector)
         return _field(texture.sample(v[:, 0], v[:, 1]), "color")
 
-    def environment(self, vector, image):
-        """Cycles' Environment Texture (equirectangular) in direction ``vector``."""
-        u, v = equirectangular_uv(self._vector(vector))
+    def environment(self, vector, image, projection="EQUIRECTANGULAR"):
+        """Cycles' Environment Texture in direction ``vector``: equirectangular or mirror ball."""
+        mapping = equirectangular_uv if projection == "EQUIRECTANGULAR" else mirror_ball_uv
+        u, v = mapping(self._vector(vector))
         return _field(image.sample(u, v, wrap_v=False), "color")
 
-    def sky(self, vector, params):
-        """A Sky Texture (parallax_core.sky.SkyParams) in direction ``vector``, its sun disc left
-        out (the world's export makes it a sun light)."""
+    def sky(self, vector, params, name=""):
+        """Sky Texture ``name`` (parallax_core.sky.SkyParams) in direction ``vector``, its sun
+        disc left out (listed in ``skies``: the world's export makes it a sun light)."""
+        self.skies.append((name, params))
         return _field(sky_model(params).radiance(self._vector(vector)), "color")
 
     def blackbody(self, temperature):
