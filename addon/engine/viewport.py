@@ -468,7 +468,7 @@ class ViewportRender:
     """One 3D viewport's Parallax state (kept on its RenderEngine instance)."""
 
     def __init__(self):
-        self.exporter = sync.SceneExporter()
+        self.exporter = sync.SceneExporter(sync.world.PREVIEW_BAKE_WIDTHS)
         self.worker = None
         self._camera_key = None
         self._size = None

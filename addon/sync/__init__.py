@@ -30,8 +30,9 @@ class SceneExporter:
     """Keeps what a full export learnt (mesh sharing, material indices) so that a viewport
     edit re-exports only the parts it touched (the core's ``Session.update(parts=...)``)."""
 
-    def __init__(self):
+    def __init__(self, world_bake_widths=world.BAKE_WIDTHS):
         self.data = None
+        self.world_bake_widths = world_bake_widths  # a world graph's map: (least, most) width
         self._mesh_index = {}
         self._materials = None
 
@@ -49,7 +50,7 @@ class SceneExporter:
         self._geometry_needs_exported = self._geometry_needs()
         self._materials.build(data)
         lights.export_lights(depsgraph, data, warnings)
-        world.export_world(depsgraph.scene.world, data, warnings)
+        world.export_world(depsgraph.scene.world, data, warnings, self.world_bake_widths)
         unsupported.warn_unsupported(depsgraph, warnings)  # once per full export, not per edit
         data.camera = view_camera or camera.export_camera(depsgraph, width, height, region)
         data.width, data.height = (region[2], region[3]) if region else (width, height)
@@ -85,7 +86,7 @@ class SceneExporter:
         if "lights" in parts:  # exported aside, then swapped in (a render thread may be reading)
             fresh = core.load().scene.SceneData()
             lights.export_lights(depsgraph, fresh, warnings)
-            world.export_world(depsgraph.scene.world, fresh, warnings)
+            world.export_world(depsgraph.scene.world, fresh, warnings, self.world_bake_widths)
             self.data.lights, self.data.world = fresh.lights, fresh.world
         return parts, list(warnings)
 

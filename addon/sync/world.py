@@ -9,11 +9,13 @@ from .images import image_rgb, srgb_to_linear
 from .materials import node_tree
 from .node_graph import GraphCompiler, Unsupported, _tree_nodes, vector_linked
 
-# Baked maps: this width (2:1) unless an image in the graph is wider (up to BAKE_MAX_WIDTH).
-BAKE_WIDTH, BAKE_MAX_WIDTH = 1024, 4096
+# Baked maps (2:1): this width unless an image in the graph is wider, up to the maximum. The
+# Rendered viewport bakes on Blender's thread at every world edit: a quarter of the texels.
+BAKE_WIDTHS = (1024, 4096)
+PREVIEW_BAKE_WIDTHS = (512, 1024)
 
 
-def export_world(world, data, warnings):
+def export_world(world, data, warnings, bake_widths=BAKE_WIDTHS):
     from ..core import load
 
     World = load().scene.World
@@ -45,7 +47,7 @@ def export_world(world, data, warnings):
         data.world = World(color=(1.0, 1.0, 1.0) if env_map is not None else color,
                            strength=float(strength.default_value), map=env_map)
     else:
-        _bake(world, background, data, warnings)
+        _bake(world, background, data, warnings, bake_widths)
 
 
 def is_black(world):
@@ -76,16 +78,17 @@ def _texel_directions(width, height):
                     -1).reshape(-1, 3)
 
 
-def _bake(world, background, data, warnings):
+def _bake(world, background, data, warnings, bake_widths):
     """The Background's Colour x Strength evaluated in every direction of an equirectangular
-    map (Cycles' background shader point: P = the direction, N = I = -direction)."""
+    map (Cycles' background shader point: P = the direction, N = I = -direction), as wide as
+    the widest image in the graph within ``bake_widths`` (least, most)."""
     from ..core import load
 
     core = load()
     label = f"world '{world.name}'"
     widths = [n.image.size[0] for n in _tree_nodes(world.node_tree)
               if n.type in ("TEX_ENVIRONMENT", "TEX_IMAGE") and n.image is not None]
-    width = int(min(max([BAKE_WIDTH] + widths), BAKE_MAX_WIDTH))
+    width = int(min(max([bake_widths[0]] + widths), bake_widths[1]))
     height = max(width // 2, 1)
     d = _texel_directions(width, height)
     program = core.node_fields.FieldProgram(len(d), {

@@ -478,3 +478,22 @@ def test_a_normal_map_naming_a_uv_map_gets_that_maps_tangents(fresh, bpy):
     np.testing.assert_allclose(tangents[..., :3].reshape(-1, 3), active, atol=1e-5)
     assert not np.allclose(want, active, atol=1e-3)  # the two maps' tangents differ
     assert any("'Missing', which the mesh lacks" in w for w in warnings), warnings
+
+
+def test_a_world_graph_is_baked_and_the_viewport_bakes_it_smaller(fresh, bpy):
+    """A graph into the Background (here the direction's height as grey) becomes an
+    equirectangular map of it: 1024 x 512 for F12, 512 x 256 in the Rendered viewport."""
+    from addon.sync import SceneExporter, world
+
+    sky = bpy.data.worlds.new("Gradient")
+    fresh.world = sky
+    nodes, links = sky.node_tree.nodes, sky.node_tree.links
+    background = next(n for n in nodes if n.type == "BACKGROUND")
+    coords, separate = nodes.new("ShaderNodeTexCoord"), nodes.new("ShaderNodeSeparateXYZ")
+    links.new(coords.outputs["Generated"], separate.inputs[0])
+    links.new(separate.outputs["Z"], background.inputs["Color"])
+    for exporter, width in ((SceneExporter(), 1024), (SceneExporter(world.PREVIEW_BAKE_WIDTHS), 512)):
+        data, warnings = exporter.full(bpy.context.evaluated_depsgraph_get(), 16, 16)
+        assert data.world.map.shape == (width // 2, width, 3) and not warnings
+        latitude = (0.5 - (np.arange(width // 2) + 0.5) / (width // 2)) * np.pi  # row 0 at the top
+        np.testing.assert_allclose(data.world.map[:, 7, 1], np.maximum(np.sin(latitude), 0.0), atol=1e-6)
