@@ -284,18 +284,14 @@ class GraphCompiler:
     def _tex_sky(self, node, output, groups):
         """Blender's Sky Texture in a world (parallax_core.sky: single and multiple scattering,
         Preetham), its sun disc left to the world export (a sun light)."""
-        sky = self.nodes_sky()
+        from ..core import load
+
+        sky = load().sky
         if not hasattr(self.program, "sky"):
             raise Unsupported(f"'Sky Texture' node '{node.name}' outside a world")
         if node.sky_type not in sky.SKY_TYPES:
             raise Unsupported(f"Sky Texture '{node.name}' of type {node.sky_type}")
         return self.program.sky(self._texture_vector(node, groups), sky.SkyParams.from_node(node), node.name), "color"
-
-    @staticmethod
-    def nodes_sky():
-        from ..core import load
-
-        return load().sky
 
     def _offset(self, vector, seed):
         """vector + Cycles' random_float3_offset(seed): a noise's own seed."""
