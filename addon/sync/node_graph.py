@@ -289,9 +289,10 @@ class GraphCompiler:
         sky = load().sky
         if not hasattr(self.program, "sky"):
             raise Unsupported(f"'Sky Texture' node '{node.name}' outside a world")
-        if node.sky_type not in sky.SKY_TYPES:
+        params = sky.SkyParams.from_node(node)  # Blender 4's Nishita is the single-scattering sky
+        if params.sky_type not in sky.SKY_TYPES:
             raise Unsupported(f"Sky Texture '{node.name}' of type {node.sky_type}")
-        return self.program.sky(self._texture_vector(node, groups), sky.SkyParams.from_node(node), node.name), "color"
+        return self.program.sky(self._texture_vector(node, groups), params, node.name), "color"
 
     def _offset(self, vector, seed):
         """vector + Cycles' random_float3_offset(seed): a noise's own seed."""
