@@ -1,8 +1,9 @@
 """Parity with Cycles for node graphs into the world and into lights (issue 37): a gradient
-world, a rotated and tinted Environment Texture, a mirror-ball one, Blender's Sky Texture (single and multiple
-scattering, Preetham) with its sun disc, and a light whose node tree sets its colour and
-strength. The world's graph is baked on the host into an equirectangular map
-(addon/sync/world.py, parallax_core.node_fields), the sky's sun disc becomes a sun light.
+world, a rotated and tinted Environment Texture, a mirror-ball one, Voronoi, Brick and Wave
+Textures, Blender's Sky Texture (single and multiple scattering, Preetham) with its sun disc,
+and a light whose node tree sets its colour and strength. The world's graph is baked on the
+host into an equirectangular map (addon/sync/world.py, parallax_core.node_fields), the sky's
+sun disc becomes a sun light.
 
 A ground plane with a sphere under the world, the horizon across the image: both engines,
 seeds 0 and 1 (test_parity_camera.py's measure). The sky seen straight on is nearly free of
@@ -105,6 +106,33 @@ def mirror_ball_environment(b):
     background.inputs["Strength"].default_value = 1.3
 
 
+def textured_world(b):
+    """Voronoi cells (F1 colours) x bricks into the colour, a distorted Wave into the strength,
+    over the directions (their default Vector: Generated), evaluated at every texel."""
+    import bpy
+
+    _ground(b)
+    nodes, links, background = _world(bpy)
+    voronoi, brick, wave = (nodes.new(f"ShaderNodeTex{kind}") for kind in ("Voronoi", "Brick", "Wave"))
+    voronoi.inputs["Scale"].default_value = 3.0
+    brick.inputs["Scale"].default_value, brick.inputs["Mortar Size"].default_value = 2.0, 0.04
+    brick.inputs["Color1"].default_value = (0.9, 0.7, 0.5, 1.0)
+    brick.inputs["Color2"].default_value = (0.6, 0.8, 1.0, 1.0)
+    wave.bands_direction = "DIAGONAL"
+    wave.inputs["Scale"].default_value, wave.inputs["Distortion"].default_value = 0.8, 2.0
+    mix = nodes.new("ShaderNodeMix")
+    mix.data_type, mix.blend_type = "RGBA", "MULTIPLY"
+    mix.inputs["Factor"].default_value = 1.0
+    links.new(voronoi.outputs["Color"], mix.inputs[6])
+    links.new(brick.outputs["Color"], mix.inputs[7])
+    links.new(mix.outputs[2], background.inputs["Color"])
+    strength = nodes.new("ShaderNodeMath")
+    strength.operation = "MULTIPLY_ADD"
+    strength.inputs[1].default_value, strength.inputs[2].default_value = 0.8, 0.6
+    links.new(wave.outputs["Fac"], strength.inputs[0])
+    links.new(strength.outputs[0], background.inputs["Strength"])
+
+
 def _sky(sky_type, strength, **settings):
     def build(b):
         import bpy
@@ -157,7 +185,8 @@ def compare(bpy, tmp_path, builder):
     return data, rel_mse, ours, theirs
 
 
-@pytest.mark.parametrize("builder", [gradient_world, rotated_environment, mirror_ball_environment] + SKIES,
+@pytest.mark.parametrize("builder", [gradient_world, rotated_environment, mirror_ball_environment,
+                                     textured_world] + SKIES,
                          ids=lambda f: f.__name__)
 def test_world_graphs_match_cycles(bpy, tmp_path, builder):
     data, rel_mse, ours, theirs = compare(bpy, tmp_path, builder)
@@ -178,12 +207,13 @@ def test_a_light_node_tree_matches_cycles(bpy, tmp_path):
 
 
 def test_what_a_world_or_light_graph_cannot_do_is_named(bpy):
-    """A Voronoi world (not evaluated on the host) and a light tree that varies over the
-    light (texture coordinates) each get one warning naming the node, and their values."""
+    """A Fresnel world (a surface's, not evaluated on the host) and a light tree that varies
+    over the light (texture coordinates) each get one warning naming the node, and their
+    values."""
     build_scene(bpy, _ground, 16, 12)
     nodes, links, background = _world(bpy)
-    voronoi = nodes.new("ShaderNodeTexVoronoi")
-    links.new(voronoi.outputs["Color"], background.inputs["Color"])
+    fresnel = nodes.new("ShaderNodeFresnel")
+    links.new(fresnel.outputs["Fac"], background.inputs["Color"])
     light = bpy.data.lights.new("Lamp", "POINT")
     light.use_nodes = True
     emission = next(n for n in light.node_tree.nodes if n.type == "EMISSION")
@@ -193,7 +223,7 @@ def test_what_a_world_or_light_graph_cannot_do_is_named(bpy):
     bpy.context.scene.collection.objects.link(obj)
     bpy.context.scene.render.engine = "PARALLAX"
     data, warnings = export_current(bpy)
-    assert any("world 'World'" in w and "Voronoi Texture" in w for w in warnings), warnings
+    assert any("world 'World'" in w and "Fresnel" in w for w in warnings), warnings
     assert any("light 'Lamp'" in w and "Noise Texture" in w for w in warnings), warnings
     assert data.world.map is None
 

@@ -170,20 +170,40 @@ class FieldProgram(nodes.Program):
                                       normalize)
         return _field(np.broadcast_to(value, (self.count,)), "float")
 
-    def voronoi(self, vector, *args):
-        if self._varies(vector, *args[:7]):
-            raise NotOnHost("Voronoi at many points")
-        return super().voronoi(vector, *args)
+    def voronoi(self, vector, scale, detail, roughness, lacunarity, smoothness, exponent, randomness, feature,
+                metric, normalize, output):
+        args = (scale, detail, roughness, lacunarity, smoothness, exponent, randomness)
+        if not self._varies(vector, *args):
+            return super().voronoi(vector, *args, feature, metric, normalize, output)
+        k = nodes.VORONOI_OUTPUTS.index(output)
+        value = nodes.voronoi_reference(self._vector(vector), *(self._float(x) for x in args), feature, metric,
+                                        normalize)[k]
+        return _field(np.broadcast_to(value, (self.count,) if k == 0 else (self.count, 3)),
+                      ("float", "color", "vector")[k])
 
-    def wave(self, vector, *args):
-        if self._varies(vector, *args[:1], *args[4:]):
-            raise NotOnHost("Wave at many points")
-        return super().wave(vector, *args)
+    def wave(self, vector, scale, wave_type, direction, profile, distortion, detail, detail_scale, detail_roughness,
+             phase):
+        floats = (distortion, detail, detail_scale, detail_roughness, phase)
+        if not self._varies(vector, scale, *floats):
+            return super().wave(vector, scale, wave_type, direction, profile, *floats)
+        point = self._vector(vector) * np.asarray(self._float(scale))[..., None]
+        value = nodes.wave_reference(point, wave_type, direction, profile, *(self._float(x) for x in floats))
+        return _field(np.broadcast_to(value, (self.count,)), "float")
 
-    def brick(self, vector, *args):
-        if self._varies(vector, *args[:9]):
-            raise NotOnHost("Brick at many points")
-        return super().brick(vector, *args)
+    def brick(self, vector, scale, color1, color2, mortar, mortar_size, mortar_smooth, bias, brick_width, row_height,
+              offset_amount, offset_frequency, squash_amount, squash_frequency, output):
+        colors, floats = (color1, color2, mortar), (mortar_size, mortar_smooth, bias, brick_width, row_height)
+        frequencies = (offset_amount, offset_frequency, squash_amount, squash_frequency)
+        if not self._varies(vector, scale, *colors, *floats):
+            return super().brick(vector, scale, *colors, *floats, *frequencies, output)
+        if not (0 <= offset_frequency <= 255 and 0 <= squash_frequency <= 255):
+            raise ValueError("brick frequencies are 0..255")
+        point = self._vector(vector) * np.asarray(self._float(scale))[..., None]
+        color, fac = nodes.brick_reference(point, *(self._vector(c) for c in colors), *(self._float(x) for x in floats),
+                                           *frequencies)
+        if output == "Fac":
+            return _field(np.broadcast_to(fac, (self.count,)), "float")
+        return _field(np.broadcast_to(color, (self.count, 3)), "color")
 
     def texture(self, vector, texture):
         """An Image Texture (a HostImage, flat and repeating) at vector.xy."""

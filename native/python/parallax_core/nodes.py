@@ -12,6 +12,7 @@ them (tests compare the two).
 from __future__ import annotations
 
 import heapq
+import itertools
 import math
 
 import numpy as np
@@ -458,175 +459,365 @@ def noise_reference(p, detail, roughness, lacunarity, normalize):
     return _result(value)
 
 
-def _s32(x):
-    x &= 0xFFFFFFFF
-    return x - (1 << 32) if x >> 31 else x
+def _u32(x):
+    """Integers modulo 2^32 as a uint32 array (at least 1-d): Python ints of any size, integer
+    arrays, or float arrays of integers (truncated; exact at any magnitude, as int() is)."""
+    if isinstance(x, int):
+        x &= 0xFFFFFFFF
+    x = np.asarray(x)
+    if x.dtype.kind == "f":
+        x = np.fmod(np.trunc(x), 4294967296.0)
+    return np.atleast_1d(np.asarray(x, np.int64)).astype(np.uint32)  # int64 -> uint32 keeps the low bits
+
+
+_PCG_A, _PCG_C = np.uint32(1664525), np.uint32(1013904223)
+
+
+def _pcg3d(x, y, z):
+    """hash_pcg3d_i on uint32 arrays whose first step (k * 1664525 + 1013904223) is done:
+    uint32 arithmetic wraps as the signed ints do, v ^= v >> 16 shifts arithmetically."""
+    for step in range(2):
+        x = x + y * z
+        y = y + z * x
+        z = z + x * y
+        if step == 0:
+            x, y, z = (k ^ (k.view(np.int32) >> 16).view(np.uint32) for k in (x, y, z))
+    m = np.uint32(0x7FFFFFFF)
+    return x & m, y & m, z & m
 
 
 def hash_pcg3d(x, y, z):
-    """Cycles' hash_pcg3d_i (PCG 3D on signed 32-bit integers, results masked to 31 bits)."""
-    m = 0xFFFFFFFF
-    x, y, z = ((k * 1664525 + 1013904223) & m for k in (x, y, z))
-    for step in range(2):
-        x = (x + y * z) & m
-        y = (y + z * x) & m
-        z = (z + x * y) & m
-        if step == 0:  # v ^= v >> 16 (an arithmetic shift)
-            x, y, z = ((k ^ (_s32(k) >> 16)) & m for k in (x, y, z))
-    return x & 0x7FFFFFFF, y & 0x7FFFFFFF, z & 0x7FFFFFFF
+    """Cycles' hash_pcg3d_i (PCG 3D on signed 32-bit integers, results masked to 31 bits): of
+    ints (a tuple of ints) or integer arrays (a tuple of int64 arrays)."""
+    shape = np.broadcast_shapes(*(np.shape(k) for k in (x, y, z)))
+    keys = (np.broadcast_to(_u32(k), shape or (1,)).reshape(-1) * _PCG_A + _PCG_C for k in (x, y, z))
+    out = _pcg3d(*keys)
+    return tuple(int(h[0]) for h in out) if shape == () else tuple(h.reshape(shape).astype(np.int64) for h in out)
+
+
+def _hash_color(x, y, z, axis=-1):
+    """hash_int3_to_float3 of hash_pcg3d_i's (N,) words: (N, 3) (axis -1) or (3, N) (axis 0),
+    float32 as Cycles computes it."""
+    h = np.stack([x, y, z], axis).view(np.int32)  # 31 bits
+    return (h.astype(np.float32) * np.float32(1.0 / 2147483648.0)).astype(np.float64)
 
 
 def hash_cell(cell):
     """Cycles' hash_int3_to_float3: a Voronoi cell's point offset and colour, float32 as it is
-    computed there."""
-    h = hash_pcg3d(*(int(c) for c in cell))
-    return np.array([np.float32(k) * np.float32(1.0 / 2147483648.0) for k in h], np.float64)
+    computed there; of a cell (3 integers) or cells (..., 3)."""
+    cell = np.asarray(cell)
+    shape = cell.shape[:-1]
+    keys = (_u32(cell[..., k]).reshape(-1) * _PCG_A + _PCG_C for k in range(3))
+    return _hash_color(*_pcg3d(*keys)).reshape(shape + (3,))
+
+
+def _dot3(a, b):
+    """a . b over the last axis, as ``a @ b`` computes it for 3-vectors (numpy's dot: BLAS,
+    fused multiply-adds where the machine has them); one matmul over the stack."""
+    a, b = np.ascontiguousarray(a, np.float64), np.ascontiguousarray(b, np.float64)
+    return np.matmul(a[..., None, :], b[..., :, None])[..., 0, 0]
+
+
+_FAST_POWERS = ((1.0, np.positive), (-1.0, np.reciprocal), (0.0, np.ones_like), (0.5, np.sqrt), (2.0, np.square))
+
+
+def _scalar_power(x, e):
+    """x ** e as numpy computes it for a float e (its fast paths for 1, -1, 0, 0.5 and 2, else
+    np.power), also for e an array broadcastable to x."""
+    e = np.asarray(e, np.float64)
+    if e.ndim == 0:
+        return x ** float(e)
+    out = np.power(x, e)
+    for value, op in _FAST_POWERS:
+        hit = e == value
+        if np.any(hit):
+            out = np.where(hit, op(x), out)
+    return out
+
+
+def _float_pow(x, y):
+    """x ** y as Python's floats compute it (the C library's pow; numpy's SIMD power may differ
+    in the last bits), elementwise."""
+    x, y = np.asarray(x, np.float64), np.asarray(y, np.float64)
+    shape = np.broadcast_shapes(x.shape, y.shape)
+    xs = np.broadcast_to(x, shape).ravel().tolist()
+    ys = itertools.repeat(float(y)) if y.ndim == 0 else np.broadcast_to(y, shape).ravel().tolist()
+    return np.fromiter(map(pow, xs, ys), np.float64, len(xs)).reshape(shape)
+
+
+def _voronoi_bound(d, metric, exponent):
+    """voronoi_distance_bound of d = a - b, its components first ((3, ...)): what the distance
+    orders by."""
+    if metric == "EUCLIDEAN":
+        v = np.stack([d[0], d[1], d[2]], -1)
+        return _dot3(v, v)
+    d = np.abs(d)
+    if metric == "MANHATTAN":
+        return (d[0] + d[1]) + d[2]
+    if metric == "CHEBYCHEV":
+        return np.maximum(np.maximum(d[0], d[1]), d[2])
+    t = _scalar_power(d, exponent)
+    return (t[0] + t[1]) + t[2]
+
+
+def _voronoi_unbound(bound, metric, exponent):
+    """The distance of its bound."""
+    if metric == "EUCLIDEAN":
+        return np.sqrt(bound)
+    if metric == "MINKOWSKI":
+        return _float_pow(bound, 1.0 / np.asarray(exponent, np.float64))
+    return bound
 
 
 def _voronoi_distance(d, metric, exponent, bound=False):
-    """Cycles' voronoi_distance of d = a - b (voronoi_distance_bound if ``bound``)."""
-    d = np.abs(d)
-    if metric == "EUCLIDEAN":
-        return float(d @ d) if bound else float(np.sqrt(d @ d))
-    if metric == "MANHATTAN":
-        return float(d.sum())
-    if metric == "CHEBYCHEV":
-        return float(d.max())
-    total = float(np.sum(d ** exponent))
-    return total if bound else total ** (1.0 / exponent)
+    """Cycles' voronoi_distance of d = a - b ((..., 3); voronoi_distance_bound if ``bound``);
+    exponent a float or an array broadcastable to d[..., 0]."""
+    value = _voronoi_bound(np.moveaxis(np.asarray(d, np.float64), -1, 0), metric, exponent)
+    return _result(value if bound else _voronoi_unbound(value, metric, exponent))
+
+
+def _cell_keys(cell, reach):
+    """For each axis, the first PCG step of cell + o (floats, as the cell's neighbours are
+    computed) for o in -reach..reach: {o: (N,) uint32}."""
+    return [{o: np.fmod(cell[:, a] + o, 4294967296.0).astype(np.int64).astype(np.uint32) * _PCG_A + _PCG_C
+             for o in range(-reach, reach + 1)} for a in range(3)]
+
+
+# A Voronoi octave's neighbour cells in Cycles' order (x fastest), as (B, 3, 1) offsets.
+_NEIGHBOURS = {reach: np.array([[[i], [j], [k]] for k in range(-reach, reach + 1) for j in range(-reach, reach + 1)
+                                for i in range(-reach, reach + 1)], np.float64) for reach in (1, 2)}
+_VORONOI_BLOCK = 1 << 15  # neighbours x points computed at once
+
+
+def _voronoi_neighbours(cell, local, reach, metric, exponent, randomness, bound):
+    """The neighbour cells of the points in blocks (all 3^3 or 5^3 at once for few points, one
+    at a time for many): yields (first neighbour's index, (B, 6, N) colours and points (relative
+    to the cell), (B, N) distances (or their bounds)), local being (3, N)."""
+    n = len(cell)
+    keys = _cell_keys(cell, reach)
+    offsets = _NEIGHBOURS[reach]
+    size = max(1, min(len(offsets), _VORONOI_BLOCK // max(n, 1)))
+    for first in range(0, len(offsets), size):
+        block = offsets[first:first + size]
+        words = (np.stack([keys[a][int(o[a, 0])] for o in block]) for a in range(3))  # (B, N) each
+        cells = np.empty((len(block), 6, n))
+        cells[:, :3] = _hash_color(*_pcg3d(*words), axis=1)
+        np.add(block, cells[:, :3] * randomness, out=cells[:, 3:])
+        d = _voronoi_bound(np.moveaxis(cells[:, 3:] - local, 1, 0), metric, exponent)
+        yield first, cells, (d if bound else _voronoi_unbound(d, metric, exponent))
 
 
 def _voronoi_octave(coord, feature, metric, exponent, randomness, smoothness):
-    """One octave of Cycles' 3D voronoi_f1 / voronoi_f2 / voronoi_smooth_f1: (distance,
-    colour, position)."""
+    """One octave of Cycles' 3D voronoi_f1 / voronoi_f2 / voronoi_smooth_f1 at coord ((N, 3)):
+    (distance (N,), colour (N, 3), position (N, 3)). randomness and smoothness are (N,) (or
+    broadcast to it), exponent a float or (N,); smoothness > 0 for SMOOTH_F1."""
+    n = len(coord)
     cell = np.floor(coord)
-    local = coord - cell
-    if feature == "SMOOTH_F1":
-        distance, color, position, h = 0.0, np.zeros(3), np.zeros(3), -1.0
-        for k in range(-2, 3):
-            for j in range(-2, 3):
-                for i in range(-2, 3):
-                    offset = np.array([i, j, k], np.float64)
-                    cell_color = hash_cell(cell + offset)
-                    point = offset + cell_color * randomness
-                    d = _voronoi_distance(point - local, metric, exponent)
-                    if h == -1.0:
-                        h = 1.0
-                    else:
-                        t = min(max(0.5 + 0.5 * (distance - d) / smoothness, 0.0), 1.0)
-                        h = (3.0 - 2.0 * t) * t * t
-                    correction = smoothness * h * (1.0 - h)
-                    distance = distance * (1 - h) + d * h - correction
-                    correction /= 1.0 + 3.0 * smoothness
-                    color = color * (1 - h) + cell_color * h - correction
-                    position = position * (1 - h) + point * h - correction
-        return distance, color, cell + position
-    best = [(np.inf, None, None), (np.inf, None, None)]  # (distance, point, colour) of F1, F2
-    for k in range(-1, 2):
-        for j in range(-1, 2):
-            for i in range(-1, 2):
-                offset = np.array([i, j, k], np.float64)
-                cell_color = hash_cell(cell + offset)
-                point = offset + cell_color * randomness
-                d = _voronoi_distance(point - local, metric, exponent, bound=feature == "F1")
-                if d < best[0][0]:
-                    best = [(d, point, cell_color), best[0]]
-                elif d < best[1][0]:
-                    best[1] = (d, point, cell_color)
-    d, point, color = best[1] if feature == "F2" else best[0]
-    if feature == "F1":
-        d = _voronoi_distance(point - local, metric, exponent)
-    return d, color, point + cell
+    local = (coord - cell).T  # the neighbours' arrays are components first
+    randomness = np.broadcast_to(np.asarray(randomness, np.float64), (n,))
+    if feature == "SMOOTH_F1":  # blended over the 5^3 neighbours in order
+        smoothness = np.broadcast_to(np.asarray(smoothness, np.float64), (n,))
+        distance, blend = np.zeros(n), np.zeros((6, n))  # blend: colour, position
+        for first, cells, ds in _voronoi_neighbours(cell, local, 2, metric, exponent, randomness, False):
+            for b, d in enumerate(ds):
+                if first + b == 0:
+                    h = np.ones(n)
+                else:
+                    t = np.minimum(np.maximum(0.5 + 0.5 * (distance - d) / smoothness, 0.0), 1.0)
+                    h = (3.0 - 2.0 * t) * t * t
+                correction = smoothness * h * (1.0 - h)
+                distance = distance * (1 - h) + d * h - correction
+                correction = correction / (1.0 + 3.0 * smoothness)
+                blend = blend * (1 - h) + cells[b] * h - correction
+        return distance, blend[:3].T, cell + blend[3:].T
+    # F1, F2: the closest two of the 3^3 neighbours (by the bound for F1, by the distance for
+    # F2) as Cycles' loop keeps them: a strictly closer one replaces, so of equals the first
+    # stays (the first two of a stable sort).
+    second = feature == "F2"
+    ar = np.arange(n)
+    best, which = [np.full(n, np.inf), np.full(n, np.inf)], [np.zeros(n, np.int64), np.zeros(n, np.int64)]
+    for first, _, ds in _voronoi_neighbours(cell, local, 1, metric, exponent, randomness, not second):
+        if len(ds) == 1:
+            c0, j0, c1, j1 = ds[0], first, np.inf, first
+        else:  # the block's closest two
+            i0 = np.argmin(ds, axis=0)
+            c0, j0 = ds[i0, ar], first + i0
+            if second:
+                rest = ds.copy()
+                rest[i0, ar] = np.inf
+                i1 = np.argmin(rest, axis=0)
+                c1, j1 = rest[i1, ar], first + i1
+        closer = c0 < best[0]
+        if second:  # the kept pair's first, then the block's; or the block's first, then the kept pair's
+            kept, ahead = best[1] <= c0, best[0] <= c1
+            best[1], which[1] = (np.where(closer, np.where(ahead, best[0], c1), np.where(kept, best[1], c0)),
+                                 np.where(closer, np.where(ahead, which[0], j1), np.where(kept, which[1], j0)))
+        best[0], which[0] = np.where(closer, c0, best[0]), np.where(closer, j0, which[0])
+    d, m = (best[1], which[1]) if second else (_voronoi_unbound(best[0], metric, exponent), which[0])
+    # The chosen neighbour's hash again (the same bits as in the loop).
+    offset = _NEIGHBOURS[1][m, :, 0]
+    cell_color = hash_cell(cell + offset)
+    return d, cell_color, offset + cell_color * randomness[:, None] + cell
+
+
+_VORONOI_CHUNK = 1 << 15  # points at a time (the temporaries stay in cache)
 
 
 def voronoi_reference(p, scale, detail, roughness, lacunarity, smoothness, exponent, randomness, feature,
                       metric, normalize):
-    """Cycles' 3D Voronoi Texture (svm_node_tex_voronoi, fractal_voronoi_x_fx) at point p:
-    (distance, colour, position)."""
-    detail, roughness = min(max(detail, 0.0), 15.0), min(max(roughness, 0.0), 1.0)
-    randomness, smoothness = min(max(randomness, 0.0), 1.0), min(max(smoothness / 2.0, 0.0), 0.5)
-    if feature == "SMOOTH_F1" and smoothness == 0.0:
-        feature = "F1"
-    coord = np.asarray(p, np.float64)[:3] * scale
-    amplitude, max_amplitude, octave_scale = 1.0, 0.0, 1.0
-    distance, color, position = 0.0, np.zeros(3), np.zeros(3)
-    for i in range(int(math.ceil(detail)) + 1):
-        d, c, q = _voronoi_octave(coord * octave_scale, feature, metric, exponent, randomness, smoothness)
-        if detail == 0.0 or roughness == 0.0:
-            max_amplitude, distance, color, position = 1.0, d, c, q
-            break
-        if i <= detail:
-            max_amplitude += amplitude
-            distance += d * amplitude
-            color = color + c * amplitude
-            position = position * (1 - amplitude) + q / octave_scale * amplitude
-            octave_scale *= lacunarity
-            amplitude *= roughness
-        else:
-            r = detail - math.floor(detail)
-            max_amplitude += amplitude * r
-            distance += d * amplitude * r
-            color = color + c * amplitude * r
-            position = position * (1 - r) + (position * (1 - amplitude) + q / octave_scale * amplitude) * r
+    """Cycles' 3D Voronoi Texture (svm_node_tex_voronoi, fractal_voronoi_x_fx) at point p
+    ((..., 3)): (distance (...), colour (..., 3), position (..., 3)). The float parameters are
+    floats or arrays broadcastable to the points (a detail per point too)."""
+    p = np.asarray(p, np.float64)[..., :3]
+    exponent = np.asarray(exponent, np.float64)
+    params = [np.asarray(x, np.float64) for x in (scale, detail, roughness, lacunarity, smoothness, randomness)]
+    shape = np.broadcast_shapes(p.shape[:-1], exponent.shape, *(x.shape for x in params))
+    count = math.prod(shape)
+    p = np.broadcast_to(p, shape + (3,)).reshape(-1, 3)
+    params = [np.broadcast_to(x, shape).reshape(-1) for x in params]
+    if exponent.ndim:
+        exponent = np.broadcast_to(exponent, shape).reshape(-1)
+    distance, color, position = np.empty(count), np.empty((count, 3)), np.empty((count, 3))
+    with np.errstate(all="ignore"):
+        for start in range(0, count, _VORONOI_CHUNK):
+            part = slice(start, start + _VORONOI_CHUNK)
+            distance[part], color[part], position[part] = _voronoi_points(
+                p[part], *(x[part] for x in params), exponent[part] if exponent.ndim else exponent, feature, metric,
+                normalize)
+    return _result(distance.reshape(shape)), color.reshape(shape + (3,)), position.reshape(shape + (3,))
+
+
+def _voronoi_points(p, scale, detail, roughness, lacunarity, smoothness, randomness, exponent, feature, metric,
+                    normalize):
+    """voronoi_reference at (N, 3) points, its parameters (N,) (exponent a float or (N,))."""
+    clamp = lambda x, low, high: np.minimum(np.maximum(x, low), high)
+    detail, roughness, randomness = clamp(detail, 0.0, 15.0), clamp(roughness, 0.0, 1.0), clamp(randomness, 0.0, 1.0)
+    smoothness = clamp(smoothness / 2.0, 0.0, 0.5)
+    take = lambda x, at: x if np.ndim(x) == 0 else x[at]
+
+    def octave(coord, at):
+        """The octave at coord of the points ``at`` (an index array): Smooth F1 falls back to F1
+        where its smoothness is 0."""
+        if feature != "SMOOTH_F1":
+            return _voronoi_octave(coord, feature, metric, take(exponent, at), randomness[at], None)
+        smooth = smoothness[at] != 0.0
+        if smooth.all():
+            return _voronoi_octave(coord, feature, metric, take(exponent, at), randomness[at], smoothness[at])
+        d, c, q = np.empty(len(at)), np.empty((len(at), 3)), np.empty((len(at), 3))
+        for mask, kind in ((smooth, "SMOOTH_F1"), (~smooth, "F1")):
+            if mask.any():
+                sub = at[mask]
+                d[mask], c[mask], q[mask] = _voronoi_octave(coord[mask], kind, metric, take(exponent, sub),
+                                                            randomness[sub], smoothness[sub])
+        return d, c, q
+
+    coord = p * scale[:, None]
+    n = len(p)
+    single = (detail == 0.0) | (roughness == 0.0)  # one octave, taken as it is
+    octaves = np.where(single, 1, np.ceil(detail).astype(np.int64) + 1)
+    amplitude, max_amplitude, octave_scale = np.ones(n), np.zeros(n), np.ones(n)
+    distance, color, position = np.zeros(n), np.zeros((n, 3)), np.zeros((n, 3))
+    for i in range(int(octaves.max(initial=0))):
+        at = np.flatnonzero(octaves > i)
+        sc, amp = octave_scale[at], amplitude[at]
+        d, c, q = octave(coord[at] * sc[:, None], at)
+        if i == 0 and single.any():
+            s = single[at]
+            max_amplitude[at[s]], distance[at[s]], color[at[s]], position[at[s]] = 1.0, d[s], c[s], q[s]
+            keep = ~s
+            at, sc, amp, d, c, q = at[keep], sc[keep], amp[keep], d[keep], c[keep], q[keep]
+        full = i <= detail[at]
+        r = detail[at] - np.floor(detail[at])  # the last, partial octave's weight
+        w = np.where(full, amp, amp * r)
+        max_amplitude[at] = max_amplitude[at] + w
+        distance[at] = distance[at] + np.where(full, d * amp, d * amp * r)
+        color[at] = color[at] + np.where(full[:, None], c * amp[:, None], c * amp[:, None] * r[:, None])
+        pos = position[at]
+        step = pos * (1 - amp[:, None]) + q / sc[:, None] * amp[:, None]
+        position[at] = np.where(full[:, None], step, pos * (1 - r[:, None]) + step * r[:, None])
+        octave_scale[at] = np.where(full, sc * lacunarity[at], sc)
+        amplitude[at] = np.where(full, amp * roughness[at], amp)
     if normalize:
-        max_distance = _voronoi_distance(np.full(3, 0.5 + 0.5 * randomness), metric, exponent)
-        distance /= max_amplitude * max_distance * (2.0 if feature == "F2" else 1.0)
-        color = color / max_amplitude
-    position = position / scale if scale != 0.0 else np.zeros(3)
+        max_distance = _voronoi_distance(np.repeat((0.5 + 0.5 * randomness)[:, None], 3, 1), metric, exponent)
+        distance = distance / (max_amplitude * max_distance * (2.0 if feature == "F2" else 1.0))
+        color = color / max_amplitude[:, None]
+    position = np.where((scale != 0.0)[:, None], position / _where_nonzero(scale)[:, None], 0.0)
     return distance, color, position
 
 
 def wave_reference(p, wave_type, direction, profile, distortion, detail, detail_scale, detail_roughness, phase):
-    """Cycles' svm_wave at point p (already scaled)."""
-    p = (np.asarray(p, np.float64)[:3] + 0.000001) * 0.999999
+    """Cycles' svm_wave at point p ((..., 3), already scaled); the float parameters floats or
+    arrays broadcastable to the points."""
+    p = (np.asarray(p, np.float64)[..., :3] + 0.000001) * 0.999999
+    distortion, detail, detail_scale, detail_roughness, phase = (
+        np.asarray(x, np.float64) for x in (distortion, detail, detail_scale, detail_roughness, phase))
     axis = {"X": 0, "Y": 1, "Z": 2}.get(direction)
     if wave_type == "BANDS":
-        n = p[axis] * 20.0 if axis is not None else p.sum() * 10.0
+        n = p[..., axis] * 20.0 if axis is not None else ((p[..., 0] + p[..., 1]) + p[..., 2]) * 10.0
     else:
         rp = p.copy()
         if axis is not None:
-            rp[axis] = 0.0
-        n = float(np.sqrt(rp @ rp)) * 20.0
-    n += phase
-    if distortion != 0.0:
-        n += distortion * (noise_reference(p * detail_scale, detail, detail_roughness, 2.0, True) * 2.0 - 1.0)
+            rp[..., axis] = 0.0
+        n = np.sqrt(_dot3(rp, rp)) * 20.0
+    shape = np.broadcast_shapes(n.shape, *(x.shape for x in (distortion, detail, detail_scale, detail_roughness,
+                                                              phase)))
+    n = np.array(np.broadcast_to(n + phase, shape))
+    distorted = np.broadcast_to(distortion != 0.0, shape)
+    if distorted.any():
+        points = np.broadcast_to(p, shape + (3,))[distorted]
+        take = lambda x: np.broadcast_to(x, shape)[distorted]
+        noise = noise_reference(points * take(detail_scale)[:, None], take(detail), take(detail_roughness), 2.0, True)
+        n[distorted] = n[distorted] + take(distortion) * (noise * 2.0 - 1.0)
     if profile == "SIN":
-        return 0.5 + 0.5 * math.sin(n - math.pi / 2)
-    n /= 2 * math.pi
-    return n - math.floor(n) if profile == "SAW" else abs(n - math.floor(n + 0.5)) * 2.0
+        return _result(0.5 + 0.5 * np.sin(n - math.pi / 2))
+    n = n / (2 * math.pi)
+    return _result(n - np.floor(n) if profile == "SAW" else np.abs(n - np.floor(n + 0.5)) * 2.0)
 
 
 def brick_noise(n):
-    """Cycles' brick_noise: integer noise of a uint (a brick's row and number)."""
-    m = 0xFFFFFFFF
-    n = (n + 1013) & 0x7FFFFFFF
-    n = (n >> 13) ^ n
-    nn = (n * ((n * n * 60493 + 19990303) & m) + 1376312589) & 0x7FFFFFFF
-    return 0.5 * float(np.float32(nn)) / 1073741824.0
+    """Cycles' brick_noise: integer noise of a uint (a brick's row and number); of an int or an
+    integer array."""
+    shape = np.shape(n)
+    n = _u32(n).reshape(-1)
+    n = (n + np.uint32(1013)) & np.uint32(0x7FFFFFFF)
+    n = (n >> np.uint32(13)) ^ n
+    nn = (n * (n * n * np.uint32(60493) + np.uint32(19990303)) + np.uint32(1376312589)) & np.uint32(0x7FFFFFFF)
+    return _result((0.5 * nn.astype(np.float32).astype(np.float64) / 1073741824.0).reshape(shape))
+
+
+def _color3(value):
+    """A colour input as (..., 3): a float (grey), a colour of 3 or 4, or colours (..., 3|4)."""
+    value = np.asarray(value, np.float64)
+    return _vec4(value)[:3] if value.ndim <= 1 else value[..., :3]
 
 
 def brick_reference(p, color1, color2, mortar_color, mortar_size, mortar_smooth, bias, brick_width, row_height,
                     offset_amount, offset_frequency, squash_amount, squash_frequency):
-    """Cycles' svm_brick and svm_node_tex_brick at point p (already scaled): (colour, fac)."""
+    """Cycles' svm_brick and svm_node_tex_brick at point p ((..., 3), already scaled): (colour
+    (..., 3), fac (...)). Colours and floats may vary over the points; the frequencies are ints."""
     p = np.asarray(p, np.float64)
-    rownum = int(math.floor(p[1] / row_height))
-    offset = 0.0
-    if offset_frequency and squash_frequency:
-        brick_width *= 1.0 if rownum % squash_frequency else squash_amount
-        offset = 0.0 if rownum % offset_frequency else brick_width * offset_amount
-    bricknum = int(math.floor((p[0] + offset) / brick_width))
-    x, y = (p[0] + offset) - brick_width * bricknum, p[1] - row_height * rownum
-    tint = min(max(brick_noise(((rownum << 16) + (bricknum & 0xFFFF)) & 0xFFFFFFFF) + bias, 0.0), 1.0)
-    min_dist = min(x, y, brick_width - x, row_height - y)
-    if min_dist >= mortar_size:
-        fac = 0.0
-    elif mortar_smooth == 0.0:
-        fac = 1.0
-    else:
-        f = (1.0 - min_dist / mortar_size) / mortar_smooth
-        fac = 0.0 if f <= 0.0 else 1.0 if f >= 1.0 else 3.0 * f * f - 2.0 * f * f * f
-    color = (1.0 - tint) * _vec4(color1)[:3] + tint * _vec4(color2)[:3]
-    return color * (1.0 - fac) + _vec4(mortar_color)[:3] * fac, fac
+    mortar_size, mortar_smooth, bias, brick_width, row_height, offset_amount, squash_amount = (
+        np.asarray(x, np.float64) for x in (mortar_size, mortar_smooth, bias, brick_width, row_height,
+                                            offset_amount, squash_amount))
+    with np.errstate(all="ignore"):
+        rownum = np.floor(p[..., 1] / row_height)
+        offset = 0.0
+        if offset_frequency and squash_frequency:
+            brick_width = brick_width * np.where(np.fmod(rownum, squash_frequency) != 0, 1.0, squash_amount)
+            offset = np.where(np.fmod(rownum, offset_frequency) != 0, 0.0, brick_width * offset_amount)
+        bricknum = np.floor((p[..., 0] + offset) / brick_width)
+        x, y = (p[..., 0] + offset) - brick_width * bricknum, p[..., 1] - row_height * rownum
+        words = lambda v: np.asarray(np.fmod(v, 4294967296.0), np.int64)
+        key = ((words(rownum) << 16) + (words(bricknum) & 0xFFFF)) & 0xFFFFFFFF
+        tint = np.minimum(np.maximum(brick_noise(key) + bias, 0.0), 1.0)
+        min_dist = np.minimum(np.minimum(np.minimum(x, y), brick_width - x), row_height - y)
+        f = (1.0 - min_dist / mortar_size) / _where_nonzero(mortar_smooth)
+        smooth = np.where(f <= 0.0, 0.0, np.where(f >= 1.0, 1.0, 3.0 * f * f - 2.0 * f * f * f))
+        fac = np.where(min_dist >= mortar_size, 0.0, np.where(mortar_smooth == 0.0, 1.0, smooth))
+    fac = np.broadcast_to(fac, np.broadcast_shapes(fac.shape, tint.shape))
+    tint = np.broadcast_to(tint, fac.shape)[..., None]
+    color = (1.0 - tint) * _color3(color1) + tint * _color3(color2)
+    return color * (1.0 - fac[..., None]) + _color3(mortar_color) * fac[..., None], _result(fac)
 
 
 def _vec4(value):
