@@ -68,55 +68,85 @@ def _plain_environment(node):
             node.projection == "EQUIRECTANGULAR" and not vector_linked(node))
 
 
-def _texel_directions(width, height):
+def _texel_directions(width, height, rows=None):
     """World directions at the texel centres of a (height, width) equirectangular map laid
-    out as parallax_core.scene.World's: (N, 3), row by row from the top."""
+    out as parallax_core.scene.World's (row 0 at the top): (N, 3), row by row, of ``rows``
+    (a range; all by default)."""
+    rows = range(height) if rows is None else rows
     u = (np.arange(width) + 0.5) / width
-    v = 1.0 - (np.arange(height) + 0.5) / height
+    v = 1.0 - (np.asarray(rows) + 0.5) / height
     phi, latitude = np.meshgrid((0.5 - u) * 2.0 * np.pi, (v - 0.5) * np.pi)
     return np.stack([np.cos(latitude) * np.cos(phi), np.cos(latitude) * np.sin(phi), np.sin(latitude)],
                     -1).reshape(-1, 3)
 
 
+def _background_program(world, background, directions, images, warnings):
+    """(FieldProgram, colour, strength): the Background's graph over ``directions`` (Cycles'
+    background shading point: P = the direction, N = I = -direction, UV 0). Raises Unsupported
+    (or ValueError) for a graph the host cannot evaluate. ``images`` caches the host images."""
+    from ..core import load
+
+    label = f"world '{world.name}'"
+    back = -directions
+    program = load().node_fields.FieldProgram(len(directions), {
+        "position": directions, "generated": directions, "object": directions, "normal": back,
+        "true_normal": back, "incoming": back, "object_normal": back,
+        "uv": np.broadcast_to(np.zeros(3), directions.shape)})
+
+    def image(image, node_label, interpolation):
+        key = (image.name_full, interpolation)
+        if key not in images:
+            images[key] = _host_image(image, label, interpolation, warnings)
+        return images[key]
+
+    compiler = GraphCompiler(program, image, label)
+    return (program, compiler.socket(background.inputs["Color"], "color"),
+            compiler.socket(background.inputs["Strength"], "float"))
+
+
+# Texels a bake evaluates at once: the fields stay some tens of MB whatever the map's size.
+BAKE_BLOCK = 1 << 18
+
+
 def _bake(world, background, data, warnings, bake_widths):
     """The Background's Colour x Strength evaluated in every direction of an equirectangular
-    map (Cycles' background shader point: P = the direction, N = I = -direction), as wide as
-    the widest image in the graph within ``bake_widths`` (least, most)."""
+    map, as wide as the widest image in the graph within ``bake_widths`` (least, most), a
+    block of rows at a time."""
     from ..core import load
 
     core = load()
-    label = f"world '{world.name}'"
     widths = [n.image.size[0] for n in _tree_nodes(world.node_tree)
               if n.type in ("TEX_ENVIRONMENT", "TEX_IMAGE") and n.image is not None]
     width = int(min(max([bake_widths[0]] + widths), bake_widths[1]))
     height = max(width // 2, 1)
-    d = _texel_directions(width, height)
-    program = core.node_fields.FieldProgram(len(d), {
-        "position": d, "generated": d, "object": d, "normal": -d, "true_normal": -d, "incoming": -d,
-        "object_normal": -d, "uv": np.zeros_like(d)})
-    compiler = GraphCompiler(program, lambda image, node_label, interpolation: _host_image(
-        image, label, interpolation, warnings), label)
-    try:
-        color = compiler.socket(background.inputs["Color"], "color")
-        strength = compiler.socket(background.inputs["Strength"], "float")
-    except (Unsupported, ValueError) as e:
-        warnings.add(f"{label}: the Background is driven by {e}, which is not supported; using its "
-                     "colour and strength values")
-        data.world = core.scene.World(color=tuple(background.inputs["Color"].default_value[:3]),
-                                      strength=float(background.inputs["Strength"].default_value))
-        return
-    if program.is_constant(color) and program.is_constant(strength):
-        data.world = core.scene.World(color=tuple(float(x) for x in core.nodes._vec4(color)[:3]),
-                                      strength=float(core.nodes._vec4(strength)[0]))
-    else:
-        radiance = program.evaluate(color, "color")[:, :3] * program.evaluate(strength, "float")[:, None]
-        radiance = np.nan_to_num(np.maximum(radiance, 0.0), nan=0.0, posinf=0.0)
-        data.world = core.scene.World(color=(1.0, 1.0, 1.0), strength=1.0,
-                                      map=np.ascontiguousarray(radiance.reshape(height, width, 3), np.float32))
-    _sun_discs(world, background, program, strength, d, data, warnings)
+    rows_per_block = max(1, BAKE_BLOCK // width)
+    radiance, images, program = None, {}, None
+    for first in range(0, height, rows_per_block):
+        rows = range(first, min(first + rows_per_block, height))
+        try:
+            program, color, strength = _background_program(world, background, _texel_directions(width, height, rows),
+                                                            images, warnings)
+        except (Unsupported, ValueError) as e:
+            warnings.add(f"world '{world.name}': the Background is driven by {e}, which is not supported; using "
+                         "its colour and strength values")
+            data.world = core.scene.World(color=tuple(background.inputs["Color"].default_value[:3]),
+                                          strength=float(background.inputs["Strength"].default_value))
+            return
+        if program.is_constant(color) and program.is_constant(strength):
+            data.world = core.scene.World(color=tuple(float(x) for x in core.nodes._vec4(color)[:3]),
+                                          strength=float(core.nodes._vec4(strength)[0]))
+            break
+        if radiance is None:
+            radiance = np.empty((height, width, 3), np.float32)
+        block = program.evaluate(color, "color")[:, :3] * program.evaluate(strength, "float")[:, None]
+        radiance[rows.start:rows.stop] = np.nan_to_num(np.maximum(block, 0.0), nan=0.0, posinf=0.0).reshape(
+            len(rows), width, 3)
+    if radiance is not None:
+        data.world = core.scene.World(color=(1.0, 1.0, 1.0), strength=1.0, map=radiance)
+    _sun_discs(world, background, program.skies, images, data, warnings)
 
 
-def _sun_discs(world, background, program, strength, directions, data, warnings):
+def _sun_discs(world, background, skies, images, data, warnings):
     """The sun disc of a Sky Texture straight into the Background's Colour as a sun light of
     the disc's angular diameter and mean radiance (x the Strength in its direction). The disc of
     a sky whose colour passes through other nodes is left out, with a warning."""
@@ -125,7 +155,7 @@ def _sun_discs(world, background, program, strength, directions, data, warnings)
     core = load()
     source = _linked_node(background.inputs["Color"])
     direct = source is not None and source.type == "TEX_SKY" and not vector_linked(source)
-    for name, params in program.skies:
+    for name, params in skies:
         sun = core.node_fields.sky_model(params).sun()
         if sun is None:
             continue
@@ -134,7 +164,9 @@ def _sun_discs(world, background, program, strength, directions, data, warnings)
                          "Sky Texture straight into the Background's Colour gives its sun)")
             continue
         direction, diameter, radiance = sun
-        scale = program.evaluate(strength, "float")[int(np.argmax(directions @ direction))]
+        program, _, strength = _background_program(world, background, np.asarray(direction, np.float64)[None],
+                                                    images, warnings)
+        scale = float(program.evaluate(strength, "float")[0])
         half = 0.5 * diameter  # the core turns power into radiance: power / (pi sin^2 half)
         data.lights.append(core.scene.Light(
             type="sun", power=float(scale * np.pi * np.sin(half) ** 2), color=tuple(float(x) for x in radiance),

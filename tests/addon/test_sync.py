@@ -480,9 +480,10 @@ def test_a_normal_map_naming_a_uv_map_gets_that_maps_tangents(fresh, bpy):
     assert any("'Missing', which the mesh lacks" in w for w in warnings), warnings
 
 
-def test_a_world_graph_is_baked_and_the_viewport_bakes_it_smaller(fresh, bpy):
+def test_a_world_graph_is_baked_and_the_viewport_bakes_it_smaller(fresh, bpy, monkeypatch):
     """A graph into the Background (here the direction's height as grey) becomes an
-    equirectangular map of it: 1024 x 512 for F12, 512 x 256 in the Rendered viewport."""
+    equirectangular map of it: 1024 x 512 for F12, 512 x 256 in the Rendered viewport; baked
+    a block of rows at a time, the blocks' map is the one-block map."""
     from addon.sync import SceneExporter, world
 
     sky = bpy.data.worlds.new("Gradient")
@@ -497,3 +498,6 @@ def test_a_world_graph_is_baked_and_the_viewport_bakes_it_smaller(fresh, bpy):
         assert data.world.map.shape == (width // 2, width, 3) and not warnings
         latitude = (0.5 - (np.arange(width // 2) + 0.5) / (width // 2)) * np.pi  # row 0 at the top
         np.testing.assert_allclose(data.world.map[:, 7, 1], np.maximum(np.sin(latitude), 0.0), atol=1e-6)
+    monkeypatch.setattr(world, "BAKE_BLOCK", 3 * 512 + 100)  # 3 rows a block, the last one short
+    blocks, _ = SceneExporter(world.PREVIEW_BAKE_WIDTHS).full(bpy.context.evaluated_depsgraph_get(), 16, 16)
+    np.testing.assert_array_equal(blocks.world.map, data.world.map)

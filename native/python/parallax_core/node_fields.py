@@ -47,7 +47,7 @@ class HostImage:
     sRGB values (0..1, decoded after interpolation, as the device's textures are)."""
 
     def __init__(self, pixels, srgb=False, interpolation="linear"):
-        self.pixels = np.asarray(pixels, np.float64)
+        self.pixels = np.asarray(pixels)  # float32 stays float32: an 8K HDRI is 400 MB already
         self.srgb = srgb
         self.interpolation = interpolation
 
