@@ -14,7 +14,8 @@ def _node_emission(tree, label, warnings):
     """The factor a light's node tree puts on its colour x power: the Emission's Color x
     Strength at its Surface output, as Cycles multiplies them. The graph is folded on the host
     (parallax_core.node_fields); one that varies over the light (texture coordinates, IES,
-    ...) or another shader is named in a warning, and its sockets' own values are used."""
+    ...) or another shader is named in a warning, and its sockets' own values are used. Without
+    a surface at the output the light is black, as in Cycles."""
     from ..core import load
 
     from .node_graph import GraphCompiler, Unsupported
@@ -23,8 +24,9 @@ def _node_emission(tree, label, warnings):
     core = load()
     output = tree.get_output_node("CYCLES")
     emission = _linked_node(output.inputs.get("Surface")) if output is not None else None
-    if emission is None:
-        return np.ones(3)
+    if emission is None:  # Cycles' light then emits nothing
+        warnings.add(f"{label}: its node tree has no surface at its output: it emits no light (as in Cycles)")
+        return np.zeros(3)
     if emission.type != "EMISSION":
         warnings.add(f"{label}: '{emission.bl_label}' as the light's surface is not supported; colour x power is used")
         return np.ones(3)

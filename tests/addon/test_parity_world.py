@@ -225,6 +225,12 @@ def test_what_a_world_or_light_graph_cannot_do_is_named(bpy):
     data, warnings = export_current(bpy)
     assert any("world 'World'" in w and "Fresnel" in w for w in warnings), warnings
     assert any("light 'Lamp'" in w and "Noise Texture" in w for w in warnings), warnings
+    # Without a surface at its output a light emits nothing (Cycles renders it black).
+    output = next(n for n in light.node_tree.nodes if n.type == "OUTPUT_LIGHT")
+    light.node_tree.links.remove(output.inputs["Surface"].links[0])
+    data, warnings = export_current(bpy)
+    assert data.lights and all(np.asarray(lamp.color).max() == 0.0 for lamp in data.lights)
+    assert any("light 'Lamp'" in w and "emits no light" in w for w in warnings), warnings
     assert data.world.map is None
 
 
