@@ -62,11 +62,12 @@ EXTRA_SCENES = ("sun_room", "clocks")  # sun_room: indirect light through a wind
 THESIS_SUITE = ("atrium", "thesis_veach_mis", "cornell_dielectric", "clocks", "thesis_irradiance_cache")
 # ic: MIS + the irradiance cache; adrrs: MIS + ADRRS; guiding: MIS + path guiding (defaults);
 # guiding_pt: guiding without NEE; guiding_noparallax: guiding with parallax off; guiding_device:
-# guiding fitted by compute passes on the device (guiding_fit = device); guiding_pt_device: both.
+# guiding fitted by compute passes on the device (guiding_fit = device); guiding_pt_device: both;
+# guiding_auto: MIS + path guiding at every guiding default (the row issue 35's goal is judged on).
 # mis_adaptive: MIS with adaptive sampling at its defaults (Cycles'; every other method: off).
 # mis_clean: F12's defaults (adaptive sampling and denoising on), the path length pinned.
 METHODS = ("pt", "nee", "mis", "ic", "ic_noupdate", "adrrs", "guiding", "guiding_pt", "guiding_noparallax",
-           "guiding_device", "guiding_pt_device", "mis_adaptive", "mis_clean")
+           "guiding_device", "guiding_pt_device", "guiding_auto", "mis_adaptive", "mis_clean")
 # cycles_clean: Cycles with its F12 defaults (adaptive sampling, OIDN), the path length pinned.
 PEERS = ("cycles", "cycles_guiding", "cycles_clean", "mitsuba")
 # Every method row of the thesis' tables 5.1-5.4 (ic_noupdate: the cache never refreshes an entry).
@@ -268,6 +269,8 @@ def _method_params(method):
                     adaptive_min_samples=defaults.adaptive_min_samples)
     if method == "adrrs":
         return dict(off, method="mis", adrrs=True)
+    if method == "guiding_auto":  # exactly guiding's defaults (training, fit, probability)
+        return dict({k: v for k, v in off.items() if not k.startswith("guiding_")}, method="mis", guiding=True)
     if method.startswith("guiding"):
         # Keep training (guiding_training_spp 0): every frame accumulates into the image and
         # trains the field, whose fits run inside the measured time. Training frames first (the
@@ -300,6 +303,10 @@ def render_parallax(scene, method, seconds, device, reference, label, seed=0):
     # the film starts over with its first frame, so `spp` and the image are the technique's
     # own, and info reports the fallback's samples apart.
     session.background_compile = True
+    # As F12 with a default view layer: the film holds Combined only (mis_clean: what its denoiser
+    # reads as well). A technique that shows no pass may leave the pipeline once it stops paying.
+    if method != "mis_clean":
+        session.passes = ["combined"]
     params = dict(method_params(method), samples_per_frame=1, max_depth=MAX_DEPTH, depth_leeway=0, seed=seed)
     # Cache prepare, ADRRS estimate and guiding training frames first.
     prepares = params["ic"] or params["adrrs"] or params["guiding"]

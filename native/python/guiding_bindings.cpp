@@ -25,6 +25,10 @@ using px::GUIDING_MAX_COMPONENTS;
 
 namespace {
 
+// GuidingSample and GuidingRegion as 32-bit words (their numpy views).
+constexpr size_t kSampleWords = sizeof(px::GuidingSample) / 4, kRegionWords = sizeof(px::GuidingRegion) / 4;
+static_assert(kSampleWords == 12 && kRegionWords == 16, "GuidingSample is 12 words, GuidingRegion 16");
+
 using Doubles = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
 
 // memcpy for vectors that may be empty: an empty vector's data() may be null, and memcpy with a
@@ -230,7 +234,9 @@ nb::dict guiding_mixture_at(const GuidingField& field, nb::ndarray<const double,
     nb::dict d = to_dict(field.mixture(r));
     const Aabb& b = field.region_bounds(r);
     d["region"] = r;
-    d["fits"] = field.region_info(r).fits;
+    const RegionInfo info = field.region_info(r);
+    d["fits"] = info.fits;
+    d["prob"] = info.selection.prob;  // the sampler's probability of the mixture there
     d["min"] = nb::make_tuple(b.lo.x, b.lo.y, b.lo.z);
     d["max"] = nb::make_tuple(b.hi.x, b.hi.y, b.hi.z);
     return d;
@@ -307,7 +313,7 @@ void bind_guiding(nb::module_& parent) {
         return owned(std::move(out), {p.shape(0), 3});
     }, "packed"_a);
     m.def("make_samples", [](Doubles positions, Doubles dirs, Doubles pdfs, Doubles weights, Doubles distances,
-                             nb::object regions) {
+                             nb::object regions, nb::object bsdf_pdfs, nb::object contributions) {
         const auto d = directions(dirs, "dirs");
         const size_t n = d.size();
         if (rows(positions, 3, "positions") != n || rows(pdfs, 1, "pdfs") != n || rows(weights, 1, "weights") != n ||
@@ -319,6 +325,16 @@ void bind_guiding(nb::module_& parent) {
             if (r.shape(0) != n) throw std::invalid_argument("regions must have one value per sample");
             std::copy(r.data(), r.data() + n, reg.begin());
         }
+        // Optional per-sample values (the learnt selection probability's): 0 where not given.
+        const auto optional = [n](nb::object o, const char* name) {
+            std::vector<double> v(n, 0.0);
+            if (o.is_none()) return v;
+            Doubles a = nb::cast<Doubles>(o);
+            if (rows(a, 1, name) != n) throw std::invalid_argument(std::string(name) + " must have one value per sample");
+            std::copy(a.data(), a.data() + n, v.begin());
+            return v;
+        };
+        const std::vector<double> bsdf = optional(bsdf_pdfs, "bsdf_pdfs"), gained = optional(contributions, "contributions");
         std::vector<px::GuidingSample> s(n);
         for (size_t i = 0; i < n; ++i) {
             const double* p = positions.data() + 3 * i;
@@ -328,12 +344,15 @@ void bind_guiding(nb::module_& parent) {
             s[i].pdf = float(pdfs.data()[i]);
             s[i].weight = float(weights.data()[i]);
             s[i].distance = float(std::min(distances.data()[i], 1e30));
+            s[i].bsdf_pdf = float(bsdf[i]);
+            s[i].contribution = float(gained[i]);
         }
-        std::vector<uint32_t> words(n * 8);
+        std::vector<uint32_t> words(n * kSampleWords);
         copy_bytes(words.data(), s.data(), n * sizeof(px::GuidingSample));
-        return owned(std::move(words), {n, 8});
+        return owned(std::move(words), {n, kSampleWords});
     }, "positions"_a, "dirs"_a, "pdfs"_a, "weights"_a, "distances"_a, "regions"_a = nb::none(),
-       "GuidingSample records (N, 8) uint32 as the trace loop writes them (direction packed).");
+       "bsdf_pdfs"_a = nb::none(), "contributions"_a = nb::none(),
+       "GuidingSample records (N, 12) uint32 as the trace loop writes them (direction packed).");
 
     nb::class_<FitOptions>(m, "FitOptions")
         .def(nb::init<>())
@@ -407,7 +426,8 @@ void bind_guiding(nb::module_& parent) {
         .def_rw("probe_x", &px::GuidingParams::probe_x)
         .def_rw("probe_y", &px::GuidingParams::probe_y)
         .def_rw("lobes_phase", &px::GuidingParams::lobes_phase)
-        .def_rw("fit", &px::GuidingParams::fit);
+        .def_rw("fit", &px::GuidingParams::fit)
+        .def_rw("adaptive_prob", &px::GuidingParams::adaptive_prob);
     m.def("validate_params", &px::validate_guiding_params, "params"_a);
 
     nb::class_<GuidingField>(m, "GuidingField")
@@ -419,8 +439,8 @@ void bind_guiding(nb::module_& parent) {
         }, "scene_min"_a, "scene_max"_a, "params"_a = px::RenderParams().guiding, "seed"_a = 0, "options"_a = FitOptions(),
            "threads"_a = 0)
         .def("add_samples", [](GuidingField& f, nb::ndarray<const uint32_t, nb::c_contig, nb::device::cpu> records) {
-            if (records.ndim() != 2 || records.shape(1) != 8)
-                throw std::invalid_argument("records must be GuidingSample records, shape (N, 8) uint32");
+            if (records.ndim() != 2 || records.shape(1) != kSampleWords)
+                throw std::invalid_argument("records must be GuidingSample records, shape (N, 12) uint32");
             nb::gil_scoped_release release;
             f.add_samples(reinterpret_cast<const px::GuidingSample*>(records.data()), records.shape(0));
         }, "records"_a)
@@ -470,19 +490,22 @@ void bind_guiding(nb::module_& parent) {
             d["seen"] = i.seen;
             d["components"] = i.components;
             d["fits"] = i.fits;
+            d["prob"] = i.selection.prob;
+            d["moment_bsdf"] = i.selection.moment_bsdf;
+            d["moment_chosen"] = i.selection.moment_chosen;
             d["min"] = nb::make_tuple(b.lo.x, b.lo.y, b.lo.z);
             d["max"] = nb::make_tuple(b.hi.x, b.hi.y, b.hi.z);
             return d;
         }, "region"_a)
         .def("spatial_order", &GuidingField::spatial_order)
         .def("regions", [](const GuidingField& f) {
-            static_assert(sizeof(px::GuidingRegion) == 12 * sizeof(float), "GuidingRegion is 12 words");
             std::vector<px::GuidingRegion> r;
             f.write_regions(r);
-            std::vector<float> words(r.size() * 12);
+            std::vector<float> words(r.size() * kRegionWords);
             copy_bytes(words.data(), r.data(), words.size() * sizeof(float));
-            return owned(std::move(words), {r.size(), 12});
-        }, "GuidingRegion records (R, 12) float32 (lobe_count, fits and samples are uint32 bits).")
+            return owned(std::move(words), {r.size(), kRegionWords});
+        }, "GuidingRegion records (R, 16) float32 (lobe_count, fits and samples are uint32 bits; 12: prob, 13, 14: "
+           "moment_bsdf, moment_chosen).")
         .def("lobes", [](const GuidingField& f) {
             std::vector<GuidingLobe> l;
             f.write_lobes(l);
@@ -508,8 +531,8 @@ void bind_guiding(nb::module_& parent) {
              "options"_a = FitOptions(), "parallax"_a = false, "device"_a = "cpu", "min_samples"_a = 1,
              "The device fit (fit.comp) of `regions` untrained regions on the device `device` picks.")
         .def("fit", [](DeviceFitter& f, nb::ndarray<const uint32_t, nb::c_contig, nb::device::cpu> records) {
-            if (records.ndim() != 2 || records.shape(1) != 8)
-                throw std::invalid_argument("records must be GuidingSample records, shape (N, 8) uint32");
+            if (records.ndim() != 2 || records.shape(1) != kSampleWords)
+                throw std::invalid_argument("records must be GuidingSample records, shape (N, 12) uint32");
             nb::gil_scoped_release release;
             return f.run(reinterpret_cast<const GuidingSample*>(records.data()), records.shape(0));
         }, "records"_a, "One frame's records: bin, fit every region with a batch; returns the passes' milliseconds.")
@@ -568,11 +591,11 @@ void bind_guiding(nb::module_& parent) {
         }, "The last fit's bins: (first slot of each region's lit then unlit samples, the dropped bin's, "
            "total) and the sorted sample indices.")
         .def("regions", [](const DeviceFitter& f) {
-            std::vector<float> words(size_t(f.fit->region_count()) * 12);
+            std::vector<float> words(size_t(f.fit->region_count()) * kRegionWords);
             f.regions.download(words.data(), words.size() * sizeof(float));
             const size_t n = f.fit->region_count();
-            return owned(std::move(words), {n, 12});
-        }, "GuidingRegion records (R, 12) float32, as the sampler reads them.")
+            return owned(std::move(words), {n, kRegionWords});
+        }, "GuidingRegion records (R, 16) float32, as the sampler reads them.")
         .def("lobes", [](const DeviceFitter& f) {
             std::vector<GuidingLobe> l(size_t(f.fit->region_count()) * GUIDING_MAX_COMPONENTS);
             f.lobes.download(l.data(), l.size() * sizeof(GuidingLobe));

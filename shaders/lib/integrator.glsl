@@ -485,7 +485,8 @@ bool continuation_stage(inout PathState ps, PathResult res, inout TechniquePath 
     }
     ps.roulette_throughput *= bs.weight;
     // The BSDF's own pdf, before guiding mixes its own in (Cycles' unguided_bsdf_pdf).
-    if (LIMITS(LIMIT_BLUR_GLOSSY) && !bs.delta) ps.min_ray_pdf = min(ps.min_ray_pdf, bs.pdf);
+    float bsdf_pdf = bs.pdf;
+    if (LIMITS(LIMIT_BLUR_GLOSSY) && !bs.delta) ps.min_ray_pdf = min(ps.min_ray_pdf, bsdf_pdf);
     guiding_sampled_pdf(tv.guiding, v.sh.p, v.tangent, v.bitangent, v.ns, bs);
     ps.throughput *= bs.weight;
     count_kind_bounce(ps, bs.kind);
@@ -499,7 +500,8 @@ bool continuation_stage(inout PathState ps, PathResult res, inout TechniquePath 
     ps.prev_delta = bs.delta;
     ps.prev_pdf = bs.pdf;
     ps.dir = normalize(bs.wi.x * v.tangent + bs.wi.y * v.bitangent + bs.wi.z * v.ns);
-    guiding_record(tp.guiding, topt.guiding, tv.guiding, v.sh.p, ps.dir, bs.pdf, res.radiance, ps.throughput);
+    guiding_record(tp.guiding, topt.guiding, tv.guiding, v.sh.p, ps.dir, bs.pdf, bsdf_pdf, bs.delta, res.radiance,
+                   ps.throughput);
     bool contact = may_touch_transmission(v.sh.instance, v.sh.p);
     ps.origin = leave_surface(v.sh.p, v.ng, ps.dir, contact);
     ps.self_instance = contact ? v.sh.instance : NO_INDEX;

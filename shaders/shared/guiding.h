@@ -15,6 +15,9 @@ PX_CONST float GUIDING_KAPPA_MIN = 1e-3;
 PX_CONST float GUIDING_DISTANCE_INFINITE = 1e29;
 // GuidingParams.training_spp: train for the whole render.
 PX_CONST uint GUIDING_KEEP_TRAINING = 0;
+// Training records at least this many frames (fits: stepwise EM needs several batches), however
+// many samples per pixel a frame holds.
+PX_CONST uint GUIDING_MIN_TRAINING_FRAMES = 8;
 
 // guiding_fit: where the mixtures are fitted (issue 13).
 PX_CONST uint GUIDING_FIT_CPU = 0;     // the host (field.h): readback, reservoirs, refinement
@@ -47,6 +50,7 @@ struct GuidingParams {
                                              // s * pixels + i (a frame's samples train, up to
                                              // GUIDING_MAX_RECORD_PATHS paths)
     uint fit;                                // guiding_fit: GUIDING_FIT_CPU, _DEVICE or _AUTO
+    uint adaptive_prob;                      // guiding_adaptive_prob: prob learnt per region
 };
 
 // Training samples: each recording path fills up to GUIDING_PATH_VERTICES slots (its first
@@ -56,6 +60,11 @@ PX_CONST uint GUIDING_MAX_RECORD_PATHS = 1u << 18;
 // Guided (and recording) vertices: diffuse, or glossy with roughness above this (the
 // reference's 0.3; sharper lobes are left to the BSDF).
 PX_CONST float GUIDING_MIN_ROUGHNESS = 0.3;
+// guiding_adaptive_prob (native/src/techniques/guiding/selection.h): a region samples its
+// mixture only where that lowers the second moment per sample by this much against BSDF
+// sampling alone: a mixture costs its evaluations at every guided vertex, and guiding every
+// vertex made a path 1.5x as costly on lavapipe (veach_mis, 160 px), 1.7x on the H200.
+PX_CONST float GUIDING_SELECTION_MARGIN = 0.5;
 
 // One vMF lobe as the sampling shader reads it (thesis eq. 3.27, Jakob 2012):
 // v(w) = norm * exp(kappa (dot(mu, w) - 1)), norm = kappa / (2 pi (1 - exp(-2 kappa))).
@@ -80,6 +89,10 @@ struct GuidingRegion {
     uint fits;        // fits done so far
     vec3 pivot;       // mean position of the region's samples: where mu and distances refer to
     uint samples;     // training samples received (saturating)
+    float prob;       // probability of sampling the mixture (guiding_selection.h; 0: BSDF only)
+    float moment_bsdf;    // the learnt second moments per sample with BSDF sampling alone ...
+    float moment_chosen;  // ... and with prob (Guiding Probability pass, tests)
+    uint reserved;
 };
 
 // One node of the region tree (regions.h), in a storage buffer: the shaders find a point's
@@ -101,6 +114,10 @@ struct GuidingSample {
     float pdf;        // density the direction was sampled with (solid angle, MIS mixture)
     float weight;     // incident luminance along it (weighted by the path colour) / pdf (>= 0; NEE-credited)
     float distance;   // to the next non-specular vertex; >= GUIDING_DISTANCE_INFINITE: none
+    float bsdf_pdf;   // the BSDF's own density of the direction (0: a delta lobe sampled it)
+    float contribution;  // luminance the path gained along it (the weight * luminance(throughput) * pdf)
+    uint reserved0;
+    uint reserved1;
 };
 
 #endif

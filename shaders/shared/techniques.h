@@ -28,7 +28,6 @@ PX_CONST uint FRAME_RENDER = 0;      // camera paths accumulate into the film
 PX_CONST uint FRAME_IC_PREPARE = 1;  // camera paths only queue cache entries (thesis 4.4)
 PX_CONST uint FRAME_ADRRS_ESTIMATE = 2;  // camera paths to the first non-delta vertex build ADRRS' pixel estimate
 PX_CONST uint FRAME_ADRRS_SPLITS = 3;    // one invocation per queued pixel traces its split paths
-PX_CONST uint FRAME_GUIDING_TRAIN = 4;   // camera paths only record guiding training samples
 
 // ---- irradiance cache (thesis 3.2.3, 4.4; Ward et al. 1988; Ward & Heckbert 1992) ----------
 // Stratified hemisphere of one entry: IC_THETA x IC_PHI cosine-weighted rays (thesis eq. 3.20).

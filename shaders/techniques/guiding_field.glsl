@@ -116,9 +116,6 @@ struct GuidingOptions {
 
 GuidingOptions guiding_no_options() { return GuidingOptions(false, false, false, 0u); }
 
-// FRAME_GUIDING_TRAIN: camera paths only record training samples.
-bool guiding_training_frame() { return USES(TECH_GUIDING) && params.mode == FRAME_GUIDING_TRAIN; }
-
 GuidingOptions guiding_camera_options(uint pixel_index, bool estimate_frame) {
     GuidingOptions o = guiding_no_options();
     o.on = USES(TECH_GUIDING) && !estimate_frame;
@@ -191,7 +188,7 @@ struct GuidingVertex {
     bool guided;  // a guided vertex (it records a training sample)
     uint region;
     uint lobes;
-    float prob;   // of sampling the mixture (0: none here)
+    float prob;   // of sampling the mixture (0: none here; learnt per region, GuidingRegion.prob)
     uint first;   // the region's first lobe
 };
 
@@ -205,11 +202,14 @@ GuidingVertex guiding_vertex(inout GuidingPath g, GuidingOptions o, Surface surf
     v.guided = USES(TECH_GUIDING) && o.on && !delta && guiding_surface(surf, roughness);
     v.region = NO_INDEX;
     v.lobes = 0u;
+    v.prob = 0.0;
     if (v.guided) {
         v.region = guiding_region_at(p);
-        if (v.region != NO_INDEX) v.lobes = guiding_regions[v.region].lobe_count;
+        if (v.region != NO_INDEX) {
+            v.lobes = guiding_regions[v.region].lobe_count;
+            v.prob = v.lobes > 0u ? guiding_regions[v.region].prob : 0.0;
+        }
     }
-    v.prob = v.lobes > 0u ? tech.guiding.prob : 0.0;
     v.first = v.region * GUIDING_MAX_COMPONENTS;
     return v;
 }
@@ -250,13 +250,13 @@ void guiding_sampled_pdf(GuidingVertex v, vec3 p, vec3 tangent, vec3 bitangent, 
     bs.pdf = pdf;
 }
 
-// A training record at a guided vertex that continued in direction dir (pdf): the radiance and
-// throughput it starts from.
+// A training record at a guided vertex that continued in direction dir (pdf, the BSDF's own
+// bsdf_pdf; delta: a delta lobe sampled it): the radiance and throughput it starts from.
 void guiding_record(inout GuidingPath g, GuidingOptions o, GuidingVertex v, vec3 p, vec3 dir, float pdf,
-                    vec3 radiance, vec3 throughput) {
+                    float bsdf_pdf, bool delta, vec3 radiance, vec3 throughput) {
     if (!(USES(TECH_GUIDING) && o.record && v.guided && g.count < GUIDING_PATH_VERTICES)) return;
     guiding_samples[g.slot + g.count] = GuidingSample(p, v.region, guiding_pack_direction(dir), pdf, 0.0,
-                                                      GUIDING_DISTANCE_INFINITE);
+                                                      GUIDING_DISTANCE_INFINITE, delta ? 0.0 : bsdf_pdf, 0.0, 0u, 0u);
     g.base[g.count] = luminance(radiance);
     g.norm[g.count] = luminance(throughput) * pdf;
     g.shadow_record = g.count;
@@ -269,12 +269,16 @@ vec3 guiding_roulette_throughput(vec3 roulette_throughput, vec3 throughput) {
     return USES(TECH_GUIDING) ? roulette_throughput : throughput;
 }
 
-// The path ended with `radiance`: each record's weight.
+// The path ended with `radiance`: each record's contribution (what the path gained after it)
+// and weight.
 void guiding_path_end(GuidingPath g, vec3 radiance) {
     if (!USES(TECH_GUIDING)) return;
     float end = luminance(radiance);
-    for (uint k = 0u; k < g.count; ++k)  // non-finite: the host drops it
-        guiding_samples[g.slot + k].weight = g.norm[k] > 0.0 ? max(end - g.base[k], 0.0) / g.norm[k] : 0.0;
+    for (uint k = 0u; k < g.count; ++k) {  // non-finite: the host drops it
+        float gained = max(end - g.base[k], 0.0);
+        guiding_samples[g.slot + k].weight = g.norm[k] > 0.0 ? gained / g.norm[k] : 0.0;
+        guiding_samples[g.slot + k].contribution = g.norm[k] > 0.0 ? gained : 0.0;
+    }
 }
 
 // ---- the passes of thesis 4.7 ------------------------------------------------------------

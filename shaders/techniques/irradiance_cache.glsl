@@ -86,11 +86,11 @@ bool ic_prepare_frame() { return USES(TECH_IC) && params.mode == FRAME_IC_PREPAR
 
 // Camera paths. ADRRS alone fills the cache in its prepare frames only: no entry jobs, rebuilds
 // or new adjoint grids between the frames it renders.
-IcOptions ic_camera_options(uint pixel_index, bool estimate_frame, bool training_frame) {
+IcOptions ic_camera_options(uint pixel_index, bool estimate_frame) {
     IcOptions o;
     o.use = tech.ic.shade != 0u || estimate_frame;
     o.glossy = estimate_frame && tech.adrrs.ic_glossy != 0u;
-    o.create = USES(TECH_IC) && !estimate_frame && !training_frame &&
+    o.create = USES(TECH_IC) && !estimate_frame &&
                (tech.ic.shade != 0u || params.mode == FRAME_IC_PREPARE);
     o.prepare = ic_prepare_frame();
     o.pixel = pixel_index;

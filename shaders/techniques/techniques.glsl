@@ -32,9 +32,9 @@ struct TechniquePixel {
 };
 
 TechniqueOptions camera_techniques(uint pixel_index, uint local, uint P, out TechniquePixel px) {
-    bool estimate_frame = adrrs_estimate_frame(), training_frame = guiding_training_frame();
+    bool estimate_frame = adrrs_estimate_frame();
     TechniqueOptions o;
-    o.ic = ic_camera_options(pixel_index, estimate_frame, training_frame);
+    o.ic = ic_camera_options(pixel_index, estimate_frame);
     o.guiding = guiding_camera_options(pixel_index, estimate_frame);
     o.adrrs = adrrs_camera_options(pixel_index, local, P, px.adrrs);
     px.ic = ic_pixel();
@@ -59,13 +59,10 @@ TechniqueOptions split_techniques(uint pixel_index, uint local, uint P, bool hal
     return o;
 }
 
-// Frames whose camera paths only serve a technique (guiding training) add nothing to any sum.
-bool techniques_drop_samples() { return guiding_training_frame(); }
-
-// The techniques' own frames (cache preparation, ADRRS estimates, guiding training): what the
-// frame makes is written here; true: the film is left alone.
+// The techniques' own frames (cache preparation, ADRRS estimates): what the frame makes is
+// written here; true: the film is left alone.
 bool techniques_frame_output(vec3 sum_radiance, uint pixel_index) {
-    if (ic_prepare_frame() || guiding_training_frame()) return true;
+    if (ic_prepare_frame()) return true;
     return adrrs_frame_output(sum_radiance, pixel_index);
 }
 

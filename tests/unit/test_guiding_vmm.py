@@ -124,7 +124,7 @@ def test_vmm_pdf_integrates_to_one():
 
 
 def test_gpu_lobe_records():
-    assert (g.SAMPLE_BYTES, g.LOBE_BYTES, g.REGION_BYTES) == (32, 48, 48)
+    assert (g.SAMPLE_BYTES, g.LOBE_BYTES, g.REGION_BYTES) == (48, 48, 64)
     m = mixture([0.2, 0.5, 0.3], [[0, 0, 1], [1, 0, 0], [0, 1, 0]], [1e-4, 7.0, 5e4], distances=[3.0, -1.0, 0.5],
                 pivot=[1.0, 2.0, 3.0])
     rec = g.gpu_lobes(m, parallax=True)

@@ -78,7 +78,7 @@ void Session::reset_accumulation(bool view_only) {
         for (const auto& t : techniques_) t->view_changed();
         return;
     }
-    const TechniqueSetup setup{scene_->host(), scene_version_, width_, height_};
+    const TechniqueSetup setup{scene_->host(), scene_version_, width_, height_, film_passes()};
     for (const auto& t : techniques_) {
         // Built where a technique that is on needs it (Technique::needs), even if off itself.
         bool needed = false;

@@ -59,6 +59,7 @@ struct TechniqueSetup {
     const SceneHost& scene;
     uint64_t scene_version;  // bumped by every scene update but a camera-only one
     uint32_t width, height;
+    uint32_t passes;  // the passes the film holds (bit PASS_*)
 };
 
 // A render frame that completed, for after_frame().

@@ -284,7 +284,8 @@ GuidingSample batch_sample(uint j) {
     if (j < s_pend) {
         uint i = s_pend_base + j;
         return GuidingSample(pending_samples[i].position, pending_samples[i].region, pending_samples[i].direction,
-                             pending_samples[i].pdf, pending_samples[i].weight, pending_samples[i].distance);
+                             pending_samples[i].pdf, pending_samples[i].weight, pending_samples[i].distance,
+                             pending_samples[i].bsdf_pdf, pending_samples[i].contribution, 0u, 0u);
     }
     return samples[sorted_index[s_lo + j - s_pend]];
 }
@@ -700,6 +701,8 @@ void pass_em() {
             pending_samples[d].pdf = samples[i].pdf;
             pending_samples[d].weight = samples[i].weight;
             pending_samples[d].distance = samples[i].distance;
+            pending_samples[d].bsdf_pdf = samples[i].bsdf_pdf;
+            pending_samples[d].contribution = samples[i].contribution;
         }
         barrier();  // every thread has read states[r] before it is written
         if (t == 0u) {

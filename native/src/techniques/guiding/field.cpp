@@ -107,7 +107,9 @@ void GuidingField::add_samples(const GuidingSample* samples, size_t count) {
                                {float(w.x), float(w.y), float(w.z)},
                                s.pdf,
                                s.weight,
-                               s.distance};
+                               s.distance,
+                               s.bsdf_pdf,
+                               s.contribution};
         if (reg.pending.size() < cap) {
             reg.pending.push_back(t);
         } else {  // reservoir sampling (Vitter's algorithm R), a hash of (seed, region, count)
@@ -135,9 +137,49 @@ void GuidingField::fit_region(uint32_t r) {
                                parallax);
     reg.last = fit_batch(reg.state, b, fit_);
     if (reg.last.fitted) {
+        learn_selection(reg);
         reg.pending.clear();
         reg.seen_nonzero = reg.seen_zero = 0.0;
     }
+}
+
+// The guiding probability (selection.h), from the batch just fitted, scored with the new mixture
+// at each sample's own position and direction (as the sampler evaluates it), on top of the
+// earlier batches' scores decayed as the mixture's statistics are.
+void GuidingField::learn_selection(Region& reg) {
+    if (!params_.adaptive_prob) return;
+    const bool parallax = params_.parallax != 0;
+    const double scale = reg.seen_nonzero / double(reg.pending.size());
+    reg.selection_stats.scale(fit_.decay);
+    for (const TrainingSample& t : reg.pending) {
+        const Vec3 x(t.position[0], t.position[1], t.position[2]);
+        const Vec3 w = normalize(Vec3(t.direction[0], t.direction[1], t.direction[2]));
+        reg.selection_stats.add(t.contribution, t.pdf, t.bsdf_pdf, reg.state.vmm.pdf(w, x, parallax), scale);
+    }
+    reg.selection_stats.samples += reg.seen_nonzero + reg.seen_zero;
+    reg.selection = choose_selection(reg.selection_stats, GUIDING_SELECTION_MARGIN, params_.prob);
+}
+
+// With guiding_adaptive_prob, whether the learnt probabilities pay for the guided pipeline as a
+// whole: its cost (GUIDING_SELECTION_MARGIN) against the second moment they save, summed over
+// the regions (the per-region margin alone left veach_mis guiding one glossy region at 1.3x
+// the cost of every path). Where they do not, no region samples its mixture: the session then
+// traces the plain pipeline (Guiding::spec_bit). True while nothing has been learnt.
+bool GuidingField::guiding_pays() const {
+    if (!params_.adaptive_prob) return true;
+    double bsdf = 0.0, chosen = 0.0;
+    for (const Region& reg : regions_) {
+        bsdf += reg.selection.moment_bsdf * reg.selection_stats.samples;
+        chosen += reg.selection.moment_chosen * reg.selection_stats.samples;
+    }
+    return !(bsdf > 0.0) || chosen * (1.0 + GUIDING_SELECTION_MARGIN) < bsdf;
+}
+
+// The sampler's probability of the mixture: guiding_prob until the region has learnt its own.
+double GuidingField::region_prob(const Region& reg, bool pays) const {
+    if (!params_.adaptive_prob) return params_.prob;
+    if (!pays) return 0.0;
+    return reg.selection_stats.samples > 0.0 ? reg.selection.prob : params_.prob;
 }
 
 void GuidingField::refine(uint32_t r) {
@@ -145,9 +187,12 @@ void GuidingField::refine(uint32_t r) {
     Region& parent = regions_[r];
     parent.state.stats.scale(0.5);  // each child inherits half of the evidence
     parent.state.new_samples *= 0.5;
+    parent.selection_stats.scale(0.5);
     Region child;
     child.state = parent.state;
     child.received_total = parent.received_total;
+    child.selection_stats = parent.selection_stats;
+    child.selection = parent.selection;
     std::vector<TrainingSample> lower, upper;
     for (const TrainingSample& t : parent.pending)
         (tree_.lookup(Vec3(t.position[0], t.position[1], t.position[2])) == u ? upper : lower).push_back(t);
@@ -224,11 +269,14 @@ RegionInfo GuidingField::region_info(uint32_t r) const {
     i.seen = reg.seen_nonzero;
     i.components = reg.state.vmm.count;
     i.fits = reg.state.fits;
+    i.selection = reg.selection;
+    i.selection.prob = region_prob(reg, guiding_pays());
     return i;
 }
 
 void GuidingField::write_regions(std::vector<GuidingRegion>& out) const {
     out.resize(regions_.size());
+    const bool pays = guiding_pays();
     for (uint32_t r = 0; r < regions_.size(); ++r) {
         const Aabb& b = tree_.bounds(r);
         const Region& reg = regions_[r];
@@ -240,6 +288,9 @@ void GuidingField::write_regions(std::vector<GuidingRegion>& out) const {
         const Vec3& p = reg.state.vmm.pivot;
         g.pivot = {float(p.x), float(p.y), float(p.z)};
         g.samples = uint32_t(std::min<uint64_t>(reg.received_total, 0xffffffffu));
+        g.prob = float(region_prob(reg, pays));
+        g.moment_bsdf = float(reg.selection.moment_bsdf);
+        g.moment_chosen = float(reg.selection.moment_chosen);
     }
 }
 

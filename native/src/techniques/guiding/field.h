@@ -14,6 +14,7 @@
 #pragma once
 #include "techniques/guiding/parallax.h"
 #include "techniques/guiding/regions.h"
+#include "techniques/guiding/selection.h"
 #include "techniques/settings.h"
 
 #include <vector>
@@ -47,6 +48,7 @@ struct RegionInfo {
     double seen = 0;        // non-zero samples offered since the last fit
     uint32_t components = 0;
     uint32_t fits = 0;
+    Selection selection;    // the learnt guiding probability (guiding_adaptive_prob)
 };
 
 class GuidingField {
@@ -105,9 +107,14 @@ private:
         uint64_t lit = 0;             // samples of non-zero weight since the region was made (refinement)
         uint64_t received_total = 0;  // incl. the parent's, for the GPU record
         FitReport last;
+        SelectionStats selection_stats;  // guiding_adaptive_prob: decayed with the mixture's statistics
+        Selection selection;             // chosen after the last fit
     };
     Region make_region(uint32_t r) const;
     void fit_region(uint32_t r);
+    void learn_selection(Region& reg);
+    double region_prob(const Region& reg, bool pays) const;
+    bool guiding_pays() const;
     void refine(uint32_t r);
     size_t fit_threshold(const Region& reg) const;
 

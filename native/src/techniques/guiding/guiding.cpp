@@ -71,14 +71,19 @@ const SettingTable& guiding_table() {
                          "Lensch 2020; thesis, sec. 4.6). Unbiased", "guiding"),
             float_setting("guiding_prob", PX_FIELD(GuidingParams, prob), 0.5, 0.0, 1.0, "Guiding Probability",
                           "Probability of sampling the mixture rather than the BSDF at a guided vertex (one-sample "
-                          "MIS of the two)", "guiding"),
+                          "MIS of the two); with Adaptive Probability, where a region has not learnt its own yet",
+                          "guiding"),
+            bool_setting("guiding_adaptive_prob", PX_FIELD(GuidingParams, adaptive_prob), true, "Adaptive Probability",
+                         "Each region learns its guiding probability from the training samples: the one of least "
+                         "variance, 0 (BSDF sampling alone, no mixture evaluated) where guiding does not pay for "
+                         "itself", "guiding"),
             bool_setting("guiding_parallax", PX_FIELD(GuidingParams, parallax), true, "Parallax",
                          "Each lobe aims at the point its light came from, so one region's mixture points the right "
                          "way from anywhere in it (Ruppert et al. 2020)", "guiding"),
             int_setting("guiding_training_spp", PX_FIELD(GuidingParams, training_spp), 32, 0, 65536,
                         "Training Samples",
-                        "Samples per pixel (1 per training frame) spent training before the image accumulates; 0 = "
-                        "keep training while the image accumulates", "guiding"),
+                        "The first samples per pixel (and at least 8 frames) train the mixtures; they count in the "
+                        "image too. 0 = keep training for the whole render", "guiding"),
             int_setting("guiding_min_samples", PX_FIELD(GuidingParams, min_samples), 64, 1, 1 << 24, "Min Samples",
                         "A region fits its mixture once it has accumulated this many lit samples (across frames, so "
                         "rarely lit regions train too)", "guiding").in_group("Fitting"),
@@ -153,6 +158,8 @@ void Guiding::build_placeholder() {
 }
 
 void Guiding::configure(const RenderParams& params, const TechniqueSetup& config, bool) {
+    shows_passes_ = false;
+    for (const PassInfo& p : guiding_table().passes) shows_passes_ = shows_passes_ || (config.passes >> p.index & 1u);
     setup(params.guiding, config.scene, config.scene_version, params.seed, config.width, config.height,
           params.samples_per_frame);
 }
@@ -169,19 +176,8 @@ void Guiding::add_shaders(uint32_t bits, PipelineShaders& s) const {
                                  closest_hit, VK_SHADER_UNUSED_KHR, intersection};
 }
 
-// Training frames are numbered from 2^29 (FrameParams.frame): their random streams are apart
-// from the render frames', the prepare and the estimate frames'.
-void Guiding::begin_host_frame(FrameParams& frame) const {
-    frame.frame = 0x20000000u + training_frames_;
-    frame.mode = FRAME_GUIDING_TRAIN;
-    frame.guiding_record = 1;
-}
-
-void Guiding::end_host_frame(TechniqueHost& host, const FrameParams&, double milliseconds) {
-    fit_frame(host.descriptors(), milliseconds);
-}
-
 void Guiding::after_frame(TechniqueHost& host, const FrameEnd& frame) {
+    trained_spp_ += frame.frame.samples_per_frame;
     fit_frame(host.descriptors(), frame.milliseconds);
 }
 
@@ -240,6 +236,7 @@ void Guiding::setup(const GuidingParams& params, const SceneHost& scene, uint64_
     scene_version_ = scene_version;
     seed_ = seed;
     training_frames_ = 0;
+    trained_spp_ = 0;
     stats_ = GuidingStats{};
     fitted_ = false;
     built_layout_ = ~0ull;
@@ -275,6 +272,8 @@ void Guiding::upload(DescriptorSet* set) {
         lobes_ = Buffer(ctx_, n * GUIDING_MAX_COMPONENTS * sizeof(GuidingLobe), kStorageUsage);
     }
     regions_.upload(regions.data(), n * sizeof(GuidingRegion));
+    mixture_sampled_ = false;
+    for (const GuidingRegion& g : regions) mixture_sampled_ = mixture_sampled_ || (g.lobe_count > 0 && g.prob > 0.0f);
     lobes_.upload(lobes.data(), lobes.size() * sizeof(GuidingLobe));
     if (field_->layout_version() != built_layout_) {
         upload_layout(field_->tree());
@@ -329,7 +328,7 @@ void Guiding::upload_layout(const guiding::RegionTree& tree) {
 }
 
 void Guiding::record_frame_start(VkCommandBuffer cmd, const Technique* host_frame) const {
-    if (host_frame == this || (!host_frame && records_render_frames())) samples_.record_fill_zero(cmd, VK_WHOLE_SIZE);
+    if (!host_frame && records_render_frames()) samples_.record_fill_zero(cmd, VK_WHOLE_SIZE);
 }
 
 void Guiding::fit_frame(DescriptorSet& set, double frame_milliseconds) {
@@ -378,8 +377,8 @@ void Guiding::fit_frame(DescriptorSet& set, double frame_milliseconds) {
         field->add_samples(samples.data(), samples.size());
         field->fit();
     });
-    // The last training frame: the image accumulates with the finished field.
-    if (params_.training_spp != GUIDING_KEEP_TRAINING && training_frames_ >= params_.training_spp) upload_fitted();
+    // The last recording frame: the rest of the image accumulates with the finished field.
+    if (!records_render_frames()) upload_fitted();
 }
 
 void Guiding::finish_fit() const {

@@ -2,15 +2,17 @@
 // shaders/techniques/guiding_field.glsl): owns the GuidingField (field.h) and its GPU data —
 // regions, lobes, the region tree (walked by the shaders' region lookup), the region AABBs'
 // BLAS/TLAS (the Guiding Lobes pass' spheres) and the training sample buffer — and drives the training between frames:
-//   training frames (FRAME_GUIDING_TRAIN, 1 spp, nothing reaches the film) until
-//   guiding_training_spp of them have run, or, with guiding_training_spp = 0, every rendered
-//   frame records too ("keep training"); after each recording frame fit_frame() reads the
+//   the first guiding_training_spp samples per pixel of the image (at least
+//   GUIDING_MIN_TRAINING_FRAMES frames) record training samples, or, with
+//   guiding_training_spp = 0, every frame does ("keep training"); every frame's samples
+//   reach the image (each is unbiased whatever mixture sampled it), so training costs no
+//   samples, only the recording and the fit. After each recording frame fit_frame() reads the
 //   samples back, adds them to the field and starts the fit (multithreaded) on a worker
 //   thread, which runs while the GPU traces the next frame; the fit_frame() that follows
 //   waits for it and uploads its mixtures (rebuilding the region tree and TLAS when adaptive
 //   refinement changed the regions). The frames thus trace with the field one frame behind,
-//   the same for every run (deterministic); the last training frame waits for its own fit,
-//   so that the image accumulates with the finished field.
+//   the same for every run (deterministic); the last recording frame waits for its own fit,
+//   so that the rest of the image accumulates with the finished field.
 //   With guiding_fit = device the fit is compute passes instead (device_fit.h): no sample
 //   readback or upload; the host field then only provides the initial regions. Adaptive
 //   refinement reads 12 bytes per region back after the fit's passes, splits a copy of the
@@ -64,10 +66,16 @@ public:
     bool enabled() const override { return params_.enabled != 0; }
     void bind(DescriptorSet& set) const override;
     void write_params(TechniqueParams& params) const override { params.guiding = params_; }
-    uint32_t spec_bit(bool) const override { return enabled() ? TECH_GUIDING : 0u; }
+    // Off once training is over where no region samples its mixture (every learnt probability
+    // 0) and no guiding pass is shown: the frames then trace the plain pipeline, at its cost.
+    // (The device fit's probabilities stay on the device: it keeps the bit.)
+    uint32_t spec_bit(bool) const override {
+        return enabled() && (records_render_frames() || device_fit_ || mixture_sampled_ || shows_passes_) ? TECH_GUIDING
+                                                                                                         : 0u;
+    }
     void add_shaders(uint32_t bits, PipelineShaders& shaders) const override;
     std::vector<uint32_t> tlas_bindings() const override { return {BINDING_GUIDING_TLAS}; }
-    // Frames record training samples (FrameParams.guiding_record) while it keeps training.
+    // Frames record training samples (FrameParams.guiding_record) while it trains.
     void fill_frame_params(FrameParams& frame) const override {
         frame.guiding_record = records_render_frames() ? 1u : 0u;
     }
@@ -76,13 +84,7 @@ public:
     // Clears the sample buffer before a recording frame: its own training frame, or a render
     // frame that records (keep training).
     void record_frame_start(VkCommandBuffer cmd, const Technique* host_frame) const override;
-    // Training frames (thesis 4.6.2): 1 spp camera paths only record samples, then the fit.
-    bool needs_host_frame() const override {
-        return enabled() && params_.training_spp != GUIDING_KEEP_TRAINING && training_frames_ < params_.training_spp;
-    }
-    void begin_host_frame(FrameParams& frame) const override;
-    void end_host_frame(TechniqueHost& host, const FrameParams& frame, double milliseconds) override;
-    // Keep training: rendered frames record samples too, fitted after each frame.
+    // Recording frames (thesis 4.6.2) step after the frame: readback, fit, upload.
     bool steps_after_frame() const override { return records_render_frames(); }
     void after_frame(TechniqueHost& host, const FrameEnd& frame) override;
     void stats(StatList& out) const override;
@@ -93,7 +95,14 @@ public:
     const guiding::GuidingField* host_field() const;
 
 private:
-    bool records_render_frames() const { return enabled() && params_.training_spp == GUIDING_KEEP_TRAINING; }
+    // This frame records training samples: while training (guiding_training_spp), or always.
+    bool records_render_frames() const {
+        return enabled() && (params_.training_spp == GUIDING_KEEP_TRAINING || training_left());
+    }
+    bool training_left() const {
+        return trained_spp_ < params_.training_spp ||
+               training_frames_ < std::min(params_.training_spp, GUIDING_MIN_TRAINING_FRAMES);
+    }
     void setup(const GuidingParams& params, const SceneHost& scene, uint64_t scene_version, uint32_t seed,
                uint32_t width, uint32_t height, uint32_t samples_per_frame);
     // After a recording frame: readback, fit, upload; rebinds the TLAS into `set` when the
@@ -120,6 +129,9 @@ private:
     AabbAccel accel_;
     uint64_t built_layout_ = ~0ull;
     uint32_t training_frames_ = 0;
+    uint64_t trained_spp_ = 0;  // samples per pixel of the recording frames
+    bool mixture_sampled_ = false;  // the host field's: some region samples its mixture (prob > 0)
+    bool shows_passes_ = false;    // a guiding pass is in the film
     mutable std::future<void> fit_;      // the fit in flight (worker thread), if any
     mutable bool fitted_ = false;        // a finished fit whose mixtures are not uploaded yet
     mutable GuidingStats stats_;

@@ -14,6 +14,8 @@ struct TrainingSample {
     float pdf;
     float weight;
     float distance;  // kInfinity: no next vertex
+    float bsdf_pdf = 0;      // the BSDF's own density of the direction (0: unknown or a delta lobe)
+    float contribution = 0;  // luminance the path gained along it
 };
 
 // Distance of a GuidingSample: infinite at or above GUIDING_DISTANCE_INFINITE, when negative
