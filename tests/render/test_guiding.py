@@ -18,9 +18,31 @@ from helpers import batches, means_agree, render, same_render, z_scores
 
 SIZE = 32
 BATCHES, SPP, SPP_PER_FRAME = 8, 32, 8
+# Through the glass: long enough that the samples after training (the first 48 per pixel, in
+# the image too) dominate.
+GLASS_SPP, GLASS_SPP_PER_FRAME = 128, 4
 # Small images give few samples per frame: fewer regions, a lower fit threshold, and training
 # long enough (1 spp frames of 32x32 are cheap) for the regions to fit.
 GUIDING = dict(guiding=True, guiding_training_spp=48, guiding_min_samples=64, guiding_region_splits=4)
+# The probability fixed (guiding_prob), not learnt: the MIS weights are then tested at a
+# probability that samples the mixture wherever it exists.
+FIXED = dict(GUIDING, guiding_adaptive_prob=False)
+MIN_TRAINING_FRAMES = 8  # GUIDING_MIN_TRAINING_FRAMES
+
+
+def trained(scene, method="mis", **params):
+    """A render whose frames (1 spp each) are the training: the field finished, every frame's
+    samples in the image."""
+    return render(scene, method, spp=GUIDING["guiding_training_spp"], spp_per_frame=1, **{**GUIDING, **params})
+
+
+def trained_passes(scene, **params):
+    """A session with a finished field whose film holds a frame traced with it (the passes of
+    the training frames, drawn while the field grew, started over)."""
+    _, s = trained(scene, **params)
+    s.reset()
+    s.render(1)
+    return s
 
 
 def glass_room(size=SIZE):
@@ -68,18 +90,19 @@ def test_unbiased_on_the_cornell_box():
     spp, per_frame = 128, 16
     reference = batches(scene, "mis", BATCHES, spp, spp_per_frame=per_frame)
     tested = batches(scene, "mis", BATCHES, spp, session=reference.session, spp_per_frame=per_frame,
-                     **dict(GUIDING, guiding_prob=0.9))
+                     **dict(FIXED, guiding_prob=0.9))
     st = tested.session.stats()
-    assert st["guiding_training_frames"] == GUIDING["guiding_training_spp"]
+    # 48 training samples per pixel in frames of 16: the minimum of 8 frames decides.
+    assert st["guiding_training_frames"] == MIN_TRAINING_FRAMES
     assert st["guiding_trained_regions"] > 0 and st["guiding_lobes"] > 0, st
-    assert st["samples"] == spp  # training frames do not reach the film
+    assert st["samples"] == spp  # the training frames' samples are the image's
     assert_unbiased(tested, reference)
 
 
 @pytest.fixture(scope="module")
 def glass_reference():
     scene = glass_room()
-    reference = batches(scene, "mis", BATCHES, SPP, spp_per_frame=SPP_PER_FRAME)
+    reference = batches(scene, "mis", BATCHES, GLASS_SPP, spp_per_frame=GLASS_SPP_PER_FRAME)
     return scene, reference.session, reference
 
 
@@ -87,15 +110,16 @@ def glass_reference():
 def test_unbiased_through_glass(glass_reference, parallax):
     """Every wall is lit through the glass shell only (NEE's shadow rays cannot pass it)."""
     scene, session, reference = glass_reference
-    tested = batches(scene, "mis", BATCHES, SPP, session=session, spp_per_frame=SPP_PER_FRAME,
+    tested = batches(scene, "mis", BATCHES, GLASS_SPP, session=session, spp_per_frame=GLASS_SPP_PER_FRAME,
                      guiding_parallax=parallax, **GUIDING)
     assert session.stats()["guiding_trained_regions"] > 0
     assert_unbiased(tested, reference)
     if parallax:
         # At equal samples, guiding finds the lamp behind the glass far more often: 2.5x less
-        # variance here (measured; asserted with margin).
+        # variance after training, about 2x with the training's samples in the image (0.57 at
+        # 96 spp; asserted with margin).
         ratio = rel_variance(tested.mean, tested.se) / rel_variance(reference.mean, reference.se)
-        assert ratio < 0.6, ratio
+        assert ratio < 0.65, ratio
 
 
 def test_same_seed_same_image_fit_included():
@@ -114,23 +138,24 @@ def test_same_seed_same_image_fit_included():
 
 def test_camera_moves_keep_the_field_and_edits_remake_it():
     scene = glass_room()
-    _, s = render(scene, "mis", spp=8, spp_per_frame=8, **GUIDING)
-    trained = s.stats()
-    assert trained["guiding_training_frames"] == GUIDING["guiding_training_spp"] and trained["guiding_lobes"] > 0
-    s.update(scene, parts={"camera"})  # the field stays: no training frames run again
+    _, s = trained(scene)
+    trained_stats = s.stats()
+    assert trained_stats["guiding_training_frames"] == GUIDING["guiding_training_spp"]
+    assert trained_stats["guiding_lobes"] > 0 and trained_stats["samples"] == GUIDING["guiding_training_spp"]
+    s.update(scene, parts={"camera"})  # the field stays: no frame records again
     s.render(1)
     st = s.stats()
-    assert st["guiding_training_frames"] == trained["guiding_training_frames"]
-    assert st["guiding_region_fits"] == trained["guiding_region_fits"] and st["samples"] == 8
+    assert st["guiding_training_frames"] == trained_stats["guiding_training_frames"]
+    assert st["guiding_region_fits"] == trained_stats["guiding_region_fits"] and st["samples"] == 1
     s.set_params(guiding_probe_x=3, guiding_probe_y=4)  # the probe is only a view: kept too
     s.set_params(guiding=False)  # switched off and on again: kept
     s.set_params(guiding=True)
-    assert s.stats()["guiding_lobes"] == trained["guiding_lobes"]
+    assert s.stats()["guiding_lobes"] == trained_stats["guiding_lobes"]
     s.update(scene, parts={"materials"})  # an edit: the field starts over
     st = s.stats()
     assert st["guiding_training_frames"] == 0 and st["guiding_lobes"] == 0
     s.render(1)
-    assert s.stats()["guiding_training_frames"] == GUIDING["guiding_training_spp"]
+    assert s.stats()["guiding_training_frames"] == 1
     s.set_params(guiding_prob=0.3)  # a guiding setting: starts over too
     assert s.stats()["guiding_training_frames"] == 0
 
@@ -160,9 +185,9 @@ def test_trained_mixtures_point_at_the_lamp_through_the_glass():
     # Unbiased light paths, as helpers.render: Filter Glossy (on by default) roughens the shell
     # after a diffuse bounce, so 2.7x fewer BSDF paths find the lamp inside it and the 48
     # training frames fit 2 of the 16 regions instead of 8.
-    s.set_params(method="pt", samples_per_frame=8, guiding_fit="cpu", **GUIDING, **pc.UNBIASED_LIGHT_PATHS)
+    s.set_params(method="pt", samples_per_frame=1, guiding_fit="cpu", **GUIDING, **pc.UNBIASED_LIGHT_PATHS)
     s.update(scene)
-    s.render(1)
+    s.render(GUIDING["guiding_training_spp"])
     lamp = np.array([1.0, 1.0, 1.7])
     for x in ([0.0, 0.0, 0.01], [-1.99, 0.0, 1.2]):
         x = np.array(x)
@@ -184,9 +209,9 @@ def test_records_leave_out_their_own_vertex_nee():
     direction it fell to 0.7-0.8x (measured with that line of trace_pending_shadow removed)."""
     scene = big_light_box()
     s = pc.Session(scene.width, scene.height, "cpu")
-    s.set_params(method="mis", samples_per_frame=8, guiding_fit="cpu", seed=0, **GUIDING)
+    s.set_params(method="mis", samples_per_frame=1, guiding_fit="cpu", seed=0, **GUIDING)
     s.update(scene)
-    s.render(1)
+    s.render(GUIDING["guiding_training_spp"])
     for x in ([0.0, 0.0, 0.01], [0.5, 0.3, 0.01]):
         x = np.array(x)
         m = s.guiding_mixture(x)
@@ -198,7 +223,7 @@ def test_records_leave_out_their_own_vertex_nee():
 
 def test_passes():
     scene = scenes.cornell_box(SIZE, SIZE)
-    _, s = render(scene, "mis", spp=4, spp_per_frame=4, **dict(GUIDING, guiding_probe_x=8, guiding_probe_y=8))
+    s = trained_passes(scene, guiding_probe_x=8, guiding_probe_y=8)
     regions = s.read("guiding_regions")
     colours = {tuple(np.round(c, 3)) for c in regions.reshape(-1, 3)}
     assert len(colours) >= 8  # 16 regions, most of them in view
@@ -225,8 +250,7 @@ def test_refined_regions_reach_the_shaders(fit):
     scene = scenes.cornell_box(SIZE, SIZE)
 
     def trained(threshold):
-        _, s = render(scene, "mis", spp=4, spp_per_frame=4,
-                      **dict(GUIDING, guiding_region_threshold=threshold, guiding_fit=fit))
+        s = trained_passes(scene, guiding_region_threshold=threshold, guiding_fit=fit)
         colours = {tuple(np.round(c, 3)) for c in s.read("guiding_regions").reshape(-1, 3)}
         spheres = (s.read("guiding_lobes")[: SIZE - SIZE // 6].max(axis=-1) > 0.05).mean()
         return s.stats()["guiding_regions"], len(colours), spheres
@@ -244,8 +268,8 @@ def test_animated_lobes_move_the_spheres_and_keep_the_field():
     regions, each coloured by its mixture where it is; the field is only viewed, never retrained,
     and the same phase gives the same picture again."""
     scene = glass_room()
-    _, s = render(scene, "mis", spp=4, spp_per_frame=4, **GUIDING)
-    trained = s.stats()
+    s = trained_passes(scene)
+    trained_stats = s.stats()
     centre = s.read("guiding_lobes")
     assert centre[: SIZE - SIZE // 6].max() > 0.1  # spheres in view above the inset
     moved = []
@@ -255,7 +279,7 @@ def test_animated_lobes_move_the_spheres_and_keep_the_field():
         moved.append(s.read("guiding_lobes"))
         st = s.stats()
         assert (st["guiding_region_fits"], st["guiding_training_frames"]) == \
-            (trained["guiding_region_fits"], trained["guiding_training_frames"])
+            (trained_stats["guiding_region_fits"], trained_stats["guiding_training_frames"])
     for a, b in ((centre, moved[0]), (moved[0], moved[1])):
         changed = np.abs(a - b).max(axis=-1) > 0.05
         assert changed.mean() > 0.02, changed.mean()
@@ -285,16 +309,18 @@ def test_device_fit_agrees_with_the_cpu_fit():
     _, auto = render(scene, "mis", spp=1, spp_per_frame=1, **GUIDING)
     assert auto.params.guiding_fit == "auto"
     assert auto.stats()["guiding_fit_on"] == ("cpu" if auto.device_type == "cpu" else "device")
-    cpu = batches(scene, "mis", BATCHES, SPP, spp_per_frame=SPP_PER_FRAME, guiding_fit="cpu", **GUIDING)
+    # 1-spp frames, each a fit, as long as the training.
+    spp = GUIDING["guiding_training_spp"]
+    cpu = batches(scene, "mis", BATCHES, spp, spp_per_frame=1, guiding_fit="cpu", **GUIDING)
     session = cpu.session
     assert session.stats()["guiding_fit_on"] == "cpu"
     stats = []
-    device = batches(scene, "mis", BATCHES, SPP, session=session, spp_per_frame=SPP_PER_FRAME,
+    device = batches(scene, "mis", BATCHES, spp, session=session, spp_per_frame=1,
                      guiding_fit="device", guiding_region_threshold=32, stats=stats, **GUIDING)
     assert session.params.guiding_fit == "device"
     for st in stats:
-        assert st["guiding_fit_on"] == "device" and st["samples"] == SPP
-        assert st["guiding_training_frames"] == GUIDING["guiding_training_spp"]
+        assert st["guiding_fit_on"] == "device" and st["samples"] == spp
+        assert st["guiding_training_frames"] == spp
         assert st["guiding_regions"] == 16 + st["guiding_refinements"], st
         # Light reaches the room only through the glass: in about half of the batches a
         # region gathers the samples to fit (guiding_min_samples) within the training frames;
@@ -303,3 +329,35 @@ def test_device_fit_agrees_with_the_cpu_fit():
             assert st["guiding_refinements"] > 0 and st["guiding_lobes"] > 0 and st["guiding_region_fits"] > 0, st
     assert sum(st["guiding_trained_regions"] > 0 for st in stats) >= BATCHES // 4, stats
     assert_unbiased(device, cpu)
+
+
+def guided_then_plain(scene, **params):
+    """A session trained on `scene` whose film holds Combined only (as F12 with a default view
+    layer), and its stats after the training and after one more frame."""
+    s = pc.Session(scene.width, scene.height, "cpu")
+    s.passes = ["combined"]
+    s.set_params(method="mis", samples_per_frame=1, seed=3, **{**GUIDING, **params}, **pc.UNBIASED_LIGHT_PATHS)
+    s.update(scene)
+    s.render(GUIDING["guiding_training_spp"] - 1)
+    during = s.stats()
+    s.render(2)
+    return s, during, s.stats()
+
+
+def test_guiding_leaves_the_pipeline_where_it_does_not_pay():
+    """guiding_adaptive_prob: in the diffuse Cornell box, where MIS already samples the light well,
+    every region learns probability 0 and, the training over, the frames trace the plain MIS
+    pipeline (guiding_pipeline 0) at its cost. Behind glass the mixtures pay and stay; a guiding
+    pass in the film keeps the guided pipeline too (it draws the field)."""
+    box, during, after = guided_then_plain(scenes.cornell_box(SIZE, SIZE))
+    assert during["guiding_pipeline"] == 1 and during["guiding_trained_regions"] > 0  # still training
+    assert after["guiding_pipeline"] == 0, after
+    mixture = box.guiding_mixture(np.array([0.0, 0.0, 0.01]))
+    assert mixture["fits"] > 0 and mixture["prob"] == 0.0
+    glass, _, after = guided_then_plain(glass_room())
+    assert after["guiding_pipeline"] == 1
+    assert glass.guiding_mixture(np.array([0.0, 0.0, 0.01]))["prob"] > 0.0
+    _, _, fixed_zero = guided_then_plain(scenes.cornell_box(SIZE, SIZE), guiding_prob=0.0, guiding_adaptive_prob=False)
+    assert fixed_zero["guiding_pipeline"] == 0  # probability 0 everywhere: the same
+    _, s = trained(scenes.cornell_box(SIZE, SIZE))  # every pass listed (a Session's default)
+    assert s.stats()["guiding_pipeline"] == 1

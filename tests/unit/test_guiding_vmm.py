@@ -566,3 +566,42 @@ def test_bad_input_is_a_clear_error():
         g.Mixture().fit(np.ones((5, 3)), np.ones(4), np.ones(5))
     with pytest.raises(ValueError, match="no such region"):
         f.mixture(99)
+
+
+def hemisphere_records(rng, n, cone_cos=None):
+    """n directions drawn uniformly over the upper hemisphere (pdf 1/(2 pi), the BSDF's own density
+    too), at points of the unit box. Light arrives from inside the cone cos(theta) > cone_cos
+    around +z (None: from every direction, as the BSDF samples): contribution 1 there, 0 elsewhere."""
+    z = rng.random(n)
+    phi = 2 * np.pi * rng.random(n)
+    r = np.sqrt(1 - z**2)
+    dirs = np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+    pdf = np.full(n, 1 / (2 * np.pi))
+    lit = np.ones(n) if cone_cos is None else (z > cone_cos).astype(np.float64)
+    return g.make_samples(rng.random((n, 3)), dirs, pdf, lit / pdf, np.full(n, 1e30), bsdf_pdfs=pdf,
+                          contributions=lit)
+
+
+@pytest.mark.parametrize("cone_cos,adaptive,expected", [(0.99, True, "guided"), (None, True, 0.0),
+                                                        (0.99, False, 0.5)])
+def test_learnt_guiding_probability(cone_cos, adaptive, expected):
+    """guiding_adaptive_prob (selection.h): light from a narrow cone, which BSDF sampling finds
+    once in a hundred directions, makes the region sample its mixture; light from everywhere,
+    which the BSDF already samples as well as anything can, leaves it to the BSDF (0: no mixture
+    read). The learnt second moments say why: with light from the cone the chosen probability
+    cuts it several times. Without adaptive_prob the region keeps guiding_prob."""
+    rng = np.random.default_rng(95)
+    f = g.GuidingField(np.zeros(3), np.ones(3), params(region_splits=0, min_samples=200, region_threshold=0,
+                                                       parallax=False, adaptive_prob=adaptive))
+    for _ in range(3):
+        f.add_samples(hemisphere_records(rng, 40000, cone_cos))
+        f.fit()
+    info = f.region_info(0)
+    assert info["components"] > 0
+    record = f.regions()[0]
+    assert record[12] == np.float32(info["prob"])  # what the sampler reads
+    if expected == "guided":
+        assert info["prob"] >= 0.5, info
+        assert info["moment_chosen"] * 3 < info["moment_bsdf"], info
+    else:
+        assert info["prob"] == expected, info

@@ -196,6 +196,7 @@ void Guiding::stats(StatList& out) const {
                            {"guiding_region_fits", g.region_fits},
                            {"guiding_refinements", uint64_t(g.refinements)},
                            {"guiding_fit_on", std::string(g.device_fit ? "device" : "cpu")},
+                           {"guiding_pipeline", uint64_t(spec_bit(true) ? 1 : 0)},
                            {"guiding_frame_milliseconds", g.frame_milliseconds},
                            {"guiding_readback_milliseconds", g.readback_milliseconds},
                            {"guiding_fit_milliseconds", g.fit_milliseconds},
