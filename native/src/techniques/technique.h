@@ -6,7 +6,7 @@
 // A frame, as the session runs it (render/session.cpp, Session::trace):
 //   host frames   while a technique needs_host_frame(): one 1-spp camera frame over the whole
 //                 image that reaches no film, for that technique alone (the cache's prepare
-//                 frames, ADRRS' estimate frames, guiding's training frames): begin_host_frame,
+//                 frames, ADRRS' estimate frames): begin_host_frame,
 //                 record_frame_start, the trace, end_host_frame, then every technique's sync.
 //   render frame  record_frame_start; per dispatch record_before_trace, the camera trace,
 //                 record_after_trace; after the frame (if any technique steps_after_frame: a
