@@ -303,10 +303,11 @@ def render_parallax(scene, method, seconds, device, reference, label, seed=0):
     # the film starts over with its first frame, so `spp` and the image are the technique's
     # own, and info reports the fallback's samples apart.
     session.background_compile = True
-    # As F12 with a default view layer: the film holds Combined only (mis_clean: what its denoiser
-    # reads as well). A technique that shows no pass may leave the pipeline once it stops paying.
+    # As F12 with a default view layer: the film holds Combined (and the Ray Depth the info
+    # reports, ADRRS' splits; mis_clean: what its denoiser reads as well). A technique that
+    # shows no pass of its own may leave the pipeline once it stops paying.
     if method != "mis_clean":
-        session.passes = ["combined"]
+        session.passes = ["combined", "ray_depth"] + (["adrrs_splits"] if method == "adrrs" else [])
     params = dict(method_params(method), samples_per_frame=1, max_depth=MAX_DEPTH, depth_leeway=0, seed=seed)
     # Cache prepare, ADRRS estimate and guiding training frames first.
     prepares = params["ic"] or params["adrrs"] or params["guiding"]
