@@ -173,10 +173,10 @@ struct DeviceFitter {
     bool has_tree = false;
     uint32_t last_count = 0;
     DeviceFitter(uint32_t region_count, const FitOptions& o, bool parallax, const std::string& device,
-                 uint32_t min_samples)
+                 uint32_t min_samples, float prob, bool adaptive_prob)
         : ctx(px::Context::shared(device)) {
         validate_fit_options(o);
-        fit = std::make_unique<DeviceFit>(*ctx, region_count, o, parallax, min_samples);
+        fit = std::make_unique<DeviceFit>(*ctx, region_count, o, parallax, min_samples, prob, adaptive_prob);
         std::vector<GuidingRegion> r(region_count, GuidingRegion{});
         regions = px::Buffer::with_vector(*ctx, r, px::kStorageUsage);
         std::vector<GuidingLobe> l(size_t(region_count) * GUIDING_MAX_COMPONENTS, GuidingLobe{});
@@ -189,7 +189,7 @@ struct DeviceFitter {
     explicit DeviceFitter(const GuidingField& field, const std::string& device) : ctx(px::Context::shared(device)) {
         const px::GuidingParams& p = field.params();
         fit = std::make_unique<DeviceFit>(*ctx, uint32_t(field.region_count()), field.fit_options(), p.parallax != 0,
-                                          p.min_samples);
+                                          p.min_samples, p.prob, p.adaptive_prob != 0);
         std::vector<GuidingRegion> r;
         field.write_regions(r);
         regions = px::Buffer::with_vector(*ctx, r, px::kStorageUsage);
@@ -466,6 +466,8 @@ void bind_guiding(nb::module_& parent) {
         .def("reset", &GuidingField::reset)
         .def_prop_ro("region_count", &GuidingField::region_count)
         .def_prop_ro("layout_version", &GuidingField::layout_version)
+        .def_prop_ro("guiding_pays", &GuidingField::guiding_pays,
+                     "The learnt probabilities pay for guiding as a whole (else every region's prob is 0).")
         .def_static("gpu_bytes_per_region", &GuidingField::gpu_bytes_per_region)
         .def("region_of", [](const GuidingField& f, Doubles pts) {
             const size_t n = rows(pts, 3, "points");
@@ -527,9 +529,11 @@ void bind_guiding(nb::module_& parent) {
         });
 
     nb::class_<DeviceFitter>(m, "DeviceFit")
-        .def(nb::init<uint32_t, const FitOptions&, bool, const std::string&, uint32_t>(), "regions"_a,
+        .def(nb::init<uint32_t, const FitOptions&, bool, const std::string&, uint32_t, float, bool>(), "regions"_a,
              "options"_a = FitOptions(), "parallax"_a = false, "device"_a = "cpu", "min_samples"_a = 1,
-             "The device fit (fit.comp) of `regions` untrained regions on the device `device` picks.")
+             "prob"_a = 0.5f, "adaptive_prob"_a = true,
+             "The device fit (fit.comp) of `regions` untrained regions on the device `device` picks; `prob` "
+             "(guiding_prob) until a region learnt its own (guiding_adaptive_prob), or always.")
         .def("fit", [](DeviceFitter& f, nb::ndarray<const uint32_t, nb::c_contig, nb::device::cpu> records) {
             if (records.ndim() != 2 || records.shape(1) != kSampleWords)
                 throw std::invalid_argument("records must be GuidingSample records, shape (N, 12) uint32");
@@ -557,6 +561,16 @@ void bind_guiding(nb::module_& parent) {
             return nb::make_tuple(f.fit->inherited_samples(), f.fit->inherited_fits());
         }, "(samples, fits) the children of refine() inherited (counted in both halves).")
         .def_prop_ro("region_count", [](const DeviceFitter& f) { return f.fit->region_count(); })
+        .def_prop_ro("guiding_pays", [](DeviceFitter& f) {
+            f.fit->read_tally();
+            return f.fit->guiding_pays();
+        }, "After a fit: the learnt probabilities pay for guiding as a whole (GuidingField.guiding_pays's rule, "
+           "DeviceFit::guiding_pays).")
+        .def_prop_ro("mixture_sampled", [](DeviceFitter& f) {
+            f.fit->read_tally();
+            return f.fit->mixture_sampled();
+        }, "After a fit: some region with a mixture samples it and guiding pays (the session keeps guiding's "
+           "pipeline).")
         .def("mixture", [](const DeviceFitter& f, uint32_t r) { return to_dict(f.fit->mixture(r)); }, "region"_a)
         .def("state", [](const DeviceFitter& f, uint32_t r) {
             if (r >= f.fit->region_count()) throw std::invalid_argument("no such region");
@@ -573,6 +587,14 @@ void bind_guiding(nb::module_& parent) {
             d["pending"] = s.pending;
             d["pending_zero"] = s.pending_zero;
             d["received"] = s.received;
+            // the learnt guiding probability: the sampler's record and the sums behind it
+            px::GuidingRegion g;
+            f.regions.download(&g, sizeof(g), size_t(r) * sizeof(px::GuidingRegion));
+            d["prob"] = g.prob;
+            d["moment_bsdf"] = g.moment_bsdf;
+            d["moment_chosen"] = g.moment_chosen;
+            d["selection_samples"] = s.selection_samples;
+            d["selection_moments"] = std::vector<double>(s.selection_moment, s.selection_moment + px::GUIDING_SELECTION_CANDIDATES);
             const std::vector<px::GuidingFitLobe> l = f.fit->read_lobes();
             double w = 0.0, c = 0.0;
             for (uint32_t k = 0; k < GUIDING_MAX_COMPONENTS; ++k) {

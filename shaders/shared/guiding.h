@@ -65,6 +65,8 @@ PX_CONST float GUIDING_MIN_ROUGHNESS = 0.3;
 // sampling alone: a mixture costs its evaluations at every guided vertex, and guiding every
 // vertex made a path 1.5x as costly on lavapipe (veach_mis, 160 px), 1.7x on the H200.
 PX_CONST float GUIDING_SELECTION_MARGIN = 0.5;
+// Its candidates: j / GUIDING_SELECTION_CANDIDATES, j = 0 .. GUIDING_SELECTION_CANDIDATES - 1.
+PX_CONST uint GUIDING_SELECTION_CANDIDATES = 10;
 
 // One vMF lobe as the sampling shader reads it (thesis eq. 3.27, Jakob 2012):
 // v(w) = norm * exp(kappa (dot(mu, w) - 1)), norm = kappa / (2 pi (1 - exp(-2 kappa))).

@@ -64,6 +64,9 @@ struct GuidingFitPush {
     uint pending_capacity;  // max(min_samples, 2 max_components + 1)
     uint split_count;       // GuidingFitSplit records (REFINE)
     uint position_parts;    // POSITIONS splits each region's samples into this many equal parts
+    float prob;             // guiding_prob: a region's probability before it learnt its own
+    uint adaptive_prob;     // guiding_adaptive_prob: learn it (selection.h); 0: always prob
+    uint reserved;
 };
 
 // A region's fit state (its mixture lives in GuidingFitLobe records).
@@ -81,13 +84,26 @@ struct GuidingFitRegion {
     uint pending;         // lit samples kept from earlier frames (not fitted yet) ...
     float pending_zero;   // ... and the unlit ones they came with (only counted)
     uint received;        // lit samples received since the region was made (refinement; saturating)
+    // The learnt guiding probability's sums (selection.h SelectionStats), decayed with the
+    // mixture's statistics: the samples they stand for (lit and unlit), then per candidate
+    // j / GUIDING_SELECTION_CANDIDATES the second moment sum of C^2 p / p_a.
+    float selection_samples;
+    float selection_moment[GUIDING_SELECTION_CANDIDATES];
+    uint reserved0;
+    uint reserved1;
 };
 
-// What the host's refinement reads of a region (12 bytes), written by EM and REFINE.
+// What the host reads of a region after a fit (32 bytes), written by EM and REFINE: its
+// refinement's counts and the learnt probability's sums (GuidingField::guiding_pays).
 struct GuidingFitTally {
     uint received;  // lit samples received since the region was made; 0 without a mixture
     uint samples;   // GuidingFitRegion.samples, fits: a child inherits them (as the host
     uint fits;      // field's records do), so the session's stats subtract them
+    float prob;     // GuidingRegion.prob: the sampler's probability of the mixture
+    float moment_bsdf;    // selection_moment[0] (BSDF sampling alone) and that of the chosen
+    float moment_chosen;  // probability; 0 while nothing was learnt or with adaptive_prob off
+    uint reserved1;
+    uint reserved2;
 };
 
 // One region split by the host (RegionTree::split): `parent` keeps the lower half of its box

@@ -306,6 +306,9 @@ def test_refinement_matches_the_host_field():
     assert s1["stat_count"] == pytest.approx(0.5 * before[1]["stat_count"], rel=1e-6)
     assert s1["received"] == s2["received"] == 0 and f.state(0)["received"] == 200
     assert s2["samples"] == before[1]["samples"] == 350 and s2["fits"] == before[1]["fits"] == 1
+    # the learnt probability's sums, halved (no contributions here: guiding_prob, as the host's)
+    assert s1["selection_samples"] == s2["selection_samples"] == 0.5 * before[1]["selection_samples"] == 175
+    assert s1["prob"] == s2["prob"] == field.region_info(2)["prob"] == 0.5
     lobes = f.lobes()
     np.testing.assert_array_equal(lobes[32:48], lobes[16:32])  # the sampler's records: inherited
     np.testing.assert_array_equal(f.regions()[2, 8:11], f.regions()[1, 8:11])  # pivot
@@ -335,6 +338,169 @@ def test_refinement_matches_the_host_field():
     samples, fits = f.inherited
     assert sum(f.state(r)["samples"] for r in range(4)) - samples == 600 + 380 + 480
     assert sum(f.state(r)["fits"] for r in range(4)) - fits == field.fit()["region_fits"] == 2 + 1 + 4
+
+
+# ---- the learnt guiding probability (selection.h; fit.comp score_selection) ------------------
+LIGHT = np.array([0.5, 0.5, 3.0])  # a small light above the unit box
+
+
+def selection_frame(rng, n, base, bsdf_spread=False):
+    """n records in the unit box, directions sampled by a cosine-free hemisphere BSDF (pdf =
+    bsdf_pdf = 1 / 2 pi). A record within a narrow cone towards LIGHT gains contribution 1 (at the
+    light's distance), any other `base`: base 0 is a narrow light only, large base light spread
+    like the BSDF's density."""
+    x = rng.random((n, 3))
+    u = rng.random((n, 2))
+    z, phi = u[:, 0], 2 * math.pi * u[:, 1]
+    r = np.sqrt(1 - z * z)
+    d = np.stack([r * np.cos(phi), r * np.sin(phi), z], 1)
+    pdf = np.full(n, 1 / (2 * math.pi))
+    to = LIGHT - x
+    dist = np.linalg.norm(to, axis=1)
+    lit = np.sum(d * to, 1) / dist > 0.98
+    c = np.where(lit, 1.0, base)
+    return x, d, pdf, c / pdf, c, np.where(lit, dist, 1e30)
+
+
+def selection_records(frame, regions):
+    x, d, pdf, w, c, dist = frame
+    return g.make_samples(x, d, pdf, w, dist, np.asarray(regions, np.uint32), bsdf_pdfs=pdf, contributions=c)
+
+
+def field_and_device(**kw):
+    p = g.GuidingParams()
+    p.region_splits, p.min_samples, p.region_threshold, p.parallax = 1, 64, 0, 1
+    for k, v in kw.items():
+        setattr(p, k, v)
+    field = g.GuidingField(np.zeros(3), np.ones(3), p, seed=1, threads=1)
+    return p, field, g.DeviceFit.for_field(field, device=DEVICE)
+
+
+def assert_same_selection(f, field, r):
+    dev, host = f.state(r), field.region_info(r)
+    assert dev["prob"] == pytest.approx(host["prob"], abs=1e-6)
+    assert dev["moment_bsdf"] == pytest.approx(host["moment_bsdf"], rel=1e-4)
+    assert dev["moment_chosen"] == pytest.approx(host["moment_chosen"], rel=1e-4)
+    np.testing.assert_array_equal(f.regions()[r, 12:15], np.float32([dev["prob"], dev["moment_bsdf"],
+                                                                      dev["moment_chosen"]]))
+
+
+@pytest.mark.parametrize("base, prob", [(0.0, 0.9), (0.05, 0.8), (0.08, 0.7)])
+def test_learnt_probability_matches_the_host_field(base, prob):
+    """A narrow light over a BSDF of uniform density: the device fit learns the host field's
+    probability (the mixture's density at each record's own position, parallax targets), over
+    frames (the sums decayed) and through refinement (halved sums, the choice inherited); more
+    light outside the cone lowers it (an interior optimum of the grid)."""
+    rng = np.random.default_rng(98)
+    p, field, f = field_and_device(region_threshold=5000, max_regions=4)
+    for frame in range(3):
+        fr = selection_frame(rng, 20_000, base)
+        rec = selection_records(fr, field.region_of(fr[0]))
+        field.add_samples(rec)
+        field.fit()  # and refines
+        f.fit(rec)
+        before = [f.state(r) for r in range(f.region_count)]
+        for r in range(f.region_count):
+            assert_same_selection(f, field, r)  # a split region's choice and moments stay
+        split = f.refine(p.region_threshold, p.max_regions)
+        assert f.region_count == field.region_count
+        for r in range(f.region_count):
+            assert_same_selection(f, field, r)
+        if split and frame == 0:  # every record is lit with base > 0: both regions split
+            for parent, child in ((0, 2), (1, 3)):
+                a, b = f.state(parent), f.state(child)
+                assert a["selection_samples"] == b["selection_samples"] == 0.5 * before[parent]["selection_samples"]
+                np.testing.assert_array_equal(a["selection_moments"], b["selection_moments"])
+                np.testing.assert_allclose(a["selection_moments"], 0.5 * np.array(before[parent]["selection_moments"]),
+                                           rtol=1e-7)
+                assert a["prob"] == b["prob"] == before[parent]["prob"]
+    assert (f.region_count == 4) == (base > 0)
+    for r in range(f.region_count):
+        assert f.state(r)["prob"] == pytest.approx(prob, abs=1e-6)
+        assert_same_selection(f, field, r)
+    assert f.guiding_pays and field.guiding_pays and f.mixture_sampled
+
+
+def test_light_spread_like_the_bsdf_learns_zero():
+    """Contribution spread like the BSDF's density: no candidate beats BSDF sampling alone by the
+    margin, prob 0 everywhere, as the host's; guiding does not pay."""
+    rng = np.random.default_rng(99)
+    _, field, f = field_and_device()
+    for _ in range(2):
+        fr = selection_frame(rng, 20_000, 1.0)
+        rec = selection_records(fr, field.region_of(fr[0]))
+        field.add_samples(rec)
+        field.fit()
+        f.fit(rec)
+    for r in range(2):
+        assert f.state(r)["prob"] == 0.0 and f.state(r)["moment_bsdf"] > 0.0
+        assert_same_selection(f, field, r)
+    assert not f.guiding_pays and not field.guiding_pays and not f.mixture_sampled
+
+
+def test_the_global_rule_weighs_every_region():
+    """GuidingField::guiding_pays on the device fit's tally: one region gains from its narrow
+    light, the other, with far more light spread like the BSDF, loses the margin's cost on many
+    more samples: guiding does not pay as a whole (the host then zeroes every prob; the session
+    drops the guiding pipeline, the device's records keep the region's choice)."""
+    rng = np.random.default_rng(100)
+    _, field, f = field_and_device()
+    for _ in range(2):
+        cone, spread = selection_frame(rng, 20_000, 0.0), selection_frame(rng, 20_000, 1.0)
+        cone[0][:, 0] *= 0.5          # region 0: x < 0.5
+        spread[0][:, 0] = 0.5 + 0.5 * spread[0][:, 0]  # region 1
+        recs = np.concatenate([selection_records(fr, field.region_of(fr[0])) for fr in (cone, spread)])
+        field.add_samples(recs)
+        field.fit()
+        f.fit(recs)
+    assert f.state(0)["prob"] == pytest.approx(0.9) and f.state(1)["prob"] == 0.0
+    assert not field.guiding_pays and not f.guiding_pays and not f.mixture_sampled
+    assert field.region_info(0)["prob"] == 0.0
+    for r in range(2):
+        assert f.state(r)["moment_bsdf"] == pytest.approx(field.region_info(r)["moment_bsdf"], rel=1e-4)
+        assert f.state(r)["moment_chosen"] == pytest.approx(field.region_info(r)["moment_chosen"], rel=1e-4)
+
+
+def test_learnt_probability_is_deterministic():
+    rng = np.random.default_rng(101)
+    frames = [selection_frame(rng, 30_000, 0.05) for _ in range(2)]
+    recs = [selection_records(fr, rng.integers(0, 3, len(fr[0]))) for fr in frames]
+    runs = []
+    for _ in range(2):
+        f = g.DeviceFit(3, options(), parallax=True, device=DEVICE)
+        for rec in recs:
+            f.fit(rec)
+        runs.append((f.regions(), [f.state(r)["selection_moments"] for r in range(3)]))
+    np.testing.assert_array_equal(runs[0][0], runs[1][0])
+    np.testing.assert_array_equal(runs[0][1], runs[1][1])
+    assert (runs[0][0][:, 12] > 0).all()
+
+
+def test_guiding_prob_without_adaptive_prob_or_before_learning():
+    """adaptive_prob off: every region samples with guiding_prob, nothing is learnt and guiding
+    pays; on, a region that has not fitted yet (below min_samples) keeps guiding_prob, as the
+    host field's records."""
+    rng = np.random.default_rng(102)
+    fr = selection_frame(rng, 4000, 0.0)
+    regions = (fr[0][:, 0] > 0.02).astype(np.uint32)  # region 0: ~80 records, ~2 lit
+    rec = selection_records(fr, regions)
+    off = g.DeviceFit(2, options(), device=DEVICE, min_samples=32, prob=0.3, adaptive_prob=False)
+    on = g.DeviceFit(2, options(), device=DEVICE, min_samples=32, prob=0.3)
+    for f in (off, on):
+        f.fit(rec)
+        f.fit(rec)
+    np.testing.assert_array_equal(off.regions()[:, 12:15], np.float32([[0.3, 0, 0], [0.3, 0, 0]]))
+    assert off.state(1)["fits"] == 2 and off.state(1)["selection_samples"] == 0.0 and off.guiding_pays
+    assert on.state(0)["fits"] == 0 and on.state(0)["prob"] == pytest.approx(0.3)
+    assert on.state(1)["fits"] == 2 and on.state(1)["prob"] == pytest.approx(0.9)
+    # the host field's choice with adaptive_prob off, through DeviceFit.for_field
+    _, field, f = field_and_device(adaptive_prob=0, prob=0.25)
+    rec = selection_records(fr, field.region_of(fr[0]))
+    field.add_samples(rec)
+    field.fit()
+    f.fit(rec)
+    for r in range(2):
+        assert f.state(r)["prob"] == field.region_info(r)["prob"] == pytest.approx(0.25)
 
 
 def test_bad_input_is_a_clear_error():

@@ -7,9 +7,10 @@
 // weighted stepwise EM with the previous statistics decayed, MAP priors on the weights and the
 // mean cosine, split (chi^2 divergence and PCA) and merge (closed-form chi^2 of two lobes
 // against one), parallax distances, and writes the GuidingRegion/GuidingLobe records the
-// sampler reads. REFINE applies the host's adaptive refinement (device_fit.h) to the fit
-// state. Every reduction has a fixed order (fixed per-thread sample ranges, then a fixed tree):
-// no float atomics, so a fixed input gives the same mixtures from run to run. In float, where
+// sampler reads, and learns the region's guiding probability (selection.h) on the batch.
+// REFINE applies the host's adaptive refinement (device_fit.h) to the fit state. Every
+// reduction has a fixed order (fixed per-thread sample ranges, then a fixed tree): no float
+// atomics, so a fixed input gives the same mixtures from run to run. In float, where
 // the host is double. Loops are [[dont_unroll]]: llvmpipe compiles the unrolled shader 4x
 // slower (lavapipe's first dispatch).
 #extension GL_GOOGLE_include_directive : require
@@ -240,6 +241,7 @@ shared vec4 red_a[G];
 shared vec4 red_b[G];
 shared float s_ll, s_mean_w, s_div[K_MAX];
 shared uint s_order[K_MAX], s_order_count, s_splits;
+shared float s_sel[GUIDING_SELECTION_CANDIDATES];  // the batch's second moment sum per candidate
 
 // Tree sum of red_a/red_b over the workgroup (fixed order); the result is in [0].
 void reduce2() {
@@ -647,6 +649,95 @@ uint merge_lobes() {
     return merges;
 }
 
+// ---- the learnt guiding probability (selection.h) -----------------------------------------
+// Müller et al. 2019 learn the fraction of BSDF sampling by gradient descent; as in the host
+// field, here a grid of candidates a_j = j / GUIDING_SELECTION_CANDIDATES is scored on the training
+// records: M(a) += C^2 p / (a p_vmm(w) + (1 - a) p_bsdf(w)), the least M wins.
+
+// The prepared mixture's density at x of direction w, as the sampler evaluates it
+// (guiding.glsl guiding_vmm_pdf: with parallax a lobe with a target aims at it from x).
+float mixture_pdf(vec3 x, vec3 w) {
+    float p = 0.0;
+    [[dont_unroll]] for (uint k = 0u; k < e_count; ++k) {
+        vec3 mu = e_mu[k];
+        if (pc.parallax != 0u && s_distance[k] > 0.0) {
+            vec3 to = s_pivot + s_mu[k] * s_distance[k] - x;
+            float len2 = dot(to, to);
+            if (len2 > 1e-12 * s_distance[k] * s_distance[k]) mu = to * inversesqrt(len2);
+        }
+        vec3 d = mu - w;
+        p += exp(e_logwc[k] - 0.5 * e_kappa[k] * dot(d, d));
+    }
+    return p;
+}
+
+// The batch's sums (field.cpp learn_selection, SelectionStats::add) with the mixture just
+// fitted, over its lit samples [0, hi), each at its own position and recorded direction (as
+// the host field scores them). Thread t sums its samples t, t + G, ... into c_g[t K_MAX + j]
+// (free after the EM; K_MAX >= the candidates), then thread j adds candidate j's over the
+// threads in order into s_sel[j]: a fixed order.
+void score_selection(uint hi) {
+    const uint C = GUIDING_SELECTION_CANDIDATES;
+    uint t = gl_LocalInvocationID.x;
+    prepare_lobes();
+    uint base = t * K_MAX;
+    [[dont_unroll]] for (uint j = 0u; j < C; ++j) c_g[base + j] = 0.0;
+    [[dont_unroll]] for (uint i = t; i < hi; i += G) {
+        GuidingSample g = batch_sample(i);
+        float c = g.contribution, p = g.pdf, pb = g.bsdf_pdf;  // pb 0: a delta lobe sampled it
+        if (!(c > 0.0 && p > 0.0 && pb > 0.0) || isinf(c) || isinf(p) || isinf(pb)) continue;
+        float pg = mixture_pdf(g.position, unpack_direction(g.direction));
+        if (!(pg >= 0.0) || isinf(pg)) continue;
+        float c2p = c * c * p;
+        [[dont_unroll]] for (uint j = 0u; j < C; ++j) {
+            float a = float(j) / float(C);
+            c_g[base + j] += c2p / (a * pg + (1.0 - a) * pb);
+        }
+    }
+    barrier();
+    if (t < C) {
+        float m = 0.0;
+        [[dont_unroll]] for (uint u = 0u; u < G; ++u) m += c_g[u * K_MAX + t];
+        s_sel[t] = m;
+    }
+    barrier();
+}
+
+// Region r's probability from its sums (selection.cpp choose_selection): the candidate of
+// least second moment, 0 unless it beats BSDF sampling alone by GUIDING_SELECTION_MARGIN;
+// guiding_prob while nothing was learnt or with adaptive_prob off. Writes the sampler's record
+// and the sums the host's global rule reads (GuidingFitTally). Thread 0.
+void write_selection(uint r) {
+    const uint C = GUIDING_SELECTION_CANDIDATES;
+    float n = states[r].selection_samples, m0 = states[r].selection_moment[0];
+    float prob = pc.prob, bsdf = 0.0, chosen = 0.0;
+    if (pc.adaptive_prob != 0u && n > 0.0 && m0 > 0.0) {
+        uint best = 0u;
+        [[dont_unroll]] for (uint j = 1u; j < C; ++j)
+            if (states[r].selection_moment[j] < states[r].selection_moment[best]) best = j;
+        chosen = states[r].selection_moment[best];
+        if (!(chosen * (1.0 + GUIDING_SELECTION_MARGIN) < m0)) {
+            best = 0u;
+            chosen = m0;
+        }
+        prob = float(best) / float(C);
+        bsdf = m0;
+    }
+    regions[r].prob = prob;
+    tally[r].prob = prob;
+    regions[r].moment_bsdf = n > 0.0 ? bsdf / n : 0.0;
+    regions[r].moment_chosen = n > 0.0 ? chosen / n : 0.0;
+    tally[r].moment_bsdf = bsdf;
+    tally[r].moment_chosen = chosen;
+}
+
+// The tally's counts (write_selection adds its sums). Thread 0.
+void write_tally(uint r, GuidingFitRegion st) {
+    tally[r].received = st.count != 0u ? st.received : 0u;
+    tally[r].samples = st.samples;
+    tally[r].fits = st.fits;
+}
+
 // POSITIONS: workgroup (r, part) sums the positions of one of position_parts equal parts of
 // region r's samples, lit and unlit (a region's samples are many: one workgroup alone would
 // walk them serially); EM adds the parts in order for the pivot.
@@ -710,7 +801,8 @@ void pass_em() {
             st.pending_zero += batch_n - nonzero;
             states[r] = st;
             regions[r].samples = st.samples;
-            tally[r] = GuidingFitTally(st.count != 0u ? st.received : 0u, st.samples, st.fits);
+            write_tally(r, st);
+            write_selection(r);  // guiding_prob until the region learnt its own
         }
         return;
     }
@@ -781,6 +873,7 @@ void pass_em() {
     }
     barrier();
     uint n = s_count;
+    if (pc.adaptive_prob != 0u) score_selection(batch_end);
     // Records: the fit state and what the sampler reads (vmm.cpp write_gpu_lobes).
     if (t < K_MAX) {
         GuidingFitLobe l;
@@ -836,7 +929,13 @@ void pass_em() {
         regions[r].fits = st.fits;
         regions[r].pivot = s_pivot;
         regions[r].samples = st.samples;
-        tally[r] = GuidingFitTally(n != 0u ? st.received : 0u, st.samples, st.fits);
+        if (pc.adaptive_prob != 0u) {  // the earlier batches' sums decay as the statistics do
+            states[r].selection_samples = states[r].selection_samples * pc.decay + total_samples;
+            [[dont_unroll]] for (uint j = 0u; j < GUIDING_SELECTION_CANDIDATES; ++j)
+                states[r].selection_moment[j] = states[r].selection_moment[j] * pc.decay + s_sel[j];
+        }
+        write_tally(r, st);
+        write_selection(r);
     }
 }
 
@@ -845,6 +944,7 @@ void pass_em() {
 // its mixture, records and pivot. Each half keeps half of the statistics and of new_samples;
 // the pending lit samples go to the half holding their position (in order), their unlit count
 // in the same proportion; both start counting received lit samples and their pivot afresh.
+// The learnt probability's sums are halved too (its choice and per-sample moments stay).
 void pass_refine() {
     uint i = gl_WorkGroupID.x;
     uint t = gl_LocalInvocationID.x;
@@ -882,6 +982,13 @@ void pass_refine() {
     st.pending_zero *= fl;
     states[p] = st;
     states[c] = sc;
+    states[p].selection_samples *= 0.5;
+    states[c].selection_samples = states[p].selection_samples;
+    [[dont_unroll]] for (uint j = 0u; j < GUIDING_SELECTION_CANDIDATES; ++j) {
+        float m = 0.5 * states[p].selection_moment[j];
+        states[p].selection_moment[j] = m;
+        states[c].selection_moment[j] = m;
+    }
     GuidingRegion rp = regions[p];
     GuidingRegion rc = rp;
     rp.aabb_max[sp.axis] = sp.plane;
@@ -889,6 +996,8 @@ void pass_refine() {
     regions[p] = rp;
     regions[c] = rc;
     tally[p].received = 0u;
+    tally[p].moment_bsdf *= 0.5;
+    tally[p].moment_chosen *= 0.5;
     tally[c] = tally[p];
 }
 

@@ -30,7 +30,8 @@ void barrier(VkCommandBuffer cmd) {
 
 }  // namespace
 
-DeviceFit::DeviceFit(Context& ctx, uint32_t regions, const FitOptions& o, bool parallax, uint32_t min_samples)
+DeviceFit::DeviceFit(Context& ctx, uint32_t regions, const FitOptions& o, bool parallax, uint32_t min_samples,
+                     float prob, bool adaptive_prob)
     : ctx_(ctx), regions_(regions), capacity_(regions) {
     validate_fit_options(o);
     if (regions < 1 || regions > (1u << 22)) throw std::invalid_argument("device fit: regions must be in [1, 2^22]");
@@ -54,6 +55,8 @@ DeviceFit::DeviceFit(Context& ctx, uint32_t regions, const FitOptions& o, bool p
     push_.merge_threshold = float(o.merge_threshold);
     push_.merge_min_samples = float(o.merge_min_samples);
     push_.parallax = parallax ? 1u : 0u;
+    push_.prob = prob;
+    push_.adaptive_prob = adaptive_prob ? 1u : 0u;
     set_ = std::make_unique<DescriptorSet>(ctx_, GUIDING_FIT_BINDING_COUNT, std::vector<uint32_t>{});
     states_ = Buffer(ctx_, size_t(regions) * sizeof(GuidingFitRegion), kStorageUsage);
     lobes_state_ = Buffer(ctx_, size_t(regions) * GUIDING_MAX_COMPONENTS * sizeof(GuidingFitLobe), kStorageUsage);
@@ -172,9 +175,8 @@ void DeviceFit::record(VkCommandBuffer cmd, uint32_t sample_count) {
 uint32_t DeviceFit::refine(RegionTree& tree, uint32_t threshold, uint32_t max_regions, Buffer& regions,
                            Buffer& lobes) {
     if (tree.size() != regions_) throw std::invalid_argument("device fit: the region tree has other regions");
+    const std::vector<GuidingFitTally>& tally = read_tally();
     if (threshold == 0 || regions_ >= max_regions) return 0;
-    std::vector<GuidingFitTally> tally(regions_);
-    tally_.download(tally.data(), tally.size() * sizeof(GuidingFitTally));
     const double min_extent = 1e-6 * length(tree.root().extent());
     std::vector<GuidingFitSplit> splits;
     for (uint32_t r = 0; r < regions_ && regions_ + splits.size() < max_regions; ++r) {
@@ -239,6 +241,21 @@ uint32_t DeviceFit::refine(RegionTree& tree, uint32_t threshold, uint32_t max_re
     regions_ = count;
     push_.region_count = count;
     return uint32_t(splits.size());
+}
+
+const std::vector<GuidingFitTally>& DeviceFit::read_tally() {
+    tally_read_.resize(regions_);
+    tally_.download(tally_read_.data(), tally_read_.size() * sizeof(GuidingFitTally));
+    double bsdf = 0.0, chosen = 0.0;  // in region order, in double (as the host field's sums)
+    bool sampled = false;             // fitted: a mixture (a child inherits its parent's fits)
+    for (const GuidingFitTally& t : tally_read_) {
+        bsdf += t.moment_bsdf;
+        chosen += t.moment_chosen;
+        sampled = sampled || (t.fits > 0 && t.prob > 0.0f);
+    }
+    pays_ = !push_.adaptive_prob || !(bsdf > 0.0) || chosen * (1.0 + GUIDING_SELECTION_MARGIN) < bsdf;
+    mixture_sampled_ = pays_ && sampled;
+    return tally_read_;
 }
 
 std::vector<GuidingFitRegion> DeviceFit::read_states() const {

@@ -11,7 +11,9 @@
 // lit samples, those of earlier frames kept on the device until then (as the host field's
 // reservoir, without its cap of max_batch: a batch is all of them). Samples without a valid
 // region are dropped (the trace loop sets one).
-// Adaptive refinement (refine()) is split between host and device: the host reads 12 bytes per
+// Each fit also learns its regions' guiding probability (selection.h, as the host field's
+// learn_selection) and writes it into the GuidingRegion records.
+// Adaptive refinement (refine()) is split between host and device: the host reads 32 bytes per
 // region (GuidingFitTally: lit samples received since the region was made), decides the splits
 // by the host field's rule and splits its region tree (the tree, the node buffer and the TLAS
 // stay host-built); the REFINE pass then gives each child its parent's mixture and half of the
@@ -34,8 +36,10 @@ class DeviceFit {
 public:
     // `regions` regions, all untrained; `options` as the host fit's (validated). A region fits
     // once it has min_samples lit samples (guiding_min_samples; more than 2K in any case),
-    // kept across frames until then.
-    DeviceFit(Context& ctx, uint32_t regions, const FitOptions& options, bool parallax, uint32_t min_samples = 1);
+    // kept across frames until then. Its probability of sampling the mixture is `prob`
+    // (guiding_prob) until it learnt its own, always with `adaptive_prob` off.
+    DeviceFit(Context& ctx, uint32_t regions, const FitOptions& options, bool parallax, uint32_t min_samples = 1,
+              float prob = 0.5f, bool adaptive_prob = true);
     // The frame's sample buffer and the records the sampler reads (regions: GuidingRegion[regions],
     // lobes: GuidingLobe[regions * GUIDING_MAX_COMPONENTS]); again whenever one is re-created.
     void bind(const Buffer& samples, const Buffer& regions, const Buffer& lobes);
@@ -50,7 +54,17 @@ public:
     // 1e-6 of the root's diagonal. The splits go to the device (the REFINE pass; submitted and
     // waited for), growing the fit's buffers and `regions`/`lobes` (re-created with a copy and
     // bound: the caller rebinds them elsewhere). Returns the regions split.
+    // Reads the tally first (read_tally()).
     uint32_t refine(RegionTree& tree, uint32_t threshold, uint32_t max_regions, Buffer& regions, Buffer& lobes);
+    // After a record() has completed: reads the regions' tally (refinement's counts and the
+    // learnt probability's sums) and updates guiding_pays().
+    const std::vector<GuidingFitTally>& read_tally();
+    // GuidingField::guiding_pays's rule on the last tally read: with adaptive_prob, whether the
+    // learnt probabilities' second moment summed over the regions beats BSDF sampling alone by
+    // GUIDING_SELECTION_MARGIN (true while nothing was learnt, and with adaptive_prob off).
+    bool guiding_pays() const { return pays_; }
+    // Some region with a mixture samples it (prob > 0) and guiding pays, on the last tally read.
+    bool mixture_sampled() const { return mixture_sampled_; }
     // What children inherited (GuidingFitRegion samples and fits, counted again in each child):
     // the sums over the regions less these are the samples received and the fits run.
     uint64_t inherited_samples() const { return inherited_samples_; }
@@ -74,6 +88,8 @@ private:
     std::unique_ptr<DescriptorSet> set_;
     Buffer states_, lobes_state_, counts_, starts_, sorted_, pending_, scan_partials_, position_parts_;
     Buffer tally_, splits_;  // host-visible: read / written by refine()
+    std::vector<GuidingFitTally> tally_read_;
+    bool pays_ = true, mixture_sampled_ = false;
     uint64_t inherited_samples_ = 0, inherited_fits_ = 0;
     uint32_t block_size_ = 0, block_count_ = 0, scan_tiles_ = 0, sorted_capacity_ = 0, position_parts_count_ = 1;
     size_t samples_bytes_ = 0;

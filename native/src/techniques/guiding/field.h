@@ -97,6 +97,10 @@ public:
     const GuidingParams& params() const { return params_; }
     const FitOptions& fit_options() const { return fit_; }
 
+    // With guiding_adaptive_prob: the learnt probabilities pay for the guided pipeline as a
+    // whole (field.cpp); where they do not, every region's prob is 0.
+    bool guiding_pays() const;
+
 private:
     struct Region {
         VmmState state;
@@ -114,7 +118,6 @@ private:
     void fit_region(uint32_t r);
     void learn_selection(Region& reg);
     double region_prob(const Region& reg, bool pays) const;
-    bool guiding_pays() const;
     void refine(uint32_t r);
     size_t fit_threshold(const Region& reg) const;
 

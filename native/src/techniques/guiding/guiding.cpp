@@ -247,7 +247,8 @@ void Guiding::setup(const GuidingParams& params, const SceneHost& scene, uint64_
     // host's threads (bench/guiding_fit_cost.py).
     if (params_.fit == GUIDING_FIT_DEVICE || (params_.fit == GUIDING_FIT_AUTO && !ctx_.is_cpu())) {
         device_fit_ = std::make_unique<guiding::DeviceFit>(ctx_, uint32_t(field_->region_count()), field_->fit_options(),
-                                                           params_.parallax != 0, params_.min_samples);
+                                                           params_.parallax != 0, params_.min_samples, params_.prob,
+                                                           params_.adaptive_prob != 0);
         device_tree_ = field_->tree();
         device_fit_->bind(samples_, regions_, lobes_);
     }
@@ -344,6 +345,8 @@ void Guiding::fit_frame(DescriptorSet& set, double frame_milliseconds) {
         const auto refine_start = std::chrono::steady_clock::now();
         const uint32_t split =
             device_fit_->refine(device_tree_, params_.region_threshold, params_.max_regions, regions_, lobes_);
+        // refine() read the tally: the learnt probabilities' global rule (GuidingField::guiding_pays).
+        mixture_sampled_ = device_fit_->mixture_sampled();
         if (split) {
             stats_.refinements += split;
             upload_layout(device_tree_);

@@ -14,10 +14,12 @@
 //   the same for every run (deterministic); the last recording frame waits for its own fit,
 //   so that the rest of the image accumulates with the finished field.
 //   With guiding_fit = device the fit is compute passes instead (device_fit.h): no sample
-//   readback or upload; the host field then only provides the initial regions. Adaptive
-//   refinement reads 12 bytes per region back after the fit's passes, splits a copy of the
-//   region tree on the host (node buffer, AABBs and TLAS rebuilt as for the host fit) and
-//   hands the splits to the device (DeviceFit::refine).
+//   readback or upload; the host field then only provides the initial regions. After the
+//   fit's passes 32 bytes per region come back (GuidingFitTally): the learnt probabilities'
+//   sums (their global rule, as the host field's, can drop the guiding pipeline) and the counts
+//   of adaptive refinement, which splits a copy of the region tree on the host (node buffer,
+//   AABBs and TLAS rebuilt as for the host fit) and hands the splits to the device
+//   (DeviceFit::refine).
 // The field survives camera moves, probe changes and guiding being switched off and on; new
 // geometry or lights, the seed or any other guiding setting start it over (configure).
 #pragma once
@@ -67,11 +69,11 @@ public:
     void bind(DescriptorSet& set) const override;
     void write_params(TechniqueParams& params) const override { params.guiding = params_; }
     // Off once training is over where no region samples its mixture (every learnt probability
-    // 0) and no guiding pass is shown: the frames then trace the plain pipeline, at its cost.
-    // (The device fit's probabilities stay on the device: it keeps the bit.)
+    // 0, or they do not pay as a whole) and no guiding pass is shown: the frames then trace the
+    // plain pipeline, at its cost. (The device fit's probabilities stay on the device: its tally
+    // tells, DeviceFit::mixture_sampled.)
     uint32_t spec_bit(bool) const override {
-        return enabled() && (records_render_frames() || device_fit_ || mixture_sampled_ || shows_passes_) ? TECH_GUIDING
-                                                                                                         : 0u;
+        return enabled() && (records_render_frames() || mixture_sampled_ || shows_passes_) ? TECH_GUIDING : 0u;
     }
     void add_shaders(uint32_t bits, PipelineShaders& shaders) const override;
     std::vector<uint32_t> tlas_bindings() const override { return {BINDING_GUIDING_TLAS}; }
@@ -130,7 +132,7 @@ private:
     uint64_t built_layout_ = ~0ull;
     uint32_t training_frames_ = 0;
     uint64_t trained_spp_ = 0;  // samples per pixel of the recording frames
-    bool mixture_sampled_ = false;  // the host field's: some region samples its mixture (prob > 0)
+    bool mixture_sampled_ = false;  // some region samples its mixture (prob > 0; the host field's or the device fit's)
     bool shows_passes_ = false;    // a guiding pass is in the film
     mutable std::future<void> fit_;      // the fit in flight (worker thread), if any
     mutable bool fitted_ = false;        // a finished fit whose mixtures are not uploaded yet

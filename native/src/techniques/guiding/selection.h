@@ -18,8 +18,8 @@
 namespace px::guiding {
 
 // Candidates a_j = j / kSelectionCandidates, j = 0 .. kSelectionCandidates - 1: never 1, so the
-// BSDF keeps covering what the mixture misses.
-constexpr uint32_t kSelectionCandidates = 10;
+// BSDF keeps covering what the mixture misses. (The device fit's too: fit.comp.)
+constexpr uint32_t kSelectionCandidates = GUIDING_SELECTION_CANDIDATES;
 inline double selection_candidate(uint32_t j) { return double(j) / kSelectionCandidates; }
 
 struct SelectionStats {
