@@ -580,6 +580,8 @@ def warm_pipelines(scene, methods, device):
         session.set_params(**{**method_params(method), "max_depth": MAX_DEPTH, "depth_leeway": 0,
                               "ic_prepare_frames": 1})
         session.render(1)  # with ic: one prepare frame (camera + hemisphere + finish pipelines) and a frame
+        session.warm()  # and the pipeline without techniques (guiding leaves for it where it does not pay)
+        pc.wait_for_background_compiles()
 
 
 def spin_up(scene, device, seconds=0.5):

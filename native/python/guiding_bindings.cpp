@@ -237,6 +237,9 @@ nb::dict guiding_mixture_at(const GuidingField& field, nb::ndarray<const double,
     const RegionInfo info = field.region_info(r);
     d["fits"] = info.fits;
     d["prob"] = info.selection.prob;  // the sampler's probability of the mixture there
+    d["nee_prob"] = info.nee_prob;    // and of NEE
+    d["score_bsdf"] = info.selection.score_bsdf;  // the learnt second moments (selection.h)
+    d["score_chosen"] = info.selection.score_chosen;
     d["min"] = nb::make_tuple(b.lo.x, b.lo.y, b.lo.z);
     d["max"] = nb::make_tuple(b.hi.x, b.hi.y, b.hi.z);
     return d;
@@ -313,7 +316,7 @@ void bind_guiding(nb::module_& parent) {
         return owned(std::move(out), {p.shape(0), 3});
     }, "packed"_a);
     m.def("make_samples", [](Doubles positions, Doubles dirs, Doubles pdfs, Doubles weights, Doubles distances,
-                             nb::object regions, nb::object bsdf_pdfs, nb::object contributions) {
+                             nb::object regions, nb::object bsdf_pdfs, nb::object contributions, nb::object nee_lights) {
         const auto d = directions(dirs, "dirs");
         const size_t n = d.size();
         if (rows(positions, 3, "positions") != n || rows(pdfs, 1, "pdfs") != n || rows(weights, 1, "weights") != n ||
@@ -325,16 +328,17 @@ void bind_guiding(nb::module_& parent) {
             if (r.shape(0) != n) throw std::invalid_argument("regions must have one value per sample");
             std::copy(r.data(), r.data() + n, reg.begin());
         }
-        // Optional per-sample values (the learnt selection probability's): 0 where not given.
-        const auto optional = [n](nb::object o, const char* name) {
-            std::vector<double> v(n, 0.0);
+        // Optional per-sample values (the learnt probabilities'): `fallback` where not given.
+        const auto optional = [n](nb::object o, const char* name, double fallback = 0.0) {
+            std::vector<double> v(n, fallback);
             if (o.is_none()) return v;
             Doubles a = nb::cast<Doubles>(o);
             if (rows(a, 1, name) != n) throw std::invalid_argument(std::string(name) + " must have one value per sample");
             std::copy(a.data(), a.data() + n, v.begin());
             return v;
         };
-        const std::vector<double> bsdf = optional(bsdf_pdfs, "bsdf_pdfs"), gained = optional(contributions, "contributions");
+        const std::vector<double> bsdf = optional(bsdf_pdfs, "bsdf_pdfs"), gained = optional(contributions, "contributions"),
+                                  nee = optional(nee_lights, "nee_lights", -1.0);
         std::vector<px::GuidingSample> s(n);
         for (size_t i = 0; i < n; ++i) {
             const double* p = positions.data() + 3 * i;
@@ -346,12 +350,13 @@ void bind_guiding(nb::module_& parent) {
             s[i].distance = float(std::min(distances.data()[i], 1e30));
             s[i].bsdf_pdf = float(bsdf[i]);
             s[i].contribution = float(gained[i]);
+            s[i].nee_light = float(nee[i]);
         }
         std::vector<uint32_t> words(n * kSampleWords);
         copy_bytes(words.data(), s.data(), n * sizeof(px::GuidingSample));
         return owned(std::move(words), {n, kSampleWords});
     }, "positions"_a, "dirs"_a, "pdfs"_a, "weights"_a, "distances"_a, "regions"_a = nb::none(),
-       "bsdf_pdfs"_a = nb::none(), "contributions"_a = nb::none(),
+       "bsdf_pdfs"_a = nb::none(), "contributions"_a = nb::none(), "nee_lights"_a = nb::none(),
        "GuidingSample records (N, 12) uint32 as the trace loop writes them (direction packed).");
 
     nb::class_<FitOptions>(m, "FitOptions")
@@ -427,7 +432,8 @@ void bind_guiding(nb::module_& parent) {
         .def_rw("probe_y", &px::GuidingParams::probe_y)
         .def_rw("lobes_phase", &px::GuidingParams::lobes_phase)
         .def_rw("fit", &px::GuidingParams::fit)
-        .def_rw("adaptive_prob", &px::GuidingParams::adaptive_prob);
+        .def_rw("adaptive_prob", &px::GuidingParams::adaptive_prob)
+        .def_rw("adaptive_nee", &px::GuidingParams::adaptive_nee);
     m.def("validate_params", &px::validate_guiding_params, "params"_a);
 
     nb::class_<GuidingField>(m, "GuidingField")
@@ -492,9 +498,11 @@ void bind_guiding(nb::module_& parent) {
             d["seen"] = i.seen;
             d["components"] = i.components;
             d["fits"] = i.fits;
-            d["prob"] = i.selection.prob;
-            d["moment_bsdf"] = i.selection.moment_bsdf;
-            d["moment_chosen"] = i.selection.moment_chosen;
+            d["prob"] = i.selection.prob;              // the sampler's (0 where guiding does not pay)
+            d["chosen_prob"] = i.region_choice;        // the region's own choice
+            d["score_bsdf"] = i.selection.score_bsdf;
+            d["score_chosen"] = i.selection.score_chosen;
+            d["nee_prob"] = i.nee_prob;
             d["min"] = nb::make_tuple(b.lo.x, b.lo.y, b.lo.z);
             d["max"] = nb::make_tuple(b.hi.x, b.hi.y, b.hi.z);
             return d;
@@ -507,7 +515,7 @@ void bind_guiding(nb::module_& parent) {
             copy_bytes(words.data(), r.data(), words.size() * sizeof(float));
             return owned(std::move(words), {r.size(), kRegionWords});
         }, "GuidingRegion records (R, 16) float32 (lobe_count, fits and samples are uint32 bits; 12: prob, 13, 14: "
-           "moment_bsdf, moment_chosen).")
+           "score_bsdf, score_chosen).")
         .def("lobes", [](const GuidingField& f) {
             std::vector<GuidingLobe> l;
             f.write_lobes(l);
@@ -591,10 +599,11 @@ void bind_guiding(nb::module_& parent) {
             px::GuidingRegion g;
             f.regions.download(&g, sizeof(g), size_t(r) * sizeof(px::GuidingRegion));
             d["prob"] = g.prob;
-            d["moment_bsdf"] = g.moment_bsdf;
-            d["moment_chosen"] = g.moment_chosen;
+            d["score_bsdf"] = g.score_bsdf;
+            d["score_chosen"] = g.score_chosen;
             d["selection_samples"] = s.selection_samples;
-            d["selection_moments"] = std::vector<double>(s.selection_moment, s.selection_moment + px::GUIDING_SELECTION_CANDIDATES);
+            d["selection_weight"] = s.selection_weight;
+            d["selection_scores"] = std::vector<double>(s.selection_score, s.selection_score + px::GUIDING_SELECTION_CANDIDATES);
             const std::vector<px::GuidingFitLobe> l = f.fit->read_lobes();
             double w = 0.0, c = 0.0;
             for (uint32_t k = 0; k < GUIDING_MAX_COMPONENTS; ++k) {

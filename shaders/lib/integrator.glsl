@@ -177,7 +177,7 @@ void trace_pending_shadow(inout PathState ps, inout PathResult res, inout Techni
     bool pending_ray = max3(ps.pending.contribution) > 0.0;
     if (!pending_ray) {
         if (EMPTY_SHADOW_CALLS == 0u) {
-            guiding_shadow_traced(tp.guiding, false, vec3(0.0));
+            guiding_shadow_traced(tp.guiding, false, false, vec3(0.0));
             return;
         }
     }
@@ -196,7 +196,7 @@ void trace_pending_shadow(inout PathState ps, inout PathResult res, inout Techni
         res.radiance += ps.pending.contribution;
         res.shadow_lit++;
     }
-    guiding_shadow_traced(tp.guiding, lit, ps.pending.contribution);
+    guiding_shadow_traced(tp.guiding, pending_ray, lit, ps.pending.contribution);
     ps.pending.contribution = vec3(0.0);
 }
 
@@ -223,11 +223,12 @@ Material select_mix_material(Material head, inout SurfaceHit sh, vec3 wo, inout 
 }
 
 // Weight of emission found by a ray that left a vertex by BSDF sampling (pdf prev_pdf, or
-// delta / a camera ray) and hit an emitter that NEE samples with density light_pdf.
-float emission_weight(bool prev_delta, float prev_pdf, float light_pdf, uint light_samples) {
+// delta / a camera ray) and hit an emitter that NEE samples with density light_pdf, light_rate
+// times at that vertex on average (light samples x the probability of taking NEE there).
+float emission_weight(bool prev_delta, float prev_pdf, float light_pdf, float light_rate) {
     if (METHOD == METHOD_PT || prev_delta) return 1.0;
     if (METHOD == METHOD_NEE) return 0.0;
-    return mis_weight(prev_pdf, float(light_samples) * light_pdf);
+    return mis_weight(prev_pdf, light_rate * light_pdf);
 }
 
 // Cycles' light paths. Scattering events before the path's current vertex, every bounce
@@ -305,6 +306,7 @@ bool emission_stage(inout PathState ps, inout PathResult res, TechniquePath tp, 
     // A split copy re-traces the ray to its vertex, whose emission and NEE are counted.
     float emission_scale = ((opt.skip_first_emission || opt.resume) && res.segments == 1u) ? 0.0 : 1.0;
     bool direct = direct_light(ps, opt, 1u);
+    float light_rate = float(opt.light_samples) * guiding_previous_nee_prob(tp.guiding);
 
     // Analytic lights are not in the TLAS: test them against this segment. As in Cycles they
     // do not occlude (shadow rays ignore them too): every one along the segment adds its
@@ -313,14 +315,14 @@ bool emission_stage(inout PathState ps, inout PathResult res, TechniquePath tp, 
         float t_light, light_pdf;
         vec3 light_radiance;
         if (!analytic_light_hit(i, ps.origin, ps.prev_ng, ps.dir, t_surface, t_light, light_radiance, light_pdf)) continue;
-        res.radiance += clamp_light(ps.throughput * light_radiance * (emission_scale * emission_weight(ps.prev_delta, ps.prev_pdf, light_pdf, opt.light_samples)), direct);
+        res.radiance += clamp_light(ps.throughput * light_radiance * (emission_scale * emission_weight(ps.prev_delta, ps.prev_pdf, light_pdf, light_rate)), direct);
         if (res.segments == 1u) res.first_t = min(res.first_t, t_light);
     }
     if (hit.t < 0.0) {  // escaped
         guiding_escaped(tp.guiding);
         float light_pdf;
         vec3 le = distant_radiance(ps.dir, camera_ray, light_pdf);
-        res.radiance += clamp_light(ps.throughput * le * (emission_scale * emission_weight(ps.prev_delta, ps.prev_pdf, light_pdf, opt.light_samples)), direct);
+        res.radiance += clamp_light(ps.throughput * le * (emission_scale * emission_weight(ps.prev_delta, ps.prev_pdf, light_pdf, light_rate)), direct);
         return false;
     }
 
@@ -339,7 +341,7 @@ bool emission_stage(inout PathState ps, inout PathResult res, TechniquePath tp, 
             uint light = instances[sh.instance].light_offset + sh.primitive;
             lp = triangle_light_pdf(light, ps.origin, ps.prev_ng, hit.t, dot(sh.ng, ps.dir));
         }
-        res.radiance += clamp_light(ps.throughput * mat.emission * emission_weight(ps.prev_delta, ps.prev_pdf, lp, opt.light_samples), direct);
+        res.radiance += clamp_light(ps.throughput * mat.emission * emission_weight(ps.prev_delta, ps.prev_pdf, lp, light_rate), direct);
     }
     return true;
 }
@@ -434,6 +436,9 @@ bool vertex_stage(SurfaceHit sh, Material mat, vec3 dir, float min_ray_pdf, inou
 // path ray (see ShadowRay); the others are traced here.
 void direct_light_stage(inout PathState ps, inout PathResult res, inout TechniquePath tp, PathOptions opt, Vertex v,
                         TechniqueVertex tv, bool last_vertex, inout Rng rng) {
+    // NEE where guiding learnt that it pays (1 elsewhere); taken, it counts 1 / nee_prob.
+    float nee_prob = guiding_nee_prob(tv.guiding, last_vertex);
+    if (nee_prob < 1.0 && rnd(rng) >= nee_prob) return;
     for (uint k = 0u; k < opt.light_samples; ++k) {
         if (k > 0u) trace_pending_shadow(ps, res, tp);  // the previous sample's
         LightSample ls;
@@ -444,8 +449,9 @@ void direct_light_stage(inout PathState ps, inout PathResult res, inout Techniqu
         vec3 f = bsdf_eval(v.surf, v.wo_local, wi_local, bsdf_pdf) * bump_shadowing(v, ls.wi, true);
         if (max3(f) <= 0.0 || max3(ls.radiance) <= 0.0) continue;
         bsdf_pdf = guiding_continuation_pdf(tv.guiding, bsdf_pdf, v.sh.p, ls.wi);
-        float w = (METHOD == METHOD_MIS && !ls.delta && !last_vertex) ? mis_weight(float(opt.light_samples) * ls.pdf, bsdf_pdf) : 1.0;
-        ps.pending.contribution = clamp_light(ps.throughput * f * ls.radiance * (w / (ls.pdf * float(opt.light_samples))),
+        float light_rate = float(opt.light_samples) * nee_prob;
+        float w = (METHOD == METHOD_MIS && !ls.delta && !last_vertex) ? mis_weight(light_rate * ls.pdf, bsdf_pdf) : 1.0;
+        ps.pending.contribution = clamp_light(ps.throughput * f * ls.radiance * (w / (ls.pdf * light_rate)),
                                               direct_light(ps, opt, 0u));
         // Aim the shadow ray from its origin at the sampled point itself (a direction
         // kept from the unmoved point misses grazing lights), stopping short of it.
@@ -499,6 +505,7 @@ bool continuation_stage(inout PathState ps, PathResult res, inout TechniquePath 
     }
     ps.prev_delta = bs.delta;
     ps.prev_pdf = bs.pdf;
+    guiding_continued(tp.guiding, tv.guiding);
     ps.dir = normalize(bs.wi.x * v.tangent + bs.wi.y * v.bitangent + bs.wi.z * v.ns);
     guiding_record(tp.guiding, topt.guiding, tv.guiding, v.sh.p, ps.dir, bs.pdf, bsdf_pdf, bs.delta, res.radiance,
                    ps.throughput);

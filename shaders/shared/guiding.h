@@ -51,6 +51,7 @@ struct GuidingParams {
                                              // GUIDING_MAX_RECORD_PATHS paths)
     uint fit;                                // guiding_fit: GUIDING_FIT_CPU, _DEVICE or _AUTO
     uint adaptive_prob;                      // guiding_adaptive_prob: prob learnt per region
+    uint adaptive_nee;                       // guiding_adaptive_nee: NEE's probability learnt per region
 };
 
 // Training samples: each recording path fills up to GUIDING_PATH_VERTICES slots (its first
@@ -61,10 +62,14 @@ PX_CONST uint GUIDING_MAX_RECORD_PATHS = 1u << 18;
 // reference's 0.3; sharper lobes are left to the BSDF).
 PX_CONST float GUIDING_MIN_ROUGHNESS = 0.3;
 // guiding_adaptive_prob (native/src/techniques/guiding/selection.h): a region samples its
-// mixture only where that lowers the second moment per sample by this much against BSDF
-// sampling alone: a mixture costs its evaluations at every guided vertex, and guiding every
+// mixture only where that puts 1 + this much density on the integrand (geometric mean) against
+// BSDF sampling alone: a mixture costs its evaluations at every guided vertex, and guiding every
 // vertex made a path 1.5x as costly on lavapipe (veach_mis, 160 px), 1.7x on the H200.
 PX_CONST float GUIDING_SELECTION_MARGIN = 0.5;
+// guiding_adaptive_nee (selection.h): NEE in full where it brings this share of the light at a
+// region's vertices, less in proportion below, down to the least probability of NEE.
+PX_CONST float GUIDING_NEE_SHARE = 0.05;
+PX_CONST float GUIDING_NEE_MIN_PROB = 0.1;
 // Its candidates: j / GUIDING_SELECTION_CANDIDATES, j = 0 .. GUIDING_SELECTION_CANDIDATES - 1.
 PX_CONST uint GUIDING_SELECTION_CANDIDATES = 10;
 
@@ -92,9 +97,9 @@ struct GuidingRegion {
     vec3 pivot;       // mean position of the region's samples: where mu and distances refer to
     uint samples;     // training samples received (saturating)
     float prob;       // probability of sampling the mixture (guiding_selection.h; 0: BSDF only)
-    float moment_bsdf;    // the learnt second moments per sample with BSDF sampling alone ...
-    float moment_chosen;  // ... and with prob (Guiding Probability pass, tests)
-    uint reserved;
+    float score_bsdf;    // the learnt scores (mean log density on the integrand) of BSDF sampling alone ...
+    float score_chosen;  // ... and of prob (tests, stats)
+    float nee_prob;   // probability of NEE at its guided vertices (guiding_adaptive_nee; 1: always)
 };
 
 // One node of the region tree (regions.h), in a storage buffer: the shaders find a point's
@@ -118,8 +123,9 @@ struct GuidingSample {
     float distance;   // to the next non-specular vertex; >= GUIDING_DISTANCE_INFINITE: none
     float bsdf_pdf;   // the BSDF's own density of the direction (0: a delta lobe sampled it)
     float contribution;  // luminance the path gained along it (the weight * luminance(throughput) * pdf)
-    uint reserved0;
-    uint reserved1;
+    float nee_light;  // luminance the vertex's shadow ray brought, as with NEE always taken (0:
+                      // blocked; < 0: none traced)
+    uint reserved;
 };
 
 #endif

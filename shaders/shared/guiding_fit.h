@@ -86,10 +86,10 @@ struct GuidingFitRegion {
     uint received;        // lit samples received since the region was made (refinement; saturating)
     // The learnt guiding probability's sums (selection.h SelectionStats), decayed with the
     // mixture's statistics: the samples they stand for (lit and unlit), then per candidate
-    // j / GUIDING_SELECTION_CANDIDATES the second moment sum of C^2 p / p_a.
+    // j / GUIDING_SELECTION_CANDIDATES the score, the sum of (C / p) log p_a, and the sum of C / p.
     float selection_samples;
-    float selection_moment[GUIDING_SELECTION_CANDIDATES];
-    uint reserved0;
+    float selection_score[GUIDING_SELECTION_CANDIDATES];
+    float selection_weight;
     uint reserved1;
 };
 
@@ -100,9 +100,9 @@ struct GuidingFitTally {
     uint samples;   // GuidingFitRegion.samples, fits: a child inherits them (as the host
     uint fits;      // field's records do), so the session's stats subtract them
     float prob;     // GuidingRegion.prob: the sampler's probability of the mixture
-    float moment_bsdf;    // selection_moment[0] (BSDF sampling alone) and that of the chosen
-    float moment_chosen;  // probability; 0 while nothing was learnt or with adaptive_prob off
-    uint reserved1;
+    float score_bsdf;    // selection_score[0] (BSDF sampling alone) and that of the chosen
+    float score_chosen;  // probability; 0 while nothing was learnt or with adaptive_prob off
+    float weight;        // selection_weight
     uint reserved2;
 };
 

@@ -152,25 +152,37 @@ void guiding_sample_options(inout GuidingOptions o, uint s, uint pixel_index, ui
 struct GuidingPath {
     vec4 base;        // luminance of the radiance when each record was sampled
     vec4 norm;        // luminance of the throughput after its sampling weight * pdf
+    vec4 nee;         // what each record's vertex's shadow ray brought, as with NEE always taken (-1: none)
     uint count;
     uint open;        // the record whose next non-specular vertex is not reached yet
     float travelled;  // path length from that record's vertex to this segment's origin
     uint slot;
     uint shadow_record;  // the record sampled at the pending shadow ray's vertex (NO_INDEX: none)
+    float shadow_nee_prob;   // that vertex's probability of NEE
+    float previous_nee_prob; // the probability of NEE at the vertex the path last left by sampling
 };
 
 GuidingPath guiding_path(GuidingOptions o) {
-    return GuidingPath(vec4(0.0), vec4(0.0), 0u, NO_INDEX, 0.0, o.slot * GUIDING_PATH_VERTICES, NO_INDEX);
+    return GuidingPath(vec4(0.0), vec4(0.0), vec4(-1.0), 0u, NO_INDEX, 0.0, o.slot * GUIDING_PATH_VERTICES, NO_INDEX,
+                       1.0, 1.0);
 }
 
-// The pending shadow ray was traced (lit: it reached its light, adding `light`). The record
-// sampled at its vertex (base: the radiance when it was sampled) counts that light as already
-// there: a vertex's own NEE is not light arriving along its sampled direction.
-void guiding_shadow_traced(inout GuidingPath g, bool lit, vec3 light) {
+// The pending shadow ray was traced or not (traced: one was pending; lit: it reached its light,
+// adding `light`). The record sampled at its vertex (base: the radiance when it was sampled)
+// counts that light as already there: a vertex's own NEE is not light arriving along its sampled
+// direction. The record also keeps the light as NEE taken every time would have brought it
+// (the learnt NEE probability's statistics).
+void guiding_shadow_traced(inout GuidingPath g, bool traced, bool lit, vec3 light) {
     if (!USES(TECH_GUIDING)) return;
-    if (lit && g.shadow_record != NO_INDEX) g.base[g.shadow_record] += luminance(light);
+    if (g.shadow_record != NO_INDEX) {
+        if (lit) g.base[g.shadow_record] += luminance(light);
+        if (traced) g.nee[g.shadow_record] = lit ? luminance(light) * g.shadow_nee_prob : 0.0;
+    }
     g.shadow_record = NO_INDEX;
 }
+
+// The probability of NEE at the vertex the path last left (emission MIS weights).
+float guiding_previous_nee_prob(GuidingPath g) { return USES(TECH_GUIDING) ? g.previous_nee_prob : 1.0; }
 
 // The segment escaped: its record keeps the infinite distance.
 void guiding_escaped(GuidingPath g) {
@@ -190,6 +202,7 @@ struct GuidingVertex {
     uint lobes;
     float prob;   // of sampling the mixture (0: none here; learnt per region, GuidingRegion.prob)
     uint first;   // the region's first lobe
+    float nee_prob;  // of taking NEE here (learnt per region, GuidingRegion.nee_prob; MIS only)
 };
 
 GuidingVertex guiding_vertex(inout GuidingPath g, GuidingOptions o, Surface surf, float roughness, bool delta,
@@ -203,15 +216,29 @@ GuidingVertex guiding_vertex(inout GuidingPath g, GuidingOptions o, Surface surf
     v.region = NO_INDEX;
     v.lobes = 0u;
     v.prob = 0.0;
+    v.nee_prob = 1.0;
     if (v.guided) {
         v.region = guiding_region_at(p);
         if (v.region != NO_INDEX) {
             v.lobes = guiding_regions[v.region].lobe_count;
             v.prob = v.lobes > 0u ? guiding_regions[v.region].prob : 0.0;
+            if (METHOD == METHOD_MIS) v.nee_prob = guiding_regions[v.region].nee_prob;
         }
     }
     v.first = v.region * GUIDING_MAX_COMPONENTS;
     return v;
+}
+
+// The probability of NEE at a vertex: the region's where the path goes on (a last vertex has
+// NEE alone, no BSDF sample to share the light with).
+float guiding_nee_prob(GuidingVertex v, bool last_vertex) {
+    return USES(TECH_GUIDING) && !last_vertex ? v.nee_prob : 1.0;
+}
+
+// The path left vertex v by sampling: the emission its next segment finds is weighted against
+// v's NEE, taken with v's probability.
+void guiding_continued(inout GuidingPath g, GuidingVertex v) {
+    if (USES(TECH_GUIDING)) g.previous_nee_prob = v.nee_prob;
 }
 
 // Guided vertex: the continuation's density is the one-sample MIS mixture.
@@ -256,7 +283,8 @@ void guiding_record(inout GuidingPath g, GuidingOptions o, GuidingVertex v, vec3
                     float bsdf_pdf, bool delta, vec3 radiance, vec3 throughput) {
     if (!(USES(TECH_GUIDING) && o.record && v.guided && g.count < GUIDING_PATH_VERTICES)) return;
     guiding_samples[g.slot + g.count] = GuidingSample(p, v.region, guiding_pack_direction(dir), pdf, 0.0,
-                                                      GUIDING_DISTANCE_INFINITE, delta ? 0.0 : bsdf_pdf, 0.0, 0u, 0u);
+                                                      GUIDING_DISTANCE_INFINITE, delta ? 0.0 : bsdf_pdf, 0.0, -1.0, 0u);
+    g.shadow_nee_prob = v.nee_prob;
     g.base[g.count] = luminance(radiance);
     g.norm[g.count] = luminance(throughput) * pdf;
     g.shadow_record = g.count;
@@ -278,6 +306,7 @@ void guiding_path_end(GuidingPath g, vec3 radiance) {
         float gained = max(end - g.base[k], 0.0);
         guiding_samples[g.slot + k].weight = g.norm[k] > 0.0 ? gained / g.norm[k] : 0.0;
         guiding_samples[g.slot + k].contribution = g.norm[k] > 0.0 ? gained : 0.0;
+        guiding_samples[g.slot + k].nee_light = g.nee[k];
     }
 }
 

@@ -116,10 +116,12 @@ def test_unbiased_through_glass(glass_reference, parallax):
     assert_unbiased(tested, reference)
     if parallax:
         # At equal samples, guiding finds the lamp behind the glass far more often: 2.5x less
-        # variance after training, about 2x with the training's samples in the image (0.57 at
-        # 96 spp; asserted with margin).
+        # variance after training at guiding_prob 0.5 everywhere, 0.57x with the training's
+        # samples in the image; 0.67x at the defaults, whose learnt probabilities leave the BSDF
+        # alone in some regions and take a tenth of the (always blocked) shadow rays: less cost
+        # per sample, not less variance (asserted with margin).
         ratio = rel_variance(tested.mean, tested.se) / rel_variance(reference.mean, reference.se)
-        assert ratio < 0.65, ratio
+        assert ratio < 0.8, ratio
 
 
 def test_same_seed_same_image_fit_included():
@@ -356,8 +358,43 @@ def test_guiding_leaves_the_pipeline_where_it_does_not_pay():
     assert mixture["fits"] > 0 and mixture["prob"] == 0.0
     glass, _, after = guided_then_plain(glass_room())
     assert after["guiding_pipeline"] == 1
-    assert glass.guiding_mixture(np.array([0.0, 0.0, 0.01]))["prob"] > 0.0
+    points = ([0.0, 0.0, 0.01], [-1.9, 0.0, 1.2], [1.5, 1.5, 0.01], [0.0, -1.9, 1.0])
+    learnt = [glass.guiding_mixture(np.array(x))["prob"] for x in points]
+    assert max(learnt) > 0.0, learnt  # the regions where the mixture finds the lamp
     _, _, fixed_zero = guided_then_plain(scenes.cornell_box(SIZE, SIZE), guiding_prob=0.0, guiding_adaptive_prob=False)
     assert fixed_zero["guiding_pipeline"] == 0  # probability 0 everywhere: the same
     _, s = trained(scenes.cornell_box(SIZE, SIZE))  # every pass listed (a Session's default)
     assert s.stats()["guiding_pipeline"] == 1
+
+
+def two_lamp_room(size=SIZE):
+    """The glass room with a second, open lamp in a corner: NEE picks either lamp, and only the
+    open one's shadow rays can reach it. The learnt NEE probabilities then lie between the floor
+    (the room's side towards the shell) and 1, and the open lamp is found by NEE and by BSDF
+    sampling alike: MIS weights at a NEE probability below 1 are exercised."""
+    scene = glass_room(size)
+    scene.materials = list(scene.materials) + [
+        scenes.Material("emission", (0.0, 0.0, 0.0), emission=(0.6, 0.8, 1.0), emission_strength=3.0,
+                        name="open_lamp")]
+    scene.meshes = list(scene.meshes) + [scenes.box((-1.5, 1.5, 0.4), 0.4, material=len(scene.materials) - 1,
+                                                   name="open_lamp")]
+    return scene
+
+
+def test_learnt_nee_probability_stays_unbiased():
+    """guiding_adaptive_nee (selection.h choose_nee_prob): regions learn how often NEE pays, and
+    the image stays unbiased against MIS: a NEE taken with probability q counts 1 / q, and the
+    emission BSDF sampling finds is weighted against q times the light's density."""
+    scene = two_lamp_room()
+    spp, per_frame = 96, 4
+    reference = batches(scene, "mis", BATCHES, spp, spp_per_frame=per_frame)
+    tested = batches(scene, "mis", BATCHES, spp, session=reference.session, spp_per_frame=per_frame, **GUIDING)
+    s = tested.session
+    probs = []
+    for x in np.stack(np.meshgrid(np.linspace(-1.9, 1.9, 5), np.linspace(-1.9, 1.9, 5), [0.01, 1.2]), -1).reshape(-1, 3):
+        m = s.guiding_mixture(np.asarray(x, np.float64))
+        if m["fits"] > 0:
+            probs.append(m["nee_prob"])
+    probs = np.array(probs)
+    assert len(probs) > 4 and probs.min() < 1.0, probs  # NEE is thinned somewhere
+    assert_unbiased(tested, reference)

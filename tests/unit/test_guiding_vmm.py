@@ -588,8 +588,8 @@ def test_learnt_guiding_probability(cone_cos, adaptive, expected):
     """guiding_adaptive_prob (selection.h): light from a narrow cone, which BSDF sampling finds
     once in a hundred directions, makes the region sample its mixture; light from everywhere,
     which the BSDF already samples as well as anything can, leaves it to the BSDF (0: no mixture
-    read). The learnt second moments say why: with light from the cone the chosen probability
-    cuts it several times. Without adaptive_prob the region keeps guiding_prob."""
+    read). The learnt scores say why: with light from the cone the mixture puts many times the
+    BSDF's density on it. Without adaptive_prob the region keeps guiding_prob."""
     rng = np.random.default_rng(95)
     f = g.GuidingField(np.zeros(3), np.ones(3), params(region_splits=0, min_samples=200, region_threshold=0,
                                                        parallax=False, adaptive_prob=adaptive))
@@ -602,6 +602,35 @@ def test_learnt_guiding_probability(cone_cos, adaptive, expected):
     assert record[12] == np.float32(info["prob"])  # what the sampler reads
     if expected == "guided":
         assert info["prob"] >= 0.5, info
-        assert info["moment_chosen"] * 3 < info["moment_bsdf"], info
+        # The mixture puts e^gain times the BSDF's density on the light (geometric mean): here
+        # about 60x (the cone is 1/10 of the hemisphere, whose density the BSDF spreads evenly).
+        assert info["score_chosen"] - info["score_bsdf"] > math.log(10.0), info
     else:
         assert info["prob"] == expected, info
+
+
+@pytest.mark.parametrize("nee,adaptive,expected", [(0.0, True, 0.1), (10.0, True, 1.0), (0.02, True, "between"),
+                                                   (0.0, False, 1.0)])
+def test_learnt_nee_probability(nee, adaptive, expected):
+    """guiding_adaptive_nee (selection.h choose_nee_prob): q = NEE's share of the light at the
+    region's vertices / 0.05, clamped to [0.1, 1]. Shadow rays that never reach a light (a lamp
+    behind glass) give the floor; NEE bringing most of the light gives 1; a share of 2% gives a q
+    in between."""
+    rng = np.random.default_rng(96)
+    f = g.GuidingField(np.zeros(3), np.ones(3), params(region_splits=0, min_samples=200, region_threshold=0,
+                                                       parallax=False, adaptive_nee=adaptive))
+    for _ in range(2):
+        recs = hemisphere_records(rng, 20000, 0.9)
+        n = len(recs)
+        # Every vertex traced a shadow ray; a tenth of them (at random) brought light `nee`.
+        light = np.where(rng.random(n) < 0.1, nee, 0.0)
+        words = recs.copy()
+        words[:, 10] = light.astype(np.float32).view(np.uint32)  # GuidingSample.nee_light
+        f.add_samples(words)
+        f.fit()
+    q = f.region_info(0)["nee_prob"]
+    assert f.regions()[0, 15] == np.float32(q)  # GuidingRegion.nee_prob, what the sampler reads
+    if expected == "between":
+        assert 0.1 < q < 1.0, q
+    else:
+        assert q == pytest.approx(expected), q

@@ -572,7 +572,18 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
         if (was_fallback && !fallback_frame_) film_after_fallback_ = true;
     }
     const bool fallback = fallback_frame_;
-    RayTracingPipeline& pipe = fallback ? pipeline_for(fallback_key()) : render_pipeline();
+    PipelineKey key = pipeline_key(camera_program(), true);
+    // A technique that leaves the pipeline between frames (guiding where it does not pay:
+    // Guiding::spec_bit) waits, with background compiles, until the pipeline without it is
+    // compiled: the frames keep the one they had meanwhile, never stalling on a compile.
+    if (!fallback && background_compile_ && rendered_key_) {
+        PipelineKey same_but_bits = *rendered_key_;
+        same_but_bits.second.techniques = key.second.techniques;
+        const bool left = (rendered_key_->second.techniques & ~key.second.techniques) != 0;
+        if (left && same_but_bits == key && !compiled_or_started({key})) key = *rendered_key_;
+    }
+    if (!fallback) rendered_key_ = key;
+    RayTracingPipeline& pipe = fallback ? pipeline_for(fallback_key()) : pipeline_for(key);
     uint32_t completed = 0;
     uint32_t rows_left = frames ? UINT32_MAX : rows;
     bool stop = false;

@@ -11,6 +11,7 @@
 #include <atomic>
 #include <map>
 #include <memory>
+#include <optional>
 #include <mutex>
 
 namespace px {
@@ -208,6 +209,7 @@ private:
     Cursor cursor_;            // progress through the current frame
     std::atomic<bool> background_compile_{false};
     bool fallback_frame_ = false;       // the current frame renders with the techniques off
+    std::optional<PipelineKey> rendered_key_;  // the last render frame's pipeline
     bool film_after_fallback_ = false;  // the film starts over before the next render dispatch
     std::atomic<bool> cancel_{false};
     std::mutex mutex_;         // the scene, film and stats against concurrent render()/read()

@@ -241,7 +241,7 @@ shared vec4 red_a[G];
 shared vec4 red_b[G];
 shared float s_ll, s_mean_w, s_div[K_MAX];
 shared uint s_order[K_MAX], s_order_count, s_splits;
-shared float s_sel[GUIDING_SELECTION_CANDIDATES];  // the batch's second moment sum per candidate
+shared float s_sel[GUIDING_SELECTION_CANDIDATES + 1];  // the batch's score per candidate, then its weight
 
 // Tree sum of red_a/red_b over the workgroup (fixed order); the result is in [0].
 void reduce2() {
@@ -287,7 +287,8 @@ GuidingSample batch_sample(uint j) {
         uint i = s_pend_base + j;
         return GuidingSample(pending_samples[i].position, pending_samples[i].region, pending_samples[i].direction,
                              pending_samples[i].pdf, pending_samples[i].weight, pending_samples[i].distance,
-                             pending_samples[i].bsdf_pdf, pending_samples[i].contribution, 0u, 0u);
+                             pending_samples[i].bsdf_pdf, pending_samples[i].contribution,
+                             pending_samples[i].nee_light, 0u);
     }
     return samples[sorted_index[s_lo + j - s_pend]];
 }
@@ -652,7 +653,7 @@ uint merge_lobes() {
 // ---- the learnt guiding probability (selection.h) -----------------------------------------
 // Müller et al. 2019 learn the fraction of BSDF sampling by gradient descent; as in the host
 // field, here a grid of candidates a_j = j / GUIDING_SELECTION_CANDIDATES is scored on the training
-// records: M(a) += C^2 p / (a p_vmm(w) + (1 - a) p_bsdf(w)), the least M wins.
+// records: S(a) += (C / p) log(a p_vmm(w) + (1 - a) p_bsdf(w)), the largest S wins.
 
 // The prepared mixture's density at x of direction w, as the sampler evaluates it
 // (guiding.glsl guiding_vmm_pdf: with parallax a lobe with a target aims at it from x).
@@ -674,28 +675,29 @@ float mixture_pdf(vec3 x, vec3 w) {
 // The batch's sums (field.cpp learn_selection, SelectionStats::add) with the mixture just
 // fitted, over its lit samples [0, hi), each at its own position and recorded direction (as
 // the host field scores them). Thread t sums its samples t, t + G, ... into c_g[t K_MAX + j]
-// (free after the EM; K_MAX >= the candidates), then thread j adds candidate j's over the
-// threads in order into s_sel[j]: a fixed order.
+// (free after the EM; K_MAX > the candidates; j = the candidates: the weight), then thread j
+// adds column j over the threads in order into s_sel[j]: a fixed order.
 void score_selection(uint hi) {
     const uint C = GUIDING_SELECTION_CANDIDATES;
     uint t = gl_LocalInvocationID.x;
     prepare_lobes();
     uint base = t * K_MAX;
-    [[dont_unroll]] for (uint j = 0u; j < C; ++j) c_g[base + j] = 0.0;
+    [[dont_unroll]] for (uint j = 0u; j <= C; ++j) c_g[base + j] = 0.0;
     [[dont_unroll]] for (uint i = t; i < hi; i += G) {
         GuidingSample g = batch_sample(i);
         float c = g.contribution, p = g.pdf, pb = g.bsdf_pdf;  // pb 0: a delta lobe sampled it
         if (!(c > 0.0 && p > 0.0 && pb > 0.0) || isinf(c) || isinf(p) || isinf(pb)) continue;
         float pg = mixture_pdf(g.position, unpack_direction(g.direction));
         if (!(pg >= 0.0) || isinf(pg)) continue;
-        float c2p = c * c * p;
+        float w = c / p;
         [[dont_unroll]] for (uint j = 0u; j < C; ++j) {
             float a = float(j) / float(C);
-            c_g[base + j] += c2p / (a * pg + (1.0 - a) * pb);
+            c_g[base + j] += w * log(a * pg + (1.0 - a) * pb);
         }
+        c_g[base + C] += w;
     }
     barrier();
-    if (t < C) {
+    if (t <= C) {
         float m = 0.0;
         [[dont_unroll]] for (uint u = 0u; u < G; ++u) m += c_g[u * K_MAX + t];
         s_sel[t] = m;
@@ -704,19 +706,19 @@ void score_selection(uint hi) {
 }
 
 // Region r's probability from its sums (selection.cpp choose_selection): the candidate of
-// least second moment, 0 unless it beats BSDF sampling alone by GUIDING_SELECTION_MARGIN;
+// largest score, 0 unless it gains log(1 + GUIDING_SELECTION_MARGIN) per unit of weight;
 // guiding_prob while nothing was learnt or with adaptive_prob off. Writes the sampler's record
 // and the sums the host's global rule reads (GuidingFitTally). Thread 0.
 void write_selection(uint r) {
     const uint C = GUIDING_SELECTION_CANDIDATES;
-    float n = states[r].selection_samples, m0 = states[r].selection_moment[0];
+    float n = states[r].selection_weight, m0 = states[r].selection_score[0];
     float prob = pc.prob, bsdf = 0.0, chosen = 0.0;
-    if (pc.adaptive_prob != 0u && n > 0.0 && m0 > 0.0) {
+    if (pc.adaptive_prob != 0u && n > 0.0) {
         uint best = 0u;
         [[dont_unroll]] for (uint j = 1u; j < C; ++j)
-            if (states[r].selection_moment[j] < states[r].selection_moment[best]) best = j;
-        chosen = states[r].selection_moment[best];
-        if (!(chosen * (1.0 + GUIDING_SELECTION_MARGIN) < m0)) {
+            if (states[r].selection_score[j] > states[r].selection_score[best]) best = j;
+        chosen = states[r].selection_score[best];
+        if (!(chosen - m0 >= log(1.0 + GUIDING_SELECTION_MARGIN) * n)) {
             best = 0u;
             chosen = m0;
         }
@@ -725,10 +727,11 @@ void write_selection(uint r) {
     }
     regions[r].prob = prob;
     tally[r].prob = prob;
-    regions[r].moment_bsdf = n > 0.0 ? bsdf / n : 0.0;
-    regions[r].moment_chosen = n > 0.0 ? chosen / n : 0.0;
-    tally[r].moment_bsdf = bsdf;
-    tally[r].moment_chosen = chosen;
+    regions[r].score_bsdf = n > 0.0 ? bsdf / n : 0.0;
+    regions[r].score_chosen = n > 0.0 ? chosen / n : 0.0;
+    tally[r].score_bsdf = bsdf;
+    tally[r].score_chosen = chosen;
+    tally[r].weight = n;
 }
 
 // The tally's counts (write_selection adds its sums). Thread 0.
@@ -794,6 +797,7 @@ void pass_em() {
             pending_samples[d].distance = samples[i].distance;
             pending_samples[d].bsdf_pdf = samples[i].bsdf_pdf;
             pending_samples[d].contribution = samples[i].contribution;
+            pending_samples[d].nee_light = samples[i].nee_light;
         }
         barrier();  // every thread has read states[r] before it is written
         if (t == 0u) {
@@ -931,8 +935,9 @@ void pass_em() {
         regions[r].samples = st.samples;
         if (pc.adaptive_prob != 0u) {  // the earlier batches' sums decay as the statistics do
             states[r].selection_samples = states[r].selection_samples * pc.decay + total_samples;
+            states[r].selection_weight = states[r].selection_weight * pc.decay + s_sel[GUIDING_SELECTION_CANDIDATES];
             [[dont_unroll]] for (uint j = 0u; j < GUIDING_SELECTION_CANDIDATES; ++j)
-                states[r].selection_moment[j] = states[r].selection_moment[j] * pc.decay + s_sel[j];
+                states[r].selection_score[j] = states[r].selection_score[j] * pc.decay + s_sel[j];
         }
         write_tally(r, st);
         write_selection(r);
@@ -984,10 +989,12 @@ void pass_refine() {
     states[c] = sc;
     states[p].selection_samples *= 0.5;
     states[c].selection_samples = states[p].selection_samples;
+    states[p].selection_weight *= 0.5;
+    states[c].selection_weight = states[p].selection_weight;
     [[dont_unroll]] for (uint j = 0u; j < GUIDING_SELECTION_CANDIDATES; ++j) {
-        float m = 0.5 * states[p].selection_moment[j];
-        states[p].selection_moment[j] = m;
-        states[c].selection_moment[j] = m;
+        float m = 0.5 * states[p].selection_score[j];
+        states[p].selection_score[j] = m;
+        states[c].selection_score[j] = m;
     }
     GuidingRegion rp = regions[p];
     GuidingRegion rc = rp;
@@ -996,8 +1003,9 @@ void pass_refine() {
     regions[p] = rp;
     regions[c] = rc;
     tally[p].received = 0u;
-    tally[p].moment_bsdf *= 0.5;
-    tally[p].moment_chosen *= 0.5;
+    tally[p].score_bsdf *= 0.5;
+    tally[p].score_chosen *= 0.5;
+    tally[p].weight *= 0.5;
     tally[c] = tally[p];
 }
 

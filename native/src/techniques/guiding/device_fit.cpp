@@ -3,6 +3,7 @@
 #include "shaders_embedded.h"
 
 #include <algorithm>
+#include <cmath>
 #include <map>
 #include <mutex>
 
@@ -246,14 +247,14 @@ uint32_t DeviceFit::refine(RegionTree& tree, uint32_t threshold, uint32_t max_re
 const std::vector<GuidingFitTally>& DeviceFit::read_tally() {
     tally_read_.resize(regions_);
     tally_.download(tally_read_.data(), tally_read_.size() * sizeof(GuidingFitTally));
-    double bsdf = 0.0, chosen = 0.0;  // in region order, in double (as the host field's sums)
+    double gain = 0.0, weight = 0.0;  // in region order, in double (as the host field's sums)
     bool sampled = false;             // fitted: a mixture (a child inherits its parent's fits)
     for (const GuidingFitTally& t : tally_read_) {
-        bsdf += t.moment_bsdf;
-        chosen += t.moment_chosen;
+        gain += double(t.score_chosen) - double(t.score_bsdf);
+        weight += t.weight;
         sampled = sampled || (t.fits > 0 && t.prob > 0.0f);
     }
-    pays_ = !push_.adaptive_prob || !(bsdf > 0.0) || chosen * (1.0 + GUIDING_SELECTION_MARGIN) < bsdf;
+    pays_ = !push_.adaptive_prob || !(weight > 0.0) || gain >= std::log(1.0 + GUIDING_SELECTION_MARGIN) * weight;
     mixture_sampled_ = pays_ && sampled;
     return tally_read_;
 }

@@ -60,7 +60,7 @@ public:
     // learnt probability's sums) and updates guiding_pays().
     const std::vector<GuidingFitTally>& read_tally();
     // GuidingField::guiding_pays's rule on the last tally read: with adaptive_prob, whether the
-    // learnt probabilities' second moment summed over the regions beats BSDF sampling alone by
+    // learnt probabilities' score gained, summed over the regions, beats BSDF sampling alone by
     // GUIDING_SELECTION_MARGIN (true while nothing was learnt, and with adaptive_prob off).
     bool guiding_pays() const { return pays_; }
     // Some region with a mixture samples it (prob > 0) and guiding pays, on the last tally read.

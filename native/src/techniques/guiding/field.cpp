@@ -96,6 +96,7 @@ void GuidingField::add_samples(const GuidingSample* samples, size_t count) {
         reg.position_sum += p;
         reg.position_count += 1.0;
         ++reg.received_total;
+        reg.nee_stats.add(s.contribution, s.nee_light);
         if (s.weight == 0.0f) {
             reg.seen_zero += 1.0;
             continue;
@@ -138,6 +139,10 @@ void GuidingField::fit_region(uint32_t r) {
     reg.last = fit_batch(reg.state, b, fit_);
     if (reg.last.fitted) {
         learn_selection(reg);
+        if (params_.adaptive_nee) {  // from every record since the last fit, older ones decayed
+            reg.nee_prob = choose_nee_prob(reg.nee_stats, GUIDING_NEE_SHARE, GUIDING_NEE_MIN_PROB);
+        }
+        reg.nee_stats.scale(fit_.decay);
         reg.pending.clear();
         reg.seen_nonzero = reg.seen_zero = 0.0;
     }
@@ -157,29 +162,39 @@ void GuidingField::learn_selection(Region& reg) {
         reg.selection_stats.add(t.contribution, t.pdf, t.bsdf_pdf, reg.state.vmm.pdf(w, x, parallax), scale);
     }
     reg.selection_stats.samples += reg.seen_nonzero + reg.seen_zero;
-    reg.selection = choose_selection(reg.selection_stats, GUIDING_SELECTION_MARGIN, params_.prob);
+    reg.selection = choose_selection(reg.selection_stats, GUIDING_SELECTION_MARGIN, params_.prob,
+                                     reg.nee_stats.continuation_share());
 }
 
 // With guiding_adaptive_prob, whether the learnt probabilities pay for the guided pipeline as a
-// whole: its cost (GUIDING_SELECTION_MARGIN) against the second moment they save, summed over
-// the regions (the per-region margin alone left veach_mis guiding one glossy region at 1.3x
-// the cost of every path). Where they do not, no region samples its mixture: the session then
-// traces the plain pipeline (Guiding::spec_bit). True while nothing has been learnt.
+// whole: the score they gain (selection.h), summed over the regions, against its cost
+// (GUIDING_SELECTION_MARGIN; a region that gains alone is not enough where the others lose
+// the pipeline's cost: veach_mis guided one glossy region at 1.3x the cost of every path).
+// Where they do not, no region samples its mixture: the session then traces the plain
+// pipeline (Guiding::spec_bit). True while nothing has been learnt.
 bool GuidingField::guiding_pays() const {
     if (!params_.adaptive_prob) return true;
-    double bsdf = 0.0, chosen = 0.0;
+    double gain = 0.0, weight = 0.0;
     for (const Region& reg : regions_) {
-        bsdf += reg.selection.moment_bsdf * reg.selection_stats.samples;
-        chosen += reg.selection.moment_chosen * reg.selection_stats.samples;
+        gain += reg.selection.gain() * reg.selection.weight;
+        weight += reg.selection.weight;
     }
-    return !(bsdf > 0.0) || chosen * (1.0 + GUIDING_SELECTION_MARGIN) < bsdf;
+    return !(weight > 0.0) || gain >= std::log(1.0 + GUIDING_SELECTION_MARGIN) * weight;
+}
+
+bool GuidingField::guides() const {
+    const bool pays = guiding_pays();
+    for (const Region& reg : regions_)
+        if ((reg.state.vmm.count > 0 && region_prob(reg, pays) > 0.0) || (params_.adaptive_nee && reg.nee_prob < 1.0))
+            return true;
+    return false;
 }
 
 // The sampler's probability of the mixture: guiding_prob until the region has learnt its own.
 double GuidingField::region_prob(const Region& reg, bool pays) const {
     if (!params_.adaptive_prob) return params_.prob;
     if (!pays) return 0.0;
-    return reg.selection_stats.samples > 0.0 ? reg.selection.prob : params_.prob;
+    return reg.selection_stats.weight > 0.0 ? reg.selection.prob : params_.prob;
 }
 
 void GuidingField::refine(uint32_t r) {
@@ -193,6 +208,9 @@ void GuidingField::refine(uint32_t r) {
     child.received_total = parent.received_total;
     child.selection_stats = parent.selection_stats;
     child.selection = parent.selection;
+    parent.nee_stats.scale(0.5);
+    child.nee_stats = parent.nee_stats;
+    child.nee_prob = parent.nee_prob;
     std::vector<TrainingSample> lower, upper;
     for (const TrainingSample& t : parent.pending)
         (tree_.lookup(Vec3(t.position[0], t.position[1], t.position[2])) == u ? upper : lower).push_back(t);
@@ -270,7 +288,9 @@ RegionInfo GuidingField::region_info(uint32_t r) const {
     i.components = reg.state.vmm.count;
     i.fits = reg.state.fits;
     i.selection = reg.selection;
+    i.region_choice = region_prob(reg, true);
     i.selection.prob = region_prob(reg, guiding_pays());
+    i.nee_prob = params_.adaptive_nee ? reg.nee_prob : 1.0;
     return i;
 }
 
@@ -289,8 +309,9 @@ void GuidingField::write_regions(std::vector<GuidingRegion>& out) const {
         g.pivot = {float(p.x), float(p.y), float(p.z)};
         g.samples = uint32_t(std::min<uint64_t>(reg.received_total, 0xffffffffu));
         g.prob = float(region_prob(reg, pays));
-        g.moment_bsdf = float(reg.selection.moment_bsdf);
-        g.moment_chosen = float(reg.selection.moment_chosen);
+        g.nee_prob = params_.adaptive_nee ? float(reg.nee_prob) : 1.0f;
+        g.score_bsdf = float(reg.selection.score_bsdf);
+        g.score_chosen = float(reg.selection.score_chosen);
     }
 }
 

@@ -49,6 +49,8 @@ struct RegionInfo {
     uint32_t components = 0;
     uint32_t fits = 0;
     Selection selection;    // the learnt guiding probability (guiding_adaptive_prob)
+    double nee_prob = 1.0;  // the learnt probability of NEE (guiding_adaptive_nee)
+    double region_choice = 0.0;  // the probability the region chose (selection.prob is the sampler's)
 };
 
 class GuidingField {
@@ -100,6 +102,9 @@ public:
     // With guiding_adaptive_prob: the learnt probabilities pay for the guided pipeline as a
     // whole (field.cpp); where they do not, every region's prob is 0.
     bool guiding_pays() const;
+    // Some region samples its mixture or takes NEE with a probability below 1: the frames need
+    // the guided pipeline.
+    bool guides() const;
 
 private:
     struct Region {
@@ -113,6 +118,8 @@ private:
         FitReport last;
         SelectionStats selection_stats;  // guiding_adaptive_prob: decayed with the mixture's statistics
         Selection selection;             // chosen after the last fit
+        NeeStats nee_stats;              // guiding_adaptive_nee: every record since the last fit ...
+        double nee_prob = 1.0;           // ... and NEE's probability chosen then
     };
     Region make_region(uint32_t r) const;
     void fit_region(uint32_t r);

@@ -77,6 +77,10 @@ const SettingTable& guiding_table() {
                          "Each region learns its guiding probability from the training samples: the one of least "
                          "variance, 0 (BSDF sampling alone, no mixture evaluated) where guiding does not pay for "
                          "itself", "guiding"),
+            bool_setting("guiding_adaptive_nee", PX_FIELD(GuidingParams, adaptive_nee), true, "Adaptive NEE",
+                         "With MIS, each region learns how often to take next event estimation: less where its "
+                         "shadow rays rarely reach a light (a lamp behind glass), at least 1 in 10; MIS weights "
+                         "account for it (host fit)", "guiding"),
             bool_setting("guiding_parallax", PX_FIELD(GuidingParams, parallax), true, "Parallax",
                          "Each lobe aims at the point its light came from, so one region's mixture points the right "
                          "way from anywhere in it (Ruppert et al. 2020)", "guiding"),
@@ -274,8 +278,7 @@ void Guiding::upload(DescriptorSet* set) {
         lobes_ = Buffer(ctx_, n * GUIDING_MAX_COMPONENTS * sizeof(GuidingLobe), kStorageUsage);
     }
     regions_.upload(regions.data(), n * sizeof(GuidingRegion));
-    mixture_sampled_ = false;
-    for (const GuidingRegion& g : regions) mixture_sampled_ = mixture_sampled_ || (g.lobe_count > 0 && g.prob > 0.0f);
+    mixture_sampled_ = field_->guides();
     lobes_.upload(lobes.data(), lobes.size() * sizeof(GuidingLobe));
     if (field_->layout_version() != built_layout_) {
         upload_layout(field_->tree());

@@ -69,8 +69,8 @@ public:
     void bind(DescriptorSet& set) const override;
     void write_params(TechniqueParams& params) const override { params.guiding = params_; }
     // Off once training is over where no region samples its mixture (every learnt probability
-    // 0, or they do not pay as a whole) and no guiding pass is shown: the frames then trace the
-    // plain pipeline, at its cost. (The device fit's probabilities stay on the device: its tally
+    // 0, or they do not pay as a whole) or takes NEE less often, and no guiding pass is shown:
+    // the frames then trace the plain pipeline, at its cost. (The device fit's probabilities stay on the device: its tally
     // tells, DeviceFit::mixture_sampled.)
     uint32_t spec_bit(bool) const override {
         return enabled() && (records_render_frames() || mixture_sampled_ || shows_passes_) ? TECH_GUIDING : 0u;
