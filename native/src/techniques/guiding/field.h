@@ -119,7 +119,8 @@ private:
         SelectionStats selection_stats;  // guiding_adaptive_prob: decayed with the mixture's statistics
         Selection selection;             // chosen after the last fit
         NeeStats nee_stats;              // guiding_adaptive_nee: every record since the last fit ...
-        double nee_prob = 1.0;           // ... and NEE's probability chosen then
+        double nee_prob = 1.0;           // ... and NEE's probability chosen then, from this many records
+        double nee_records = 0.0;
     };
     Region make_region(uint32_t r) const;
     void fit_region(uint32_t r);

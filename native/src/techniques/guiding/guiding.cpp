@@ -78,9 +78,9 @@ const SettingTable& guiding_table() {
                          "variance, 0 (BSDF sampling alone, no mixture evaluated) where guiding does not pay for "
                          "itself", "guiding"),
             bool_setting("guiding_adaptive_nee", PX_FIELD(GuidingParams, adaptive_nee), true, "Adaptive NEE",
-                         "With MIS, each region learns how often to take next event estimation: less where its "
-                         "shadow rays rarely reach a light (a lamp behind glass), at least 1 in 10; MIS weights "
-                         "account for it (host fit)", "guiding"),
+                         "With MIS, each region learns how often to take next event estimation: less where NEE "
+                         "brings little of the light (a lamp behind glass), at least 1 in 10; MIS weights account "
+                         "for it (CPU fit)", "guiding"),
             bool_setting("guiding_parallax", PX_FIELD(GuidingParams, parallax), true, "Parallax",
                          "Each lobe aims at the point its light came from, so one region's mixture points the right "
                          "way from anywhere in it (Ruppert et al. 2020)", "guiding"),
