@@ -78,7 +78,7 @@ MAX_DEPTH = 8  # Cycles' Max Bounces in every scene; Parallax with no discrete l
 # shadow rays all fail, and plain path tracing converges fastest to the same image.
 REFERENCE_METHOD = {"clocks": "pt", "light_behind_glass": "pt"}
 QUICK = dict(width=64, seconds=3.0, reference_seconds=20.0)  # --quick: a smoke run, numbers not meant
-REFERENCE_SEED = 7919  # the compared runs use seed 0
+REFERENCE_SEED = 7919  # the compared runs use seed 0 (--seed)
 # The rows of the clean method and peer (bench/clean_goal.py reads them by these names).
 CLEAN_ROWS = {"mis_clean": "Parallax mis_clean", "cycles_clean": "Cycles (F12 defaults)"}
 NO_SAMPLE_CAP = 1 << 20  # Cycles' samples for the timed runs: time decides
@@ -737,8 +737,9 @@ def _slug(label):
 def run(scenes=SCENES, seconds=120.0, device="auto", methods=("pt", "nee", "mis"),
         peers=("cycles", "cycles_guiding", "mitsuba"), width=320, reference_seconds=None,
         npz_dir=None, out=None, reference_dir=os.path.join(HERE, "references"), append=False, warm=False,
-        clean_checkpoints=None):
-    """Runs the comparison; returns {scene: [row, ...]} (rows without images). With `append`,
+        clean_checkpoints=None, seed=0):
+    """Runs the comparison (Parallax's runs with `seed`; the issue's goals take the median of
+    three); returns {scene: [row, ...]} (rows without images). With `append`,
     rows of renderers not run now are kept from the earlier results.json in `out` (their
     images from out/raw/, their final relMSE against the reference of this run: `--methods ,
     --peers "" --append` rescores a run against a new reference). `clean_checkpoints`: the
@@ -785,7 +786,7 @@ def run(scenes=SCENES, seconds=120.0, device="auto", methods=("pt", "nee", "mis"
                 rows.append(dict(renderer=CLEAN_ROWS["mis_clean"], image=image, spp=spp, seconds=used, curve=curve,
                                  info=info, checkpoints=points))
                 continue
-            image, spp, used, curve, info = render_parallax(scene, method, seconds, device, reference, label)
+            image, spp, used, curve, info = render_parallax(scene, method, seconds, device, reference, label, seed=seed)
             rows.append(dict(renderer=f"Parallax {method}", image=image, spp=spp, seconds=used, curve=curve,
                              **({"ic": info} if method in ("ic", "adrrs") else {}), info=info))
         for peer in peers:
@@ -851,6 +852,7 @@ def main(argv=None):
     p.add_argument("--export-only", action="store_true")
     p.add_argument("--append", action="store_true", help="keep earlier rows of renderers not run now")
     p.add_argument("--out", help="default: bench/results/<cpu|gpu>[_thesis][_quick]")
+    p.add_argument("--seed", type=int, default=0, help="Parallax's seed (not the reference's, 7919)")
     p.add_argument("--warm", action="store_true",
                    help="compile every method's pipelines before the timed runs (start-up then excludes compiling), "
                         "and keep the device busy for 0.5 s before each (a GPU's clocks drop when it idles)")
@@ -897,7 +899,8 @@ def main(argv=None):
         kind = device_kind(a.device)[0]
         out = os.path.join(HERE, "results", kind + ("_thesis" if thesis else "") + ("_quick" if a.quick else ""))
     results = run(scenes, a.seconds, a.device, methods, [x for x in a.peers.split(",") if x],
-                  a.width, a.reference_seconds, a.npz, out, append=a.append, warm=a.warm, clean_checkpoints=marks)
+                  a.width, a.reference_seconds, a.npz, out, append=a.append, warm=a.warm, clean_checkpoints=marks,
+                  seed=a.seed)
     for name, rows in results.items():
         print(f"\n{name}")
         for row in sorted(rows, key=lambda r: r["rel_mse"]):

@@ -262,3 +262,26 @@ def test_clean_rows_smoke(tmp_path):
     assert "| checkpoint (s) |" in (tmp_path / "cornell_box.md").read_text()
     goal = Path(clean_goal.write_goal(str(tmp_path / "results.json"))).read_text()
     assert "| cornell_box | 0.5 |" in goal and "| cornell_box | 1 |" in goal
+
+
+def test_guiding_goal_table():
+    """bench.guiding_goal: guiding_auto against the best unguided method, the median over seeds;
+    the glass-lit scenes need 4x, the others never more than 1.1x."""
+    from bench import guiding_goal
+
+    def run(auto_box, auto_clocks, pipeline):
+        return {"scenes": {
+            "cornell_box": [dict(renderer="Parallax mis", rel_mse=1.0), dict(renderer="Parallax pt", rel_mse=9.0),
+                            dict(renderer="Parallax guiding_auto", rel_mse=auto_box,
+                                 info=dict(guiding_pipeline=pipeline))],
+            "clocks": [dict(renderer="Parallax pt", rel_mse=4.0), dict(renderer="Parallax mis", rel_mse=11.0),
+                       dict(renderer="Parallax guiding_auto", rel_mse=auto_clocks, info=dict(guiding_pipeline=1))],
+            "veach_mis": [dict(renderer="Parallax guiding_auto", rel_mse=1.0)],  # nothing to compare: left out
+        }}
+
+    text = guiding_goal.table([run(1.05, 2.0, 0), run(1.3, 0.9, 0), run(1.0, 0.8, 1)])
+    assert "| cornell_box | 1.05 | mis 1 | 1.05 | holds | off/off/on | 3 |" in text
+    assert "| clocks | 0.9 | pt 4 | 0.23 | holds | on/on/on | 3 |" in text
+    assert "veach_mis" not in text
+    assert "misses (<= 1.1)" in guiding_goal.table([run(1.2, 0.9, 0)])
+    assert "misses (<= 0.25)" in guiding_goal.table([run(1.0, 2.0, 0)])
