@@ -140,7 +140,7 @@ def test_same_seed_same_image_fit_included():
 
 def test_camera_moves_keep_the_field_and_edits_remake_it():
     scene = glass_room()
-    _, s = trained(scene)
+    _, s = trained(scene, **FIXED)
     trained_stats = s.stats()
     assert trained_stats["guiding_training_frames"] == GUIDING["guiding_training_spp"]
     assert trained_stats["guiding_lobes"] > 0 and trained_stats["samples"] == GUIDING["guiding_training_spp"]
@@ -270,7 +270,7 @@ def test_animated_lobes_move_the_spheres_and_keep_the_field():
     regions, each coloured by its mixture where it is; the field is only viewed, never retrained,
     and the same phase gives the same picture again."""
     scene = glass_room()
-    s = trained_passes(scene)
+    s = trained_passes(scene, **FIXED)
     trained_stats = s.stats()
     centre = s.read("guiding_lobes")
     assert centre[: SIZE - SIZE // 6].max() > 0.1  # spheres in view above the inset
