@@ -74,9 +74,9 @@ const SettingTable& guiding_table() {
                           "MIS of the two); with Adaptive Probability, where a region has not learnt its own yet",
                           "guiding"),
             bool_setting("guiding_adaptive_prob", PX_FIELD(GuidingParams, adaptive_prob), true, "Adaptive Probability",
-                         "Each region learns its guiding probability from the training samples: the one of least "
-                         "variance, 0 (BSDF sampling alone, no mixture evaluated) where guiding does not pay for "
-                         "itself", "guiding"),
+                         "Each region learns its guiding probability from the training samples: the mix of mixture "
+                         "and BSDF that best fits the light it receives, 0 (BSDF sampling alone, no mixture "
+                         "evaluated) where guiding does not pay for itself", "guiding"),
             bool_setting("guiding_adaptive_nee", PX_FIELD(GuidingParams, adaptive_nee), true, "Adaptive NEE",
                          "With MIS, each region learns how often to take next event estimation: less where NEE "
                          "brings little of the light (a lamp behind glass), at least 1 in 10; MIS weights account "

@@ -68,10 +68,9 @@ public:
     bool enabled() const override { return params_.enabled != 0; }
     void bind(DescriptorSet& set) const override;
     void write_params(TechniqueParams& params) const override { params.guiding = params_; }
-    // Off once training is over where no region samples its mixture (every learnt probability
-    // 0, or they do not pay as a whole) or takes NEE less often, and no guiding pass is shown:
-    // the frames then trace the plain pipeline, at its cost. (The device fit's probabilities stay on the device: its tally
-    // tells, DeviceFit::mixture_sampled.)
+    // Off once training is over where the field does not guide (mixture_sampled_) and no
+    // guiding pass is shown: the frames then trace the plain pipeline, at its cost. (The device
+    // fit's probabilities stay on the device: its tally tells, DeviceFit::mixture_sampled.)
     uint32_t spec_bit(bool) const override {
         return enabled() && (records_render_frames() || mixture_sampled_ || shows_passes_) ? TECH_GUIDING : 0u;
     }
@@ -132,7 +131,9 @@ private:
     uint64_t built_layout_ = ~0ull;
     uint32_t training_frames_ = 0;
     uint64_t trained_spp_ = 0;  // samples per pixel of the recording frames
-    bool mixture_sampled_ = false;  // some region samples its mixture (prob > 0; the host field's or the device fit's)
+    // The field guides: some region samples its mixture (prob > 0; the host field's or the device
+    // fit's) or thins NEE where most vertices are (GuidingField::guides).
+    bool mixture_sampled_ = false;
     bool shows_passes_ = false;    // a guiding pass is in the film
     mutable std::future<void> fit_;      // the fit in flight (worker thread), if any
     mutable bool fitted_ = false;        // a finished fit whose mixtures are not uploaded yet
