@@ -1,4 +1,5 @@
 #include "techniques/guiding/device_fit.h"
+#include "techniques/guiding/selection.h"
 
 #include "shaders_embedded.h"
 
@@ -254,7 +255,7 @@ const std::vector<GuidingFitTally>& DeviceFit::read_tally() {
         weight += t.weight;
         sampled = sampled || (t.fits > 0 && t.prob > 0.0f);
     }
-    pays_ = !push_.adaptive_prob || !(weight > 0.0) || gain >= std::log(1.0 + GUIDING_SELECTION_MARGIN) * weight;
+    pays_ = !push_.adaptive_prob || selection_pays(gain, weight, GUIDING_SELECTION_MARGIN);
     mixture_sampled_ = pays_ && sampled;
     return tally_read_;
 }

@@ -180,7 +180,7 @@ bool GuidingField::guiding_pays() const {
         gain += reg.selection.gain() * reg.selection.weight;
         weight += reg.selection.weight;
     }
-    return !(weight > 0.0) || gain >= std::log(1.0 + GUIDING_SELECTION_MARGIN) * weight;
+    return selection_pays(gain, weight, GUIDING_SELECTION_MARGIN);
 }
 
 // Whether the frames need the guided pipeline: some region samples its mixture, or NEE is

@@ -19,6 +19,7 @@
 #include "techniques/guiding/vmm.h"
 
 #include <array>
+#include <cmath>
 
 namespace px::guiding {
 
@@ -51,6 +52,12 @@ struct Selection {
 // plates: gains of 0.5-1.9 nats, and guiding lost 1.4x at equal time) a gain counts that much
 // less. `fallback` where the stats hold nothing.
 Selection choose_selection(const SelectionStats& s, double margin, double fallback, double share = 1.0);
+
+// The global rule (GuidingField::guiding_pays, DeviceFit::guiding_pays): the regions' gains
+// summed with their weights reach log(1 + margin) per unit of weight; true with no weight yet.
+inline bool selection_pays(double weighted_gain, double weight, double margin) {
+    return !(weight > 0.0) || weighted_gain >= std::log(1.0 + margin) * weight;
+}
 
 // NEE's probability learnt per region (guiding_adaptive_nee; issue 35, "learn where NEE pays"):
 // NEE is taken with probability q (its light then counts 1 / q; MIS weights use q times the
