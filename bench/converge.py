@@ -66,7 +66,7 @@ THESIS_SUITE = ("atrium", "thesis_veach_mis", "cornell_dielectric", "clocks", "t
 # guiding_auto: MIS + path guiding at every guiding default (the row issue 35's goal is judged on).
 # mis_adaptive: MIS with adaptive sampling at its defaults (Cycles'; every other method: off).
 # mis_clean: F12's defaults (adaptive sampling and denoising on), the path length pinned.
-METHODS = ("pt", "nee", "mis", "ic", "ic_noupdate", "adrrs", "guiding", "guiding_pt", "guiding_noparallax",
+METHODS = ("pt", "nee", "mis", "ic", "ic_noupdate", "adrrs", "ears", "guiding", "guiding_pt", "guiding_noparallax",
            "guiding_device", "guiding_pt_device", "guiding_auto", "mis_adaptive", "mis_clean")
 # cycles_clean: Cycles with its F12 defaults (adaptive sampling, OIDN), the path length pinned.
 PEERS = ("cycles", "cycles_guiding", "cycles_clean", "mitsuba")
@@ -259,7 +259,7 @@ def method_params(method):
 
 
 def _method_params(method):
-    off = dict(ic=False, adrrs=False, guiding=False, guiding_parallax=True, guiding_training_spp=32,
+    off = dict(ic=False, rrs="off", guiding=False, guiding_parallax=True, guiding_training_spp=32,
                use_adaptive_sampling=False)
     if method == "mis_adaptive":
         import parallax_core as pc
@@ -267,8 +267,8 @@ def _method_params(method):
         defaults = pc.RenderParams()
         return dict(off, method="mis", use_adaptive_sampling=True, adaptive_threshold=defaults.adaptive_threshold,
                     adaptive_min_samples=defaults.adaptive_min_samples)
-    if method == "adrrs":
-        return dict(off, method="mis", adrrs=True)
+    if method in ("adrrs", "ears"):  # MIS with the RRS method of that name
+        return dict(off, method="mis", rrs=method)
     if method == "guiding_auto":  # exactly guiding's defaults (training, fit, probability)
         return dict({k: v for k, v in off.items() if not k.startswith("guiding_")}, method="mis", guiding=True)
     if method.startswith("guiding"):
@@ -307,11 +307,11 @@ def render_parallax(scene, method, seconds, device, reference, label, seed=0):
     # reports, ADRRS' splits; mis_clean: what its denoiser reads as well). A technique that
     # shows no pass of its own may leave the pipeline once it stops paying.
     if method != "mis_clean":
-        session.passes = ["combined", "ray_depth"] + (["adrrs_splits"] if method == "adrrs" else [])
+        session.passes = ["combined", "ray_depth"] + (["adrrs_splits"] if method in ("adrrs", "ears") else [])
     params = dict(method_params(method), samples_per_frame=1, max_depth=MAX_DEPTH, depth_leeway=0, seed=seed)
     # Cache prepare, ADRRS estimate and guiding training frames first.
-    prepares = params["ic"] or params["adrrs"] or params["guiding"]
-    sizing = dict(params, method="mis", ic=False, adrrs=False, guiding=False) if prepares else params
+    prepares = params["ic"] or params["rrs"] != "off" or params["guiding"]
+    sizing = dict(params, method="mis", ic=False, rrs="off", guiding=False) if prepares else params
     session.set_params(**sizing)
     session.update(scene)
     session.render(1)
@@ -369,8 +369,8 @@ def render_parallax(scene, method, seconds, device, reference, label, seed=0):
     if reference is not None and (not curve or curve[-1][0] < used - 1e-3):
         curve.append((used, rel_mse(image, reference)))
     info.update({k: (round(v, 3) if isinstance(v, float) else v) for k, v in stats.items()
-                 if k.startswith(("ic_", "adrrs_", "guiding_")) or k in ("frames", "rays")} if prepares else {})
-    if params["adrrs"]:
+                 if k.startswith(("ic_", "adrrs_", "ears_", "guiding_")) or k in ("frames", "rays")} if prepares else {})
+    if params["rrs"] != "off":
         info["adrrs_splits_per_sample"] = round(float(session.read("adrrs_splits").mean()), 4)
     info["ray_depth"] = round(float(session.read("ray_depth").mean()), 3)
     return image, spp, used, curve, info

@@ -14,13 +14,18 @@ debs=${PX_DEBS:-$(cd "$(dirname "$0")/.." && pwd)/.gl}
 python=${PX_PYTHON:-python3}
 vulkan=()
 if compgen -G "$debs/*.deb" >/dev/null; then
-  for f in "$debs"/*.deb; do dpkg -x "$f" /; done
-  ldconfig
-  rm -rf /tmp/pxdeps && mkdir -p /tmp/pxdeps
-  for f in "$debs"/extra/*.deb; do dpkg -x "$f" /tmp/pxdeps; done
-  export PATH=/tmp/pxdeps/usr/bin:$PATH
+  # The loader goes into / once; headers and glslang into a folder per build, so that several
+  # builds can run side by side.
+  if ! ldconfig -p | grep -q "libvulkan.so.1 "; then
+    for f in "$debs"/*.deb; do dpkg -x "$f" /; done
+    ldconfig
+  fi
+  deps=/tmp/pxdeps-$tag
+  rm -rf "$deps" && mkdir -p "$deps"
+  for f in "$debs"/extra/*.deb; do dpkg -x "$f" "$deps"; done
+  export PATH=$deps/usr/bin:$PATH
   loader=$(ldconfig -p | awk '/libvulkan.so.1 /{print $NF; exit}')
-  vulkan=(-DVulkan_INCLUDE_DIR=/tmp/pxdeps/usr/include -DVulkan_LIBRARY="$loader")
+  vulkan=(-DVulkan_INCLUDE_DIR=$deps/usr/include -DVulkan_LIBRARY="$loader")
 fi
 cmake -S "$root" -B /tmp/pxbuild-$tag -DCMAKE_BUILD_TYPE=Release -DPython_EXECUTABLE="$(command -v "$python")" \
   "${vulkan[@]}" >/tmp/pxbuild-$tag.log 2>&1 || { cat /tmp/pxbuild-$tag.log >&2; exit 1; }

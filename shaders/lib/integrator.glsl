@@ -545,6 +545,7 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         // warp skips this call alike (an empty call there cost the H200 a quarter of its rays,
         // bench/results/shadow_calls_h200).
         if (res.segments > 0u) trace_pending_shadow(ps, res, tp);
+        ears_continuation_start(tp.ears, res.radiance, res.rays);
         hit.instance = ps.self_instance;
         hit.primitive = ps.self_primitive;
         traceRayEXT(tlas, surface_ray_flags(ps.self_instance), 0xff, 0, 0, MISS_SCENE, ps.origin, ps.t_min, ps.dir, ps.t_max, 0);
@@ -570,13 +571,14 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         if (tv.last) break;
         // ADRRS may roulette or split the continuation in place of the throughput roulette.
         bool killed;
-        bool adrrs_decided = adrrs_continuation(topt.adrrs, tv.ic, v, ps, res.segments, opt.from_camera && res.segments == 1u,
-                                                rng, killed);
+        bool adrrs_decided = adrrs_continuation(topt.adrrs, tv.ic, v, ps, tp.ears, res.segments,
+                                                opt.from_camera && res.segments == 1u, rng, killed);
         if (killed) break;
         if (!continuation_stage(ps, res, tp, opt, topt, v, tv, rng)) break;
         if (!adrrs_decided && !roulette_stage(ps, opt, rng)) break;
     }
     trace_pending_shadow(ps, res, tp);
     guiding_path_end(tp.guiding, res.radiance);
+    ears_path_end(tp.ears, res.radiance, res.rays, rng);
     return res;
 }

@@ -16,6 +16,9 @@
 PX_CONST uint TECH_IC = 1u << 0;     // the irradiance cache exists (built for shading or for ADRRS)
 PX_CONST uint TECH_ADRRS = 1u << 1;  // adjoint-driven Russian roulette and splitting
 PX_CONST uint TECH_GUIDING = 1u << 2;  // path guiding (region tree, VMM sampling, training samples)
+// Efficiency-aware RR and splitting (EARS): with TECH_ADRRS, whose pixel estimate and split
+// queue it shares, the factors come from EARS' learnt statistics instead of the adjoint window.
+PX_CONST uint TECH_EARS = 1u << 3;
 
 // Programs: which ray-generation shader a ray-tracing pipeline starts (part of its key).
 PX_CONST uint PROGRAM_CAMERA = 0;         // raygen.rgen: camera paths into the film
@@ -56,12 +59,17 @@ struct IcParams {
                                             // (ic on); ADRRS alone builds it for its adjoint only
 };
 
-// ---- ADRRS (thesis 3.2.4, 4.5; Vorba & Krivanek 2016) -------------------------------------
+// ---- Russian roulette and splitting: ADRRS (thesis 3.2.4, 4.5; Vorba & Krivanek 2016) and
+// EARS (Rath et al. 2022) ------------------------------------------------------------------
+// AdrrsParams.mode (the setting rrs)
+PX_CONST uint RRS_OFF = 0;    // the throughput roulette alone
+PX_CONST uint RRS_ADRRS = 1;  // the thesis' adjoint-driven weight window
+PX_CONST uint RRS_EARS = 2;   // efficiency-aware factors from learnt statistics
 PX_CONST uint ADRRS_ESTIMATE_IC = 0;     // N spp to the first non-delta vertex: NEE + cache
 PX_CONST uint ADRRS_ESTIMATE_IMAGE = 1;  // the running accumulated image, blurred
 
 struct AdrrsParams {
-    uint enabled;                        // adrrs
+    uint mode;                           // rrs: RRS_OFF, RRS_ADRRS or RRS_EARS
     uint splitting;                      // adrrs_splitting: split above the window (else RR only)
     float window;                        // adrrs_window: s, delta+ = s delta-
     float rr_min;                        // adrrs_rr_min: lowest survival probability
@@ -78,6 +86,47 @@ struct AdrrsParams {
     float grid_cell PX_DEFAULT(0.0f);  // cell edge (0: no grid yet)
     uint grid_nx PX_DEFAULT(0), grid_ny PX_DEFAULT(0), grid_nz PX_DEFAULT(0);
     uint grid_pad PX_DEFAULT(0);
+    // Derived by the host for EARS (techniques/ears.h): the statistics' grid (EARS_GRID cells
+    // along the scene's longest axis, hashed into ears_slots), and the image's factors.
+    vec3 ears_min PX_DEFAULT((vec3{0.0f, 0.0f, 0.0f}));
+    float ears_cell PX_DEFAULT(0.0f);        // cell edge (0: no grid, EARS records nothing)
+    uint ears_slots PX_DEFAULT(0);           // hash slots (a power of two)
+    uint ears_learn PX_DEFAULT(0);           // paths record statistics (a pixel estimate exists)
+    uint ears_active PX_DEFAULT(0);          // the factors hold statistics: paths decide by them
+    float ears_scale PX_DEFAULT(1.0f);       // S: the image's mean luminance, the records' unit
+    float ears_image_factor PX_DEFAULT(0.0f);  // sqrt(image cost / image relative variance)
+    float ears_pad0 PX_DEFAULT(0.0f), ears_pad1 PX_DEFAULT(0.0f), ears_pad2 PX_DEFAULT(0.0f);
+};
+
+// ---- EARS' statistics (BINDING_EARS_CELLS, BINDING_EARS_FACTORS) -----------------------------
+PX_CONST uint EARS_GRID = 64;           // cells along the scene's longest axis
+PX_CONST uint EARS_PROBES = 8;          // linear probes of the hash table
+PX_CONST uint EARS_PATH_VERTICES = 8;   // decisions of one path that record statistics
+PX_CONST float EARS_FIXED_SCALE = 65536.0;  // sums are 64-bit fixed point (two uints) in 1/65536
+PX_CONST float EARS_MAX_RECORD = 1e4;   // a record's (Lr/S)^2 and relative variance are clamped here
+PX_CONST float EARS_EPSILON = 0.01;     // the pixel estimate's floor, x S (Rath et al.: I + 1e-2)
+// One cell of the learning table: summed over this iteration's records, as 64-bit fixed point
+// (lo, hi words: the shaders add with a carry, so sums are the same whatever the order).
+struct EarsCell {
+    uint key;      // 1 + packed cell and normal direction (0: empty slot)
+    uint count;    // records
+    uint lr_lo, lr_hi;    // sum of Lr / S
+    uint lr2_lo, lr2_hi;  // sum of (Lr / S)^2
+    uint cost_lo, cost_hi;  // sum of the rays the continuation traced
+};
+// The image's sums, ahead of the cells: camera samples, their relative squared error and rays.
+struct EarsImageSums {
+    uint samples_lo, samples_hi;
+    uint error_lo, error_hi;  // sum of min(((L - I) / (I + eps))^2, EARS_MAX_RECORD), fixed point
+    uint rays_lo, rays_hi;    // rays of every path (split copies too)
+    uint pad0, pad1;
+};
+// What a slot's paths decide by (the host's fit of the last iteration).
+struct EarsFactor {
+    float second_moment;  // E[Lr^2] / cost (Rath et al. 2022, earsFactorR)
+    float variance;       // Var[Lr] / cost (earsFactorS)
+    float cost;           // cost / the image's cost per sample (the RRS Cost pass)
+    float pad;
 };
 
 // A split path (BINDING_ADRRS_QUEUE): the ray that reached the vertex where it was split,

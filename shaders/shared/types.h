@@ -71,7 +71,10 @@ PX_CONST uint BINDING_PIXEL_FILTER = 41;
 PX_CONST uint BINDING_NODE_PROGRAMS = 42;
 PX_CONST uint BINDING_CORNER_TANGENTS = 43;  // vec4 [3] per triangle: tangent, bitangent sign (Normal Map)
 PX_CONST uint BINDING_CORNER_ATTRIBUTES = 44;  // vec4 [slots][3 per triangle] (SceneInfo.attribute_*)
-PX_CONST uint BINDING_COUNT = 45;
+// EARS: EarsImageSums, then EarsCell[adrrs.ears_slots] (the iteration being learnt)
+PX_CONST uint BINDING_EARS_CELLS = 45;
+PX_CONST uint BINDING_EARS_FACTORS = 46;  // EarsFactor[adrrs.ears_slots] (the last iteration's)
+PX_CONST uint BINDING_COUNT = 47;
 
 // ---- shader binding table: miss shaders and hit groups (RayTracingPipeline group order) -
 PX_CONST uint MISS_SCENE = 0;         // miss.rmiss: the world
@@ -98,7 +101,9 @@ PX_CONST uint PASS_GUIDING_REGIONS = 9;     // rgb = a colour per guiding region
 PX_CONST uint PASS_GUIDING_COMPONENTS = 10; // x = active lobes / guiding_max_components at the first hit
 PX_CONST uint PASS_GUIDING_LOBES = 11;      // rgb = VMM pdf: probe inset (lat-long) + per-region spheres
 PX_CONST uint PASS_NEE_VISIBILITY = 12;     // x = shadow rays that reached their light, y = shadow rays traced
-PX_CONST uint PASS_COUNT = 13;     // film slots
+PX_CONST uint PASS_RRS_FACTOR = 13;  // x = sum of EARS' factors q, y = decisions (x / y: the mean)
+PX_CONST uint PASS_RRS_COST = 14;    // x = sum of the learnt relative cost at the first decision, y = count
+PX_CONST uint PASS_COUNT = 15;     // film slots
 // Samples per pixel: no film slot of its own, Session::read takes Combined's w (the count).
 PX_CONST uint PASS_SAMPLE_COUNT = PASS_COUNT;
 

@@ -163,11 +163,26 @@ void adrrs_vertex_adjoint(AdrrsOptions o, Surface surf, bool delta, vec3 p, vec3
 // ic's: roulette or split by the adjoint. The split copies start on the segment that reached
 // the vertex (ps' origin, dir, t_min, t_max). Returns whether ADRRS decided (the throughput
 // roulette then stands aside); `killed`: the path ends.
-bool adrrs_continuation(AdrrsOptions o, IcVertex ic, Vertex v, inout PathState ps, uint segments, bool camera_segment,
-                        inout Rng rng, out bool killed) {
+// With EARS (ears.glsl) q comes from its statistics instead, and the path keeps a record of the
+// decision for them.
+bool adrrs_continuation(AdrrsOptions o, IcVertex ic, Vertex v, inout PathState ps, inout EarsPath ears, uint segments,
+                        bool camera_segment, inout Rng rng, out bool killed) {
     killed = false;
-    if (!(USES(TECH_ADRRS) && o.on && ic.found && !v.delta)) return false;
-    float q = adrrs_factor(ps.throughput, v.surf.albedo, ic.irradiance, o.estimate);
+    if (!(USES(TECH_ADRRS) && o.on && !v.delta)) return false;
+    float q;
+    uint slot = NO_INDEX;
+    bool decided;
+    if (USES(TECH_EARS)) {
+        decided = ears_factor(ears, ps.throughput, v.sh.p, v.ns, o.estimate, q, slot);
+        if (tech.adrrs.splitting == 0u) q = min(q, 1.0);
+    } else {
+        decided = ic.found;
+        q = decided ? adrrs_factor(ps.throughput, v.surf.albedo, ic.irradiance, o.estimate) : 1.0;
+    }
+    if (!decided) {
+        ears_open(ears, slot, ps.throughput);  // no statistics yet: learn, the roulette decides
+        return false;
+    }
     if (q < 1.0) {
         if (rnd(rng) >= q) {
             killed = true;
@@ -193,6 +208,7 @@ bool adrrs_continuation(AdrrsOptions o, IcVertex ic, Vertex v, inout PathState p
                                    ps.self_instance, ps.self_primitive, ps.min_ray_pdf));
         }
     }
+    ears_open(ears, slot, ps.throughput);
     return true;
 }
 

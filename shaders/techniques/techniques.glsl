@@ -1,11 +1,12 @@
 // The techniques of the thesis (ch. 4) in the trace loop: each one's hooks are in its own file
-// (irradiance_cache.glsl, adrrs.glsl, guiding_field.glsl) and guard themselves with USES(), so
+// (irradiance_cache.glsl, adrrs.glsl with ears.glsl, guiding_field.glsl) and guard themselves with USES(), so
 // a pipeline without a technique compiles none of its code. This file is the one list of
 // them: the per-path options and state the trace loop carries, and the hooks that consult more
 // than one technique. Included by lib/integrator.glsl after its base structs (PathOptions,
 // PathState, Vertex).
 #define PX_TRACE_LOOP
 #include "irradiance_cache.glsl"
+#include "ears.glsl"
 #include "adrrs.glsl"
 #include "guiding_field.glsl"
 
@@ -29,6 +30,7 @@ struct TechniquePixel {
     IcPixel ic;
     AdrrsPixel adrrs;
     GuidingPixel guiding;
+    vec4 ears;  // EARS' factors summed and counted, its relative costs summed and counted (RRS passes)
 };
 
 TechniqueOptions camera_techniques(uint pixel_index, uint local, uint P, out TechniquePixel px) {
@@ -39,6 +41,7 @@ TechniqueOptions camera_techniques(uint pixel_index, uint local, uint P, out Tec
     o.adrrs = adrrs_camera_options(pixel_index, local, P, px.adrrs);
     px.ic = ic_pixel();
     px.guiding = guiding_pixel();
+    px.ears = vec4(0.0);
     return o;
 }
 
@@ -70,10 +73,11 @@ bool techniques_frame_output(vec3 sum_radiance, uint pixel_index) {
 struct TechniquePath {
     IcPath ic;
     GuidingPath guiding;
+    EarsPath ears;
 };
 
 TechniquePath technique_path(TechniqueOptions o) {
-    return TechniquePath(ic_path(), guiding_path(o.guiding));
+    return TechniquePath(ic_path(), guiding_path(o.guiding), ears_path());
 }
 
 // The techniques at a vertex: the guiding mixture there, and the cached (or adjoint)
@@ -100,10 +104,15 @@ void techniques_add_sample(inout TechniquePixel px, TechniqueOptions o, Techniqu
                            vec3 origin, vec3 dir, float first_t) {
     ic_add_sample(px.ic, path.ic);
     guiding_add_sample(px.guiding, o.guiding, s, pixel, origin, dir, first_t);
+    if (ears_on()) px.ears += vec4(path.ears.q_sum, float(path.ears.decisions), path.ears.first_cost, path.ears.costed ? 1.0 : 0.0);
 }
 
 void techniques_write_passes(TechniquePixel px, uint pixel_index) {
     ic_write_passes(px.ic, pixel_index);
     guiding_write_passes(px.guiding, pixel_index);
     adrrs_write_passes(px.adrrs, pixel_index);
+    if (ears_on()) {
+        film_add(PASS_RRS_FACTOR, pixel_index, vec4(px.ears.xy, 0.0, 0.0));
+        film_add(PASS_RRS_COST, pixel_index, vec4(px.ears.zw, 0.0, 0.0));
+    }
 }

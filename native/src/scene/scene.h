@@ -143,6 +143,10 @@ struct SceneHost {
 // `light_tree`: pick local lights through a light tree (else by power; light_tree.h).
 SceneHost prepare_scene(const SceneArrays& arrays, bool spatial_order, bool light_tree = true);
 
+// World AABB of the placed geometry: the 8 transformed corners of each instance's mesh bounds
+// (the bounding sphere's box where there are no instances).
+void scene_bounds(const SceneHost& scene, float lo[3], float hi[3]);
+
 // `previous` with the `parts` re-prepared from `arrays` (which must hold every array, the
 // unchanged ones included) and whatever depends on them; the other parts are shared with
 // `previous`. PART_GEOMETRY re-prepares everything. Throws like prepare_scene; `previous`

@@ -43,11 +43,19 @@ void box_pass(std::vector<vec3>& image, uint32_t width, uint32_t height, bool al
 const SettingTable& adrrs_table() {
     static const SettingTable table{"adrrs",
         {
-            bool_setting("adrrs", PX_FIELD(AdrrsParams, enabled), false, "ADRRS",
-                         "Adjoint-driven Russian roulette and splitting: end paths whose continuation matters little "
-                         "and split those that matter much, judged by the irradiance cache and a pixel estimate "
-                         "(Vorba & Krivanek 2016; thesis, sec. 4.5). Unbiased; builds the irradiance cache for its "
-                         "estimates even with the cache off", "adrrs"),
+            enum_setting("rrs", PX_FIELD(AdrrsParams, mode), RRS_OFF,
+                         {{"off", "Off", "Russian roulette on the path throughput alone", RRS_OFF},
+                          {"adrrs", "ADRRS",
+                           "Adjoint-driven Russian roulette and splitting: end paths whose continuation matters "
+                           "little and split those that matter much, judged by the irradiance cache and a pixel "
+                           "estimate (Vorba & Krivanek 2016; thesis, sec. 4.5). Builds the irradiance cache for its "
+                           "estimates even with the cache off", RRS_ADRRS},
+                          {"ears", "EARS",
+                           "Efficiency-aware Russian roulette and splitting: the factor that minimises variance x "
+                           "cost, from the second moment and cost of paths learnt per region and the image's "
+                           "variance (Rath et al. 2022)", RRS_EARS}},
+                         "Russian Roulette & Splitting",
+                         "How paths are ended or split at their vertices. Every choice is unbiased", "adrrs"),
             bool_setting("adrrs_splitting", PX_FIELD(AdrrsParams, splitting), true, "Splitting",
                          "Split paths whose weight lies above the window (else only roulette below it)", "adrrs"),
             float_setting("adrrs_window", PX_FIELD(AdrrsParams, window), 5.0, 1.0, 1e6, "Window Width",
@@ -75,19 +83,30 @@ const SettingTable& adrrs_table() {
         },
         {
             {"adrrs_estimate", "ADRRS Estimate", 3, "RGB", "ADRRS: the pixel estimate its weight window is centred on",
-             PASS_ADRRS_ESTIMATE, "adrrs"},
-            {"adrrs_splits", "ADRRS Splits", 1, "X", "ADRRS: extra paths split off per pixel sample",
-             PASS_ADRRS_SPLITS, "adrrs"},
+             PASS_ADRRS_ESTIMATE, "rrs"},
+            {"adrrs_splits", "ADRRS Splits", 1, "X", "ADRRS and EARS: extra paths split off per pixel sample",
+             PASS_ADRRS_SPLITS, "rrs"},
+            {"rrs_factor", "RRS Factor", 1, "X",
+             "EARS: the mean roulette/splitting factor of the pixel's decisions (< 1 roulette, > 1 split)",
+             PASS_RRS_FACTOR, "rrs", "", true},
+            {"rrs_cost", "RRS Cost", 1, "X",
+             "EARS: the learnt cost of a continuation at the pixel's first decision, relative to the image's "
+             "cost per sample", PASS_RRS_COST, "rrs", "", true},
         }};
     return table;
 }
 
-Adrrs::Adrrs(Context& ctx, const IrradianceCache& cache) : ctx_(ctx), cache_(cache) {
-    setup(AdrrsParams{}, 1, 1, 1);
+Adrrs::Adrrs(Context& ctx, const IrradianceCache& cache) : ctx_(ctx), cache_(cache), ears_(ctx) {
+    setup(AdrrsParams{}, SceneHost{}, 1, 1, 1);
 }
 
 void Adrrs::configure(const RenderParams& params, const TechniqueSetup& config, bool) {
-    setup(params.adrrs, config.width, config.height, params.samples_per_frame);
+    setup(params.adrrs, config.scene, config.width, config.height, params.samples_per_frame);
+}
+
+void Adrrs::write_params(TechniqueParams& params) const {
+    params.adrrs = params_;
+    ears_.write_params(params.adrrs);
 }
 
 void Adrrs::record_after_trace(const FrameParams& frame,
@@ -106,7 +125,7 @@ void Adrrs::begin_host_frame(FrameParams& frame) const {
 }
 
 void Adrrs::sync(TechniqueHost& host, const Technique* stepped) {
-    if ((stepped && !depends_on(*stepped)) || !update_adjoint()) return;
+    if (params_.mode != RRS_ADRRS || (stepped && !depends_on(*stepped)) || !update_adjoint()) return;
     bind(host.descriptors());
     host.upload_technique_params();
 }
@@ -116,10 +135,14 @@ void Adrrs::stats(StatList& out) const {
                            {"adrrs_image_refreshes", uint64_t(image_refreshes_)},
                            {"adrrs_adjoint_builds", uint64_t(adjoint_builds_)},
                            {"adrrs_adjoint_milliseconds", adjoint_milliseconds_}});
+    ears_.stats(out);
 }
 
-void Adrrs::setup(const AdrrsParams& params, uint32_t width, uint32_t height, uint32_t samples_per_frame) {
+void Adrrs::setup(const AdrrsParams& params, const SceneHost& scene, uint32_t width, uint32_t height,
+                  uint32_t samples_per_frame) {
     params_ = params;
+    if (ears()) params_.estimate = ADRRS_ESTIMATE_IMAGE;  // EARS' pixel estimate is the image's
+    ears_.configure(ears(), scene);
     width_ = width;
     height_ = height;
     // Off: one-element buffers keep every binding valid (the shaders never touch them).
@@ -148,6 +171,7 @@ void Adrrs::reset() {
     adjoint_milliseconds_ = 0;
     params_.grid_cell = 0.0f;  // no adjoint until the cache has entries
     next_refresh_ = params_.estimate_spp;
+    ears_.reset();
 }
 
 void Adrrs::bind(DescriptorSet& set) const {
@@ -155,6 +179,7 @@ void Adrrs::bind(DescriptorSet& set) const {
     set.bind_buffer(BINDING_ADRRS_QUEUE, queue_);
     set.bind_buffer(BINDING_ADRRS_SPLITS, splits_);
     set.bind_buffer(BINDING_ADRRS_ADJOINT, adjoint_);
+    ears_.bind(set);
 }
 
 // The cache's entries averaged over a grid around them, per cell and per normal direction
@@ -233,9 +258,17 @@ void Adrrs::after_frame(TechniqueHost& host, const FrameEnd& frame) {
         box_pass(image, width_, height_, false);
     }
     std::vector<vec4> estimate(pixels);
-    for (size_t i = 0; i < pixels; ++i) estimate[i] = {image[i].x, image[i].y, image[i].z, 1.0f};
+    double luminance_sum = 0;
+    for (size_t i = 0; i < pixels; ++i) {
+        estimate[i] = {image[i].x, image[i].y, image[i].z, 1.0f};
+        luminance_sum += 0.2126 * image[i].x + 0.7152 * image[i].y + 0.0722 * image[i].z;
+    }
     estimate_.upload(estimate.data(), pixels * sizeof(vec4));
     ++image_refreshes_;
+    if (ears()) {
+        ears_.end_iteration(float(luminance_sum / double(pixels)));
+        host.upload_technique_params();
+    }
 }
 
 }  // namespace px

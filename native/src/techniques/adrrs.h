@@ -1,5 +1,7 @@
-// Adjoint-driven Russian roulette and splitting, host side (thesis 3.2.4, 4.5; Vorba &
-// Krivanek 2016; shaders/techniques/adrrs.glsl).
+// Russian roulette and splitting (the setting rrs), host side: adjoint-driven (ADRRS, thesis
+// 3.2.4, 4.5; Vorba & Krivanek 2016; shaders/techniques/adrrs.glsl) or efficiency-aware (EARS,
+// Rath et al. 2022: the factors from learnt statistics, techniques/ears.h and
+// shaders/techniques/ears.glsl, with this pixel estimate and split queue).
 //
 // Owns the pixel estimate I~ and the split queue. The estimate comes from estimate frames
 // (after the irradiance cache's prepare frames: paths to the first non-delta vertex, shaded
@@ -10,6 +12,7 @@
 // dispatch over the same pixels (record_after_trace).
 #pragma once
 #include "scene/scene.h"
+#include "techniques/ears.h"
 #include "techniques/irradiance_cache.h"
 #include "vk/pipeline.h"
 
@@ -24,13 +27,17 @@ public:
     Adrrs(Context& ctx, const IrradianceCache& cache);
     // Technique (technique.h).
     const SettingTable& table() const override { return adrrs_table(); }
-    std::vector<std::string> needs() const override { return {"ic"}; }  // the adjoint: the cache
+    // ADRRS' adjoint is the cache; EARS learns its own statistics.
+    std::vector<std::string> needs() const override {
+        return params_.mode == RRS_ADRRS ? std::vector<std::string>{"ic"} : std::vector<std::string>{};
+    }
     void configure(const RenderParams& params, const TechniqueSetup& setup, bool needed) override;
     void view_changed() override { reset(); }  // the pixel estimate is made again
-    bool enabled() const override { return params_.enabled != 0; }
+    bool enabled() const override { return params_.mode != RRS_OFF; }
+    bool ears() const { return params_.mode == RRS_EARS; }
     void bind(DescriptorSet& set) const override;
-    void write_params(TechniqueParams& params) const override { params.adrrs = params_; }
-    uint32_t spec_bit(bool) const override { return enabled() ? TECH_ADRRS : 0u; }
+    void write_params(TechniqueParams& params) const override;
+    uint32_t spec_bit(bool) const override { return enabled() ? TECH_ADRRS | (ears() ? TECH_EARS : 0u) : 0u; }
     // A pixel sample's paths: itself and up to max_splits copies split off.
     uint64_t copies_per_sample() const override { return enabled() ? 1 + params_.max_splits : 1; }
     // Each camera dispatch starts with an empty split queue and is followed by a split
@@ -45,8 +52,9 @@ public:
     }
     void begin_host_frame(FrameParams& frame) const override;
     void end_host_frame(TechniqueHost&, const FrameParams&, double) override { ++estimate_frames_; }
-    // ADRRS_ESTIMATE_IMAGE: after a frame the estimate becomes the blurred image once the
-    // samples reach estimate_spp, and again each time they double.
+    // ADRRS_ESTIMATE_IMAGE (always with EARS): after a frame the estimate becomes the blurred
+    // image once the samples reach estimate_spp, and again each time they double; each time
+    // also ends one of EARS' training iterations.
     bool steps_after_frame() const override { return enabled(); }
     void after_frame(TechniqueHost& host, const FrameEnd& frame) override;
     // The adjoint grid follows the cache's entries (after its prepare frames and render frames).
@@ -57,7 +65,8 @@ public:
 
 private:
     // New settings or image size: the estimate is dropped and made again.
-    void setup(const AdrrsParams& params, uint32_t width, uint32_t height, uint32_t samples_per_frame);
+    void setup(const AdrrsParams& params, const SceneHost& scene, uint32_t width, uint32_t height,
+               uint32_t samples_per_frame);
     void reset();  // the estimate is made again (the scene changed)
     // Remakes the adjoint grid from the cache's entries when they grew; returns true when it
     // did (the settings, which hold the grid's shape, must be uploaded again and the buffer
@@ -68,6 +77,7 @@ private:
     AdrrsParams params_{};
     uint32_t width_ = 0, height_ = 0;
     Buffer estimate_, queue_, splits_, adjoint_;
+    EarsStatistics ears_;
     uint32_t adjoint_entries_ = 0;  // cache entries the grid was made from
     uint32_t adjoint_builds_ = 0;
     double adjoint_milliseconds_ = 0;

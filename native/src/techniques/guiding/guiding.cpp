@@ -15,42 +15,6 @@ double ms_since(std::chrono::steady_clock::time_point start) {
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
-// World AABB of the placed geometry: the 8 transformed corners of each instance's mesh
-// bounds (the bounding sphere where there are no instances).
-void scene_bounds(const SceneHost& scene, float lo[3], float hi[3]) {
-    for (int a = 0; a < 3; ++a) {
-        lo[a] = INFINITY;
-        hi[a] = -INFINITY;
-    }
-    if (scene.placement && scene.geometry) {
-        const auto& g = *scene.geometry;
-        for (const InstanceInfo& inst : scene.placement->instances) {
-            if (inst.mesh >= g.mesh_lo.size()) continue;
-            const vec3 b[2] = {g.mesh_lo[inst.mesh], g.mesh_hi[inst.mesh]};
-            for (int c = 0; c < 8; ++c) {
-                const float p[3] = {b[c & 1].x, b[(c >> 1) & 1].y, b[(c >> 2) & 1].z};
-                for (int a = 0; a < 3; ++a) {
-                    const vec4& row = inst.object_to_world[a];
-                    const float w = row.x * p[0] + row.y * p[1] + row.z * p[2] + row.w;
-                    lo[a] = std::min(lo[a], w);
-                    hi[a] = std::max(hi[a], w);
-                }
-            }
-        }
-    }
-    for (int a = 0; a < 3; ++a) {
-        if (std::isfinite(lo[a]) && std::isfinite(hi[a])) continue;
-        const vec3& c = scene.info.scene_center;
-        const float r = std::max(scene.info.scene_radius, 1e-3f);
-        for (int k = 0; k < 3; ++k) {
-            const float ck = k == 0 ? c.x : k == 1 ? c.y : c.z;
-            lo[k] = ck - r;
-            hi[k] = ck + r;
-        }
-        break;
-    }
-}
-
 GuidingParams field_key(GuidingParams p) {
     p.enabled = 1;
     p.probe_x = p.probe_y = -1;  // visualisation only

@@ -1,0 +1,177 @@
+// Efficiency-aware Russian roulette and splitting (Rath, Grittmann, Herholz, Weier & Slusallek
+// 2022, "EARS"): the factor q of a path's continuation at a non-delta vertex x minimises
+// variance x cost of the image. With the path's throughput v, the pixel estimate I, the second
+// moment and cost of the continuation's estimate Lr(x) learnt per cell, and the image's cost
+// and relative variance per sample (their eq. 12-14):
+//
+//     q = v / (I + eps) * sqrt(E[Lr^2] / C(x)) * sqrt(C_image / V_image)
+//
+// and, where the second moment says split, the variance Var[Lr] in place of E[Lr^2] (their
+// section 5.2: split by the variance only where both agree). q < 1 is a roulette, q > 1 a
+// split into q expected copies: the machinery of adrrs.glsl (pixel estimate, split queue), which
+// this file only feeds with q. Any q keeps the estimate unbiased.
+//
+// Statistics: a path remembers each decision it survived (the cell, its throughput after the
+// decision, its radiance and rays when the continuation started) and at its end records, per
+// decision, Lr = (radiance gained since) / throughput and the rays traced since. The records
+// are summed per cell of a hashed grid (EARS_GRID cells along the scene's longest axis, times
+// the 6 signed normal axes) in 64-bit fixed point, so the sums do not depend on the order the
+// paths add them in. The host turns one iteration's sums into the factors the next one uses
+// (native/src/techniques/ears.cpp).
+
+layout(set = 0, binding = BINDING_EARS_CELLS, scalar) buffer EarsCellBuffer {
+    EarsImageSums ears_image;
+    EarsCell ears_cells[];
+};
+layout(set = 0, binding = BINDING_EARS_FACTORS, scalar) readonly buffer EarsFactorBuffer { EarsFactor ears_factors[]; };
+
+bool ears_on() { return USES(TECH_EARS) && tech.adrrs.mode == RRS_EARS; }
+
+// Adds x >= 0 to the 64-bit fixed-point sum (lo, hi), rounding stochastically with u.
+#define EARS_ADD_FIXED(LO, HI, X, U)                                                        \
+    {                                                                                       \
+        uint ears_add_ = uint(min((X) * EARS_FIXED_SCALE + (U), 4294967040.0));              \
+        if (ears_add_ != 0u) {                                                              \
+            uint ears_old_ = atomicAdd(LO, ears_add_);                                      \
+            if (ears_old_ + ears_add_ < ears_old_) atomicAdd(HI, 1u);                       \
+        }                                                                                   \
+    }
+
+// The cell of (p, n): 1 + its packed coordinates and signed normal axis (0: outside the grid).
+uint ears_key(vec3 p, vec3 n) {
+    if (!(tech.adrrs.ears_cell > 0.0) || any(isnan(p)) || any(isinf(p))) return 0u;
+    ivec3 c = ivec3(floor((p - tech.adrrs.ears_min) / tech.adrrs.ears_cell));
+    if (any(lessThan(c, ivec3(0))) || any(greaterThanEqual(c, ivec3(int(EARS_GRID))))) return 0u;
+    vec3 a = abs(n);
+    uint axis = a.x >= a.y && a.x >= a.z ? 0u : a.y >= a.z ? 1u : 2u;
+    uint dir = 2u * axis + (n[axis] < 0.0 ? 1u : 0u);
+    return 1u + ((uint(c.z) * EARS_GRID + uint(c.y)) * EARS_GRID + uint(c.x)) * 6u + dir;
+}
+
+// The slot holding `key` (claimed for it when `claim`), NO_INDEX where none is found within
+// EARS_PROBES linear probes. Which slot a key gets depends on the order paths claim them; what
+// a key's slot holds does not.
+uint ears_slot(uint key, bool claim) {
+    if (key == 0u) return NO_INDEX;
+    uint mask = tech.adrrs.ears_slots - 1u;
+    uint slot = tea(key, 0x45415253u) & mask;
+    for (uint i = 0u; i < EARS_PROBES; ++i, slot = (slot + 1u) & mask) {
+        uint found = ears_cells[slot].key;
+        if (found == key) return slot;
+        if (found == 0u) {
+            if (!claim) return NO_INDEX;
+            found = atomicCompSwap(ears_cells[slot].key, 0u, key);
+            if (found == 0u || found == key) return slot;
+        }
+    }
+    return NO_INDEX;
+}
+
+#ifdef PX_TRACE_LOOP
+// ---- hooks of the trace loop (lib/integrator.glsl via techniques.glsl, adrrs.glsl) ---------
+
+// A path's open records: the decisions it survived, waiting for its end.
+struct EarsPath {
+    uint count;
+    uint slot[EARS_PATH_VERTICES];
+    float throughput[EARS_PATH_VERTICES];  // luminance of the throughput after the decision
+    float radiance[EARS_PATH_VERTICES];    // luminance of the path's radiance when its continuation started
+    uint rays[EARS_PATH_VERTICES];         // the path's rays then
+    bool starting;                         // the last record's continuation starts at the next segment
+    float q_sum;                           // the factors of its decisions (the RRS Factor pass)
+    uint decisions;
+    float first_cost;                      // the learnt relative cost at its first decision (RRS Cost)
+    bool costed;
+};
+
+EarsPath ears_path() {
+    EarsPath e;
+    e.count = 0u;
+    e.starting = false;
+    e.q_sum = 0.0;
+    e.decisions = 0u;
+    e.first_cost = 0.0;
+    e.costed = false;
+    return e;
+}
+
+// EARS' factor for a path of throughput v at (p, n) in a pixel of estimate luminance I; false
+// where the vertex's cell has no statistics yet (the throughput roulette decides). `slot`: the
+// cell's slot for the path's record (NO_INDEX: none).
+bool ears_factor(inout EarsPath e, vec3 throughput, vec3 p, vec3 n, float estimate, out float q, out uint slot) {
+    q = 1.0;
+    slot = NO_INDEX;
+    if (!ears_on() || tech.adrrs.ears_learn == 0u) return false;
+    slot = ears_slot(ears_key(p, n), true);
+    if (slot == NO_INDEX || tech.adrrs.ears_active == 0u) return false;
+    EarsFactor f = ears_factors[slot];
+    if (!(f.second_moment > 0.0)) return false;
+    float w = luminance(throughput) / (estimate + EARS_EPSILON * tech.adrrs.ears_scale);
+    float q_r = w * sqrt(f.second_moment) * tech.adrrs.ears_image_factor;
+    float q_s = w * sqrt(f.variance) * tech.adrrs.ears_image_factor;
+    // Rath et al. 2022, 5.2: roulette by the second moment; split only where the variance agrees.
+    q = q_r > 1.0 ? max(q_s, 1.0) : q_r;
+    q = max(q, tech.adrrs.rr_min);
+    if (isnan(q)) q = 1.0;
+    e.q_sum += q;
+    e.decisions++;
+    if (!e.costed) {
+        e.first_cost = f.cost;
+        e.costed = true;
+    }
+    return true;
+}
+
+// The path survived a decision at `slot` with throughput v (after 1/q): its record opens; the
+// continuation starts with the next segment (ears_continuation_start).
+void ears_open(inout EarsPath e, uint slot, vec3 throughput) {
+    if (!ears_on() || slot == NO_INDEX || e.count >= EARS_PATH_VERTICES) return;
+    e.slot[e.count] = slot;
+    e.throughput[e.count] = luminance(throughput);
+    e.count++;
+    e.starting = true;
+}
+
+// Before the segment that starts a continuation (the vertex's own NEE is counted by then).
+void ears_continuation_start(inout EarsPath e, vec3 radiance, uint rays) {
+    if (!ears_on() || !e.starting) return;
+    e.radiance[e.count - 1u] = luminance(radiance);
+    e.rays[e.count - 1u] = rays;
+    e.starting = false;
+}
+
+// The path ended with `radiance` after `rays`: each open record adds its Lr / S, (Lr / S)^2
+// and cost to its cell's sums.
+void ears_path_end(inout EarsPath e, vec3 radiance, uint rays, inout Rng rng) {
+    if (!ears_on()) return;
+    float total = luminance(radiance);
+    if (isnan(total) || isinf(total)) return;
+    uint n = e.starting ? e.count - 1u : e.count;  // a record whose continuation never started
+    for (uint i = 0u; i < n; ++i) {
+        float lr = max(total - e.radiance[i], 0.0) / max(e.throughput[i], 1e-20) / tech.adrrs.ears_scale;
+        lr = min(lr, sqrt(EARS_MAX_RECORD));
+        uint s = e.slot[i];
+        atomicAdd(ears_cells[s].count, 1u);
+        EARS_ADD_FIXED(ears_cells[s].lr_lo, ears_cells[s].lr_hi, lr, rnd(rng));
+        EARS_ADD_FIXED(ears_cells[s].lr2_lo, ears_cells[s].lr2_hi, lr * lr, rnd(rng));
+        EARS_ADD_FIXED(ears_cells[s].cost_lo, ears_cells[s].cost_hi, float(rays - e.rays[i]), 0.0);
+    }
+}
+
+// A camera sample's radiance against its pixel's estimate I: the image's relative variance
+// and cost per sample (the rays of its split copies are added by the split dispatch).
+void ears_image_sample(vec3 radiance, uint rays, bool has_estimate, float estimate, inout Rng rng) {
+    if (!ears_on() || tech.adrrs.ears_learn == 0u || !has_estimate) return;
+    float l = luminance(radiance);
+    if (isnan(l) || isinf(l)) return;
+    float e = (l - estimate) / (estimate + EARS_EPSILON * tech.adrrs.ears_scale);
+    uint old = atomicAdd(ears_image.samples_lo, 1u);
+    if (old + 1u < old) atomicAdd(ears_image.samples_hi, 1u);
+    EARS_ADD_FIXED(ears_image.error_lo, ears_image.error_hi, min(e * e, EARS_MAX_RECORD), rnd(rng));
+    EARS_ADD_FIXED(ears_image.rays_lo, ears_image.rays_hi, float(rays), 0.0);
+}
+
+void ears_split_rays(uint rays) {
+    if (ears_on() && tech.adrrs.ears_learn != 0u) EARS_ADD_FIXED(ears_image.rays_lo, ears_image.rays_hi, float(rays), 0.0);
+}
+#endif
