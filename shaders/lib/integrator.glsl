@@ -571,7 +571,7 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         if (tv.last) break;
         // ADRRS may roulette or split the continuation in place of the throughput roulette.
         bool killed;
-        bool adrrs_decided = adrrs_continuation(topt.adrrs, tv.ic, v, ps, tp.ears, res.segments,
+        bool adrrs_decided = adrrs_continuation(topt.adrrs, tv.ic, v, resumed, ps, tp.ears, res.segments,
                                                 opt.from_camera && res.segments == 1u, rng, killed);
         if (killed) break;
         if (!continuation_stage(ps, res, tp, opt, topt, v, tv, rng)) break;

@@ -103,8 +103,12 @@ PX_CONST uint EARS_GRID = 64;           // cells along the scene's longest axis
 PX_CONST uint EARS_PROBES = 8;          // linear probes of the hash table
 PX_CONST uint EARS_PATH_VERTICES = 8;   // decisions of one path that record statistics
 PX_CONST float EARS_FIXED_SCALE = 65536.0;  // sums are 64-bit fixed point (two uints) in 1/65536
-PX_CONST float EARS_MAX_RECORD = 1e4;   // a record's (Lr/S)^2 and relative variance are clamped here
-PX_CONST float EARS_EPSILON = 0.01;     // the pixel estimate's floor, x S (Rath et al.: I + 1e-2)
+PX_CONST float EARS_MAX_RECORD = 1e10;  // a record's (Lr/S)^2 is clamped here (a sum's 64 bits hold 2^32 of them)
+PX_CONST float EARS_MAX_VARIANCE = 1e4; // a pixel's relative variance per sample is clamped here
+// The metric EARS minimises is relMSE's, (x - I)^2 / (I^2 + EARS_EPSILON^2) per pixel: each
+// path weight and pixel variance is taken relative to sqrt(I^2 + EARS_EPSILON^2) (Rath et al.
+// take I + 1e-2; this is the relMSE of bench.converge and of Mueller et al.).
+PX_CONST float EARS_EPSILON = 0.1;
 // One cell of the learning table: summed over this iteration's records, as 64-bit fixed point
 // (lo, hi words: the shaders add with a carry, so sums are the same whatever the order).
 struct EarsCell {
@@ -114,13 +118,15 @@ struct EarsCell {
     uint lr2_lo, lr2_hi;  // sum of (Lr / S)^2
     uint cost_lo, cost_hi;  // sum of the rays the continuation traced
 };
-// The image's sums, ahead of the cells: camera samples, their relative squared error and rays.
+// The image's sums, ahead of the cells: its cost per camera sample.
 struct EarsImageSums {
-    uint samples_lo, samples_hi;
-    uint error_lo, error_hi;  // sum of min(((L - I) / (I + eps))^2, EARS_MAX_RECORD), fixed point
-    uint rays_lo, rays_hi;    // rays of every path (split copies too)
-    uint pad0, pad1;
+    uint samples_lo, samples_hi;  // camera samples
+    uint rays_lo, rays_hi;        // rays of every path (split copies too), fixed point
 };
+// Per pixel (BINDING_EARS_PIXELS), over the iteration: the radiance (luminance) of its odd and
+// of its even samples, each with their split copies (A and B), and how many of each (k_a, k_b).
+// (A/k_a - B/k_b)^2 / (1/k_a + 1/k_b) estimates the variance of one sample without needing the
+// pixel's mean; the host divides it by the pixel estimate squared.
 // What a slot's paths decide by (the host's fit of the last iteration).
 struct EarsFactor {
     float second_moment;  // E[Lr^2] / cost (Rath et al. 2022, earsFactorR)

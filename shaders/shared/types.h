@@ -74,7 +74,8 @@ PX_CONST uint BINDING_CORNER_ATTRIBUTES = 44;  // vec4 [slots][3 per triangle] (
 // EARS: EarsImageSums, then EarsCell[adrrs.ears_slots] (the iteration being learnt)
 PX_CONST uint BINDING_EARS_CELLS = 45;
 PX_CONST uint BINDING_EARS_FACTORS = 46;  // EarsFactor[adrrs.ears_slots] (the last iteration's)
-PX_CONST uint BINDING_COUNT = 47;
+PX_CONST uint BINDING_EARS_PIXELS = 47;   // vec4 per pixel: A, B, k_a, k_b (techniques.h, EarsImageSums)
+PX_CONST uint BINDING_COUNT = 48;
 
 // ---- shader binding table: miss shaders and hit groups (RayTracingPipeline group order) -
 PX_CONST uint MISS_SCENE = 0;         // miss.rmiss: the world

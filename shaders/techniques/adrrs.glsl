@@ -95,6 +95,9 @@ void adrrs_queue(uint local, uint P, AdrrsSplit split) {
     if (entries == 0u) adrrs_words[2u * P + atomicAdd(adrrs_active_count, 1u)] = local;
 }
 
+// EARS' statistics and factors (it shares the estimate and the queue above).
+#include "ears.glsl"
+
 #ifdef PX_TRACE_LOOP
 // ---- hooks of the trace loop (lib/integrator.glsl, techniques.glsl) ----------------------
 
@@ -165,10 +168,11 @@ void adrrs_vertex_adjoint(AdrrsOptions o, Surface surf, bool delta, vec3 p, vec3
 // roulette then stands aside); `killed`: the path ends.
 // With EARS (ears.glsl) q comes from its statistics instead, and the path keeps a record of the
 // decision for them.
-bool adrrs_continuation(AdrrsOptions o, IcVertex ic, Vertex v, inout PathState ps, inout EarsPath ears, uint segments,
-                        bool camera_segment, inout Rng rng, out bool killed) {
+// A split copy's first vertex (`resumed`) is the one it was split at: it does not decide again.
+bool adrrs_continuation(AdrrsOptions o, IcVertex ic, Vertex v, bool resumed, inout PathState ps, inout EarsPath ears,
+                        uint segments, bool camera_segment, inout Rng rng, out bool killed) {
     killed = false;
-    if (!(USES(TECH_ADRRS) && o.on && !v.delta)) return false;
+    if (!(USES(TECH_ADRRS) && o.on && !v.delta) || resumed) return false;
     float q;
     uint slot = NO_INDEX;
     bool decided;

@@ -4,7 +4,7 @@
 // moment and cost of the continuation's estimate Lr(x) learnt per cell, and the image's cost
 // and relative variance per sample (their eq. 12-14):
 //
-//     q = v / (I + eps) * sqrt(E[Lr^2] / C(x)) * sqrt(C_image / V_image)
+//     q = v / sqrt(I^2 + eps^2) * sqrt(E[Lr^2] / C(x)) * sqrt(C_image / V_image)
 //
 // and, where the second moment says split, the variance Var[Lr] in place of E[Lr^2] (their
 // section 5.2: split by the variance only where both agree). q < 1 is a roulette, q > 1 a
@@ -24,17 +24,22 @@ layout(set = 0, binding = BINDING_EARS_CELLS, scalar) buffer EarsCellBuffer {
     EarsCell ears_cells[];
 };
 layout(set = 0, binding = BINDING_EARS_FACTORS, scalar) readonly buffer EarsFactorBuffer { EarsFactor ears_factors[]; };
+layout(set = 0, binding = BINDING_EARS_PIXELS, scalar) buffer EarsPixelBuffer { vec4 ears_pixels[]; };
 
 bool ears_on() { return USES(TECH_EARS) && tech.adrrs.mode == RRS_EARS; }
 
-// Adds x >= 0 to the 64-bit fixed-point sum (lo, hi), rounding stochastically with u.
+// Adds x >= 0 to the 64-bit fixed-point sum (lo, hi), rounding stochastically with u: the high
+// word takes x's multiples of 2^32 units, the low word the rest with its carry.
 #define EARS_ADD_FIXED(LO, HI, X, U)                                                        \
     {                                                                                       \
-        uint ears_add_ = uint(min((X) * EARS_FIXED_SCALE + (U), 4294967040.0));              \
-        if (ears_add_ != 0u) {                                                              \
-            uint ears_old_ = atomicAdd(LO, ears_add_);                                      \
-            if (ears_old_ + ears_add_ < ears_old_) atomicAdd(HI, 1u);                       \
+        float ears_units_ = (X) * EARS_FIXED_SCALE + (U);                                   \
+        uint ears_high_ = uint(ears_units_ * (1.0 / 4294967296.0));                         \
+        uint ears_low_ = uint(min(ears_units_ - float(ears_high_) * 4294967296.0, 4294967040.0)); \
+        if (ears_low_ != 0u) {                                                              \
+            uint ears_old_ = atomicAdd(LO, ears_low_);                                      \
+            if (ears_old_ + ears_low_ < ears_old_) ears_high_++;                            \
         }                                                                                   \
+        if (ears_high_ != 0u) atomicAdd(HI, ears_high_);                                    \
     }
 
 // The cell of (p, n): 1 + its packed coordinates and signed normal axis (0: outside the grid).
@@ -106,7 +111,7 @@ bool ears_factor(inout EarsPath e, vec3 throughput, vec3 p, vec3 n, float estima
     if (slot == NO_INDEX || tech.adrrs.ears_active == 0u) return false;
     EarsFactor f = ears_factors[slot];
     if (!(f.second_moment > 0.0)) return false;
-    float w = luminance(throughput) / (estimate + EARS_EPSILON * tech.adrrs.ears_scale);
+    float w = luminance(throughput) / sqrt(sqr(estimate) + sqr(EARS_EPSILON));
     float q_r = w * sqrt(f.second_moment) * tech.adrrs.ears_image_factor;
     float q_s = w * sqrt(f.variance) * tech.adrrs.ears_image_factor;
     // Rath et al. 2022, 5.2: roulette by the second moment; split only where the variance agrees.
@@ -158,20 +163,21 @@ void ears_path_end(inout EarsPath e, vec3 radiance, uint rays, inout Rng rng) {
     }
 }
 
-// A camera sample's radiance against its pixel's estimate I: the image's relative variance
-// and cost per sample (the rays of its split copies are added by the split dispatch).
-void ears_image_sample(vec3 radiance, uint rays, bool has_estimate, float estimate, inout Rng rng) {
-    if (!ears_on() || tech.adrrs.ears_learn == 0u || !has_estimate) return;
-    float l = luminance(radiance);
-    if (isnan(l) || isinf(l)) return;
-    float e = (l - estimate) / (estimate + EARS_EPSILON * tech.adrrs.ears_scale);
-    uint old = atomicAdd(ears_image.samples_lo, 1u);
-    if (old + 1u < old) atomicAdd(ears_image.samples_hi, 1u);
-    EARS_ADD_FIXED(ears_image.error_lo, ears_image.error_hi, min(e * e, EARS_MAX_RECORD), rnd(rng));
+// The image's cost and relative variance per sample: a pixel's camera dispatch (n samples from
+// its `first`, with `sum_odd` the radiance of its odd ones) adds its cost and its halves
+// (ears_pixels); its split dispatch adds its copies' radiance to the halves they belong to.
+void ears_pixel_frame(uint pixel_index, vec3 sum, vec3 sum_odd, uint first, uint n, uint rays) {
+    if (!ears_on() || tech.adrrs.ears_learn == 0u) return;
+    uint old = atomicAdd(ears_image.samples_lo, n);
+    if (old + n < old) atomicAdd(ears_image.samples_hi, 1u);
     EARS_ADD_FIXED(ears_image.rays_lo, ears_image.rays_hi, float(rays), 0.0);
+    uint odd = (first + n) / 2u - first / 2u;
+    ears_pixels[pixel_index] += vec4(luminance(sum_odd), luminance(sum - sum_odd), float(odd), float(n - odd));
 }
 
-void ears_split_rays(uint rays) {
-    if (ears_on() && tech.adrrs.ears_learn != 0u) EARS_ADD_FIXED(ears_image.rays_lo, ears_image.rays_hi, float(rays), 0.0);
+void ears_split_frame(uint pixel_index, vec3 sum, vec3 sum_odd, uint rays) {
+    if (!ears_on() || tech.adrrs.ears_learn == 0u) return;
+    EARS_ADD_FIXED(ears_image.rays_lo, ears_image.rays_hi, float(rays), 0.0);
+    ears_pixels[pixel_index].xy += vec2(luminance(sum_odd), luminance(sum - sum_odd));
 }
 #endif

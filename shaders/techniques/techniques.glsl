@@ -6,8 +6,7 @@
 // PathState, Vertex).
 #define PX_TRACE_LOOP
 #include "irradiance_cache.glsl"
-#include "ears.glsl"
-#include "adrrs.glsl"
+#include "adrrs.glsl"  // includes ears.glsl
 #include "guiding_field.glsl"
 
 // Techniques whose paths may end at a vertex with its NEE even under METHOD_PT: the cache

@@ -142,7 +142,7 @@ void Adrrs::setup(const AdrrsParams& params, const SceneHost& scene, uint32_t wi
                   uint32_t samples_per_frame) {
     params_ = params;
     if (ears()) params_.estimate = ADRRS_ESTIMATE_IMAGE;  // EARS' pixel estimate is the image's
-    ears_.configure(ears(), scene);
+    ears_.configure(ears(), scene, width, height);
     width_ = width;
     height_ = height;
     // Off: one-element buffers keep every binding valid (the shaders never touch them).
@@ -258,15 +258,15 @@ void Adrrs::after_frame(TechniqueHost& host, const FrameEnd& frame) {
         box_pass(image, width_, height_, false);
     }
     std::vector<vec4> estimate(pixels);
-    double luminance_sum = 0;
+    std::vector<float> luminance(ears() ? pixels : 0);
     for (size_t i = 0; i < pixels; ++i) {
         estimate[i] = {image[i].x, image[i].y, image[i].z, 1.0f};
-        luminance_sum += 0.2126 * image[i].x + 0.7152 * image[i].y + 0.0722 * image[i].z;
+        if (ears()) luminance[i] = 0.2126f * image[i].x + 0.7152f * image[i].y + 0.0722f * image[i].z;
     }
     estimate_.upload(estimate.data(), pixels * sizeof(vec4));
     ++image_refreshes_;
     if (ears()) {
-        ears_.end_iteration(float(luminance_sum / double(pixels)));
+        ears_.end_iteration(luminance);
         host.upload_technique_params();
     }
 }

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <vector>
 
@@ -21,16 +22,19 @@ double fixed_sum(uint32_t lo, uint32_t hi) {
 EarsStatistics::EarsStatistics(Context& ctx) : ctx_(ctx) {
     cells_ = Buffer(ctx_, sizeof(EarsImageSums) + sizeof(EarsCell), kStorageUsage);
     factors_ = Buffer(ctx_, sizeof(EarsFactor), kStorageUsage);
+    pixels_ = Buffer(ctx_, sizeof(vec4), kStorageUsage);
     reset();
 }
 
-void EarsStatistics::configure(bool enabled, const SceneHost& scene) {
+void EarsStatistics::configure(bool enabled, const SceneHost& scene, uint32_t width, uint32_t height) {
     enabled_ = enabled;
     slots_ = enabled ? kEarsSlots : 1;
     const size_t cell_bytes = sizeof(EarsImageSums) + size_t(slots_) * sizeof(EarsCell);
     if (cells_.size() != cell_bytes) cells_ = Buffer(ctx_, cell_bytes, kStorageUsage);
     if (factors_.size() != size_t(slots_) * sizeof(EarsFactor))
         factors_ = Buffer(ctx_, size_t(slots_) * sizeof(EarsFactor), kStorageUsage);
+    const size_t pixel_bytes = (enabled ? size_t(width) * height : 1) * sizeof(vec4);
+    if (pixels_.size() != pixel_bytes) pixels_ = Buffer(ctx_, pixel_bytes, kStorageUsage);
     float lo[3], hi[3];
     scene_bounds(scene, lo, hi);
     const float extent = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 1e-6f});
@@ -43,6 +47,7 @@ void EarsStatistics::configure(bool enabled, const SceneHost& scene) {
 void EarsStatistics::reset() {
     cells_.fill_zero();
     factors_.fill_zero();
+    pixels_.fill_zero();
     factors_host_.assign(enabled_ ? slots_ : 0, EarsFactor{});
     learning_ = active_ = false;
     scale_ = 1.0f;
@@ -54,6 +59,7 @@ void EarsStatistics::reset() {
 void EarsStatistics::bind(DescriptorSet& set) const {
     set.bind_buffer(BINDING_EARS_CELLS, cells_);
     set.bind_buffer(BINDING_EARS_FACTORS, factors_);
+    set.bind_buffer(BINDING_EARS_PIXELS, pixels_);
 }
 
 void EarsStatistics::write_params(AdrrsParams& params) const {
@@ -68,21 +74,42 @@ void EarsStatistics::write_params(AdrrsParams& params) const {
 
 // Rath et al. 2022, eq. 14 per cell: the factors are E[Lr^2] / C and Var[Lr] / C in absolute
 // units (the records are in units of the scale the iteration ran with), and the image's
-// sqrt(C / V) over its samples' relative squared error.
-void EarsStatistics::end_iteration(float scale) {
+// sqrt(C / V): C the rays per camera sample, V the mean over pixels of one sample's variance
+// (from the pixel's two halves) relative to the estimate squared, each pixel's at most
+// EARS_MAX_VARIANCE (Rath et al. reject the worst outliers of the image's statistics).
+void EarsStatistics::end_iteration(const std::vector<float>& estimate) {
     if (!enabled_) return;
     const auto start = std::chrono::steady_clock::now();
+    double luminance_sum = 0;
+    for (float l : estimate) luminance_sum += l;
+    const float scale = estimate.empty() ? 0.0f : float(luminance_sum / double(estimate.size()));
     if (learning_) {
+        std::vector<vec4> halves(pixels_.size() / sizeof(vec4));
+        pixels_.download(halves.data(), pixels_.size());
+        double variance_sum = 0;
+        uint64_t variance_pixels = 0;
+        for (size_t i = 0; i < halves.size() && i < estimate.size(); ++i) {
+            const vec4& h = halves[i];
+            debug_ab_ += h.x + h.y; debug_k_ += h.z + h.w; debug_est_ += estimate[i] * (h.z + h.w);
+            if (!(h.z > 0 && h.w > 0)) continue;
+            const double d = h.x / h.z - h.y / h.w, v = d * d / (1.0 / h.z + 1.0 / h.w);
+            const double relative = v / (double(estimate[i]) * estimate[i] + double(EARS_EPSILON) * EARS_EPSILON);
+            if (!std::isfinite(relative)) continue;
+            variance_sum += std::min(relative, double(EARS_MAX_VARIANCE));
+            ++variance_pixels;
+        }
+        pixels_.fill_zero();
         std::vector<uint8_t> bytes(cells_.size());
         cells_.download(bytes.data(), bytes.size());
         EarsImageSums image;
         std::memcpy(&image, bytes.data(), sizeof(image));
         auto* cells = reinterpret_cast<EarsCell*>(bytes.data() + sizeof(EarsImageSums));
         const double samples = double(image.samples_hi) * 4294967296.0 + double(image.samples_lo);
-        if (samples > 0) {
+        if (samples > 0 && variance_pixels > 0) {
             image_cost_ = fixed_sum(image.rays_lo, image.rays_hi) / samples;
-            image_variance_ = fixed_sum(image.error_lo, image.error_hi) / samples;
+            image_variance_ = variance_sum / double(variance_pixels);
             if (image_variance_ > 0 && image_cost_ > 0) image_factor_ = float(std::sqrt(image_cost_ / image_variance_));
+            if (const char* f = std::getenv("PX_EARS_F")) image_factor_ = float(std::atof(f));  // DEBUG
         }
         const double unit = double(scale_) * double(scale_);
         cells_with_factors_ = full_slots_ = 0;
@@ -120,6 +147,9 @@ void EarsStatistics::stats(StatList& out) const {
     if (!enabled_) return;
     out.insert(out.end(), {{"ears_iterations", uint64_t(iterations_)},
                            {"ears_cells", uint64_t(full_slots_)},
+                           {"ears_cell_size", double(cell_)},
+                           {"ears_scale", double(scale_)},
+                           {"ears_debug_ab", debug_ab_}, {"ears_debug_k", debug_k_}, {"ears_debug_est", debug_est_},
                            {"ears_cells_with_factors", uint64_t(cells_with_factors_)},
                            {"ears_image_factor", double(image_factor_)},
                            {"ears_image_cost", image_cost_},

@@ -22,14 +22,15 @@ class EarsStatistics {
 public:
     explicit EarsStatistics(Context& ctx);
     // New scene, settings or image: the grid spans the scene's box, every statistic is dropped.
-    void configure(bool enabled, const SceneHost& scene);
+    void configure(bool enabled, const SceneHost& scene, uint32_t width, uint32_t height);
     void reset();  // statistics dropped; learning waits for the next image estimate
     void bind(DescriptorSet& set) const;
     // The grid, the image's factor and the phase into `params` (AdrrsParams' ears_* fields).
     void write_params(AdrrsParams& params) const;
-    // An iteration ends (the pixel estimate was just refreshed; `scale`: the image's mean
-    // luminance): the learnt sums become the factors, learning goes on in the new unit.
-    void end_iteration(float scale);
+    // An iteration ends: the pixel estimate was just refreshed to `estimate` (luminance per
+    // pixel). The learnt sums become the factors; learning goes on in the unit of the
+    // estimate's mean.
+    void end_iteration(const std::vector<float>& estimate);
 
     void stats(StatList& out) const;
     // The fit of the last iteration, for tests: cells with factors, mean factor, image factor.
@@ -38,7 +39,7 @@ public:
 private:
     Context& ctx_;
     bool enabled_ = false;
-    Buffer cells_, factors_;
+    Buffer cells_, factors_, pixels_;
     uint32_t slots_ = 1;
     float grid_min_[3] = {0, 0, 0};
     float cell_ = 0.0f;
@@ -49,6 +50,7 @@ private:
     uint32_t iterations_ = 0, cells_with_factors_ = 0, full_slots_ = 0;
     double image_cost_ = 0, image_variance_ = 0, fit_milliseconds_ = 0;
     std::vector<EarsFactor> factors_host_;
+    double debug_ab_ = 0, debug_k_ = 0, debug_est_ = 0;
 };
 
 }  // namespace px
