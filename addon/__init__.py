@@ -13,9 +13,9 @@ bl_info = {
     "category": "Render",
 }
 
-from . import engine, properties, ui  # noqa: E402
+from . import engine, properties, ui, versioning  # noqa: E402
 
-_modules = (properties, engine, ui)
+_modules = (properties, versioning, engine, ui)
 
 
 def register():

@@ -43,10 +43,12 @@ def apply_settings(scene, assignments):
     scene (``render.resolution_x``, ``cycles.samples``). A setting of the core's table is
     parsed by its row's type, as ``--set`` for .npz scenes parses it (parallax_core.cli);
     any other VALUE is a Python literal or a word (for a boolean: 1/0, true/false, on/off,
-    yes/no)."""
+    yes/no). PROP may be a synonym of a setting (``adrrs=1``: ``rrs=adrrs``,
+    parallax_core.SYNONYMS)."""
     from . import properties
 
     table = {row.name for row in properties.table_rows()}  # (loads the core)
+    from parallax_core import SYNONYMS
     from parallax_core.cli import BOOL_WORDS, parse_params
 
     for item in assignments:
@@ -54,6 +56,8 @@ def apply_settings(scene, assignments):
         if not sep:
             raise CommandError(f"--set {item!r}: expected PROP=VALUE")
         name = name.strip()
+        if name in SYNONYMS:  # its setting, as for .npz scenes (parse_params gives the setting's value)
+            name = SYNONYMS[name][0]
         path = name if "." in name else f"parallax.{name}"
         owner_path, _, attr = path.rpartition(".")
         try:
@@ -65,7 +69,7 @@ def apply_settings(scene, assignments):
         prop = owner.bl_rna.properties.get(attr) if hasattr(owner, "bl_rna") else None
         if name in table:
             try:
-                value = parse_params([f"{name}={text}"])[name]
+                value = parse_params([item.strip()])[name]
             except ValueError as e:
                 raise CommandError(str(e)) from e
         elif prop is not None and prop.type == "BOOLEAN" and not prop.is_array:

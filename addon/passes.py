@@ -41,7 +41,8 @@ def has_own_toggle(row):
 
 def _enabled(row, layer_on):
     def enabled(scene, view_layer):
-        return (not row.setting or bool(getattr(scene.parallax, row.setting))) and layer_on(view_layer)
+        return ((not row.setting or core.load().setting_on(row.setting, getattr(scene.parallax, row.setting)))
+                and layer_on(view_layer))
     return enabled
 
 

@@ -35,8 +35,10 @@ def table_rows():
 
 
 def technique_switches():
-    """The rows that switch a technique on (``ic``, ``adrrs``, ...): named as their technique."""
-    return [row for row in core.load().SETTINGS if row.name == row.technique]
+    """The rows that switch a technique on (``ic``, ``rrs``, ``guiding``): the first of each
+    technique's table (parallax_core.technique_switch), a bool or an enum with an item "off"."""
+    pc = core.load()
+    return [pc.technique_switch(technique) for technique in pc.TECHNIQUES]
 
 
 def pass_switches():

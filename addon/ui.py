@@ -2,9 +2,12 @@
 
 The render panels are made from the settings table when the add-on registers: one panel per
 ``panel`` of ``parallax_core.SETTINGS``, drawing its rows in table order. A technique's panel
-has the technique's switch (the row named as the technique) as its header checkbox and greys
-its other rows while that is off. Rows with a ``group`` go to a sub-panel of that name, in
-table order; a bool row labelled as its group is that sub-panel's header checkbox.
+is named by the technique's switch (parallax_core.technique_switch: the first row of its
+table) and greys its other rows while that is off: a bool switch is the header checkbox, an
+enum switch (Russian Roulette & Splitting's rrs) the first row, and rows that apply to some
+of its items only (ONLY_WITH) are greyed while it has another. Rows with a ``group`` go to a
+sub-panel of that name, in table order; a bool row labelled as its group is that sub-panel's
+header checkbox.
 """
 import bpy
 
@@ -15,6 +18,25 @@ OWN_SETTINGS = (
     ("sampling", "Viewport", ("viewport_samples", "viewport_start_pixel_size", "viewport_pass")),
     ("guiding", "Visualisation", ("guiding_animate_lobes",)),
 )
+# Rows that apply to some items of an enum switch only (the technique's other rows apply
+# whenever it is on): greyed while the switch has another item. EARS decides by its own
+# statistics on the image's estimate: ADRRS' weight window, estimate and cache reads are its own.
+ONLY_WITH = {
+    "adrrs_window": ("rrs", ("adrrs",)),
+    "adrrs_estimate": ("rrs", ("adrrs",)),
+    "adrrs_ic_glossy": ("rrs", ("adrrs",)),
+}
+
+
+def switched_on(settings, name):
+    """Whether the switch ``name`` (a bool, or an enum with an item "off") is on in ``settings``."""
+    return core.load().setting_on(name, getattr(settings, name))
+
+
+def applies(settings, name):
+    """Whether row ``name`` applies to the item its enum switch has (ONLY_WITH; other rows: True)."""
+    switch, items = ONLY_WITH.get(name, (None, ()))
+    return switch is None or getattr(settings, switch) in items
 
 
 class _ParallaxPanel:
@@ -35,7 +57,8 @@ def _split(layout):
 
 class _SettingsPanel(_ParallaxPanel):
     """A panel of setting rows: ``rows`` drawn in order; ``header`` (a bool row) as the header
-    checkbox; greyed while any of ``switches`` is off."""
+    checkbox; greyed while any of ``switches`` is off (an enum switch among the rows stays
+    active), and a row of ONLY_WITH while its switch has another item."""
     bl_context = "render"
     rows = ()
     header = None
@@ -48,9 +71,11 @@ class _SettingsPanel(_ParallaxPanel):
         if note is not None:
             for line, icon in note():
                 layout.label(text=line, icon=icon)
-        layout.active = all(getattr(settings, name) for name in self.switches)
+        on = all(switched_on(settings, name) for name in self.switches)
         for name in self.rows:
-            layout.prop(settings, name)
+            col = layout.column()
+            col.active = name in self.switches or (on and applies(settings, name))
+            col.prop(settings, name)
 
 
 _denoiser_line = None
@@ -77,7 +102,7 @@ PANEL_NOTES = {"PARALLAX_PT_denoising": denoiser_status}
 
 def _draw_header(self, context):
     settings = context.scene.parallax
-    self.layout.active = all(getattr(settings, name) for name in self.switches[:-1])
+    self.layout.active = all(switched_on(settings, name) for name in self.switches[:-1])
     self.layout.prop(settings, self.header, text="")
 
 
@@ -105,9 +130,12 @@ def settings_panels():
     made = []
     for panel, rows in by_panel.items():
         idname = f"PARALLAX_PT_{panel}"
-        # A technique's panel: its switch is the header, and names the panel ("Irradiance Cache").
-        switch_row = next((r for r in rows if r.name == r.technique == panel), None)
+        # A technique's panel: its switch names the panel ("Irradiance Cache"); a bool switch
+        # is the header, an enum switch (rrs) the first row.
+        pc = core.load()
+        switch_row = pc.technique_switch(panel) if panel in pc.TECHNIQUES else None
         switch = switch_row.name if switch_row else None
+        checkbox = switch if switch_row and switch_row.type == "bool" else None
         label = switch_row.label if switch_row else panel.replace("_", " ").title()
         switches = (switch,) if switch else ()
         groups = {}  # sub-panel label -> row names, in table order
@@ -116,8 +144,8 @@ def settings_panels():
         if panel in own:
             group, names = own[panel]
             groups.setdefault(group, []).extend(names)
-        top = [name for name in groups.pop("", []) if name != switch]
-        made.append(_make_panel(idname, label, top, switch, switches, closed=bool(switch)))
+        top = [name for name in groups.pop("", []) if name != checkbox]
+        made.append(_make_panel(idname, label, top, checkbox, switches, closed=bool(switch)))
         bool_labels = {row.name: row.label for row in rows if row.type == "bool"}
         for group, names in groups.items():
             header = next((n for n in names if bool_labels.get(n) == group), None)
@@ -161,7 +189,7 @@ class PARALLAX_PT_passes(_ParallaxPanel, bpy.types.Panel):
             col = include
             if setting:
                 col = layout.column(heading=core.load().setting(setting).label)
-                col.active = bool(getattr(settings, setting))
+                col.active = switched_on(settings, setting)
             prefix = _common_first_word([row.label for row in rows]) if setting else ""
             for row in rows:
                 col.prop(view_layer.parallax, passes.toggle_name(row), text=row.label[len(prefix):])

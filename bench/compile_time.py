@@ -2,7 +2,7 @@
 """Cold and warm pipeline compile times of the variants a user meets (issue 32, item 5).
 
     python -m bench.compile_time [--scenes cornell_box,veach_mis,lamp_in_glass] [--npz DIR]
-                                 [--methods pt,nee,mis] [--techniques none,ic,adrrs,guiding]
+                                 [--methods pt,nee,mis] [--techniques none,ic,adrrs,ears,guiding]
                                  [--device auto] [--json OUT.json]
 
 For every scene, method and technique: a child process with an empty Mesa shader cache of its
@@ -24,7 +24,8 @@ import subprocess
 import sys
 import tempfile
 
-TECHNIQUES = {"none": {}, "ic": {"ic": True}, "adrrs": {"adrrs": True}, "guiding": {"guiding": True}}
+TECHNIQUES = {"none": {}, "ic": {"ic": True}, "adrrs": {"rrs": "adrrs"}, "ears": {"rrs": "ears"},
+              "guiding": {"guiding": True}}
 
 CHILD = """
 import json, sys, time
@@ -86,7 +87,7 @@ def main(argv=None):
                    help="procedural scenes of parallax_core.scenes (ignored with --npz)")
     p.add_argument("--npz", help="a folder of scene .npz files (bench.converge --export-only)")
     p.add_argument("--methods", default="pt,nee,mis")
-    p.add_argument("--techniques", default="none,ic,adrrs,guiding")
+    p.add_argument("--techniques", default="none,ic,adrrs,guiding", help=f"of {', '.join(TECHNIQUES)}")
     p.add_argument("--device", default="auto")
     p.add_argument("--json", help="write the rows here")
     a = p.parse_args(argv)

@@ -9,7 +9,8 @@ Methods are bench.converge's (its method_params: guiding keeps training, as in a
 render). Each gets a fresh session with the frame's samples (`--spp`), two warm-up frames,
 then as many frames as fit in `--seconds`. Scenes come from
 `bench.converge --export-only --npz DIR --width 320`. Against an older build (bench/regression.py)
-that lacks some technique's settings, a method that uses none of the techniques runs without them.
+that lacks some technique's settings, a method that uses none of the techniques runs without them;
+a build from before the setting rrs (issue 34) takes rrs off / adrrs as its switch adrrs.
 """
 import argparse
 import dataclasses
@@ -19,13 +20,29 @@ import time
 from bench.converge import MAX_DEPTH, METHODS, load_scene, method_params
 
 
-TECHNIQUES = ("ic", "adrrs", "guiding")  # method_params' switches
+# method_params' switches, and what turns each off; adrrs: the switch of builds before rrs.
+TECHNIQUES = {"ic": False, "rrs": "off", "adrrs": False, "guiding": False}
+
+
+def for_build(params, known):
+    """params in the names of a build whose settings are ``known``: one from before rrs
+    (issue 34) has the bool adrrs instead, which is rrs adrrs or off (EARS: ValueError)."""
+    if "rrs" not in params or "rrs" in known or "adrrs" not in known:
+        return dict(params)
+    params = dict(params)
+    rrs = params.pop("rrs")
+    if rrs not in ("off", "adrrs"):
+        raise ValueError(f"this build has no rrs={rrs} (it has adrrs on or off only)")
+    params["adrrs"] = rrs == "adrrs"
+    return params
 
 
 def supported(params, known):
-    """params without the settings this build lacks, where the method switches no technique on."""
+    """params (in this build's names, for_build) without the settings this build lacks, where
+    the method switches no technique on."""
+    params = for_build(params, known)
     missing = set(params) - set(known)
-    if missing and any(params.get(t) for t in TECHNIQUES):
+    if missing and any(t in params and params[t] != off for t, off in TECHNIQUES.items()):
         raise ValueError(f"this build lacks the settings {sorted(missing)}")
     return {k: v for k, v in params.items() if k in known}
 

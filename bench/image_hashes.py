@@ -34,7 +34,7 @@ def _scenes():
 
 GUIDING = dict(guiding=True, guiding_training_spp=8, guiding_min_samples=16, guiding_region_splits=3)
 IC = dict(ic=True, ic_prepare_frames=3, ic_create_prob=0.05)
-ADRRS = dict(adrrs=True, ic_prepare_frames=3, ic_create_prob=0.05, adrrs_estimate_spp=2)
+ADRRS = dict(rrs="adrrs", ic_prepare_frames=3, ic_create_prob=0.05, adrrs_estimate_spp=2)
 
 
 def _cases():
@@ -44,7 +44,7 @@ def _cases():
     cases = {
         "cornell/mis": ("cornell", dict(method="mis"), 2),
         # Every technique in one pipeline: the cache, ADRRS (splits included) and guiding.
-        "cornell/all": ("cornell", dict(method="mis", guiding_fit="cpu", **IC, **GUIDING, adrrs=True), 3),
+        "cornell/all": ("cornell", dict(method="mis", guiding_fit="cpu", **IC, **GUIDING, rrs="adrrs"), 3),
         "cornell/pt": ("cornell", dict(method="pt"), 2),
         "cornell/nee": ("cornell", dict(method="nee"), 2),
         "cornell/preview": ("cornell", dict(preview=True), 2),
@@ -52,7 +52,7 @@ def _cases():
         "cornell/guiding_device": ("cornell", dict(method="mis", guiding_fit="device", **GUIDING), 3),
         "cornell/ic": ("cornell", dict(method="mis", **IC), 3),
         "cornell/adrrs": ("cornell", dict(method="mis", **ADRRS), 3),
-        "glass/all": ("glass", dict(method="mis", guiding_fit="cpu", **IC, **GUIDING, adrrs=True), 3),
+        "glass/all": ("glass", dict(method="mis", guiding_fit="cpu", **IC, **GUIDING, rrs="adrrs"), 3),
     }
     for scene in ("cornell", "veach_mis", "glass", "env", "sun_room"):
         for method in ("pt", "nee", "mis"):
@@ -63,14 +63,14 @@ def _cases():
         cases[f"{scene}/ic_gradients"] = (scene, dict(method="mis", ic_gradients=True, ic_highlight=True, **IC), 2)
         cases.setdefault(f"{scene}/adrrs", (scene, dict(method="mis", **ADRRS), 3))
         cases[f"{scene}/adrrs_image"] = (scene, dict(method="mis", adrrs_estimate="image", **ADRRS), 3)
-        cases[f"{scene}/ic_adrrs"] = (scene, dict(method="nee", **IC, adrrs=True), 3)
+        cases[f"{scene}/ic_adrrs"] = (scene, dict(method="nee", **IC, rrs="adrrs"), 3)
         for fit in ("cpu", "device"):
             cases.setdefault(f"{scene}/guiding_{fit}", None)
             cases[f"{scene}/guiding_{fit}"] = (scene, dict(method="mis", guiding_fit=fit, **GUIDING), 3)
             cases[f"{scene}/guiding_pt_{fit}"] = (scene, dict(method="pt", guiding_fit=fit, **GUIDING), 3)
         cases[f"{scene}/guiding_keep_training"] = (scene, dict(method="mis", guiding_fit="cpu",
                                                                **dict(GUIDING, guiding_training_spp=0)), 3)
-        cases.setdefault(f"{scene}/all", (scene, dict(method="mis", guiding_fit="cpu", **IC, **GUIDING, adrrs=True), 3))
+        cases.setdefault(f"{scene}/all", (scene, dict(method="mis", guiding_fit="cpu", **IC, **GUIDING, rrs="adrrs"), 3))
     return cases
 
 
@@ -84,9 +84,11 @@ def run_case(scene, settings, frames, device, seed=3):
 
     import parallax_core as pc
 
+    from bench.frame_cost import for_build
+
     session = pc.Session(scene.width, scene.height, device)
     params = {**dataclasses.asdict(pc.RenderParams()), "samples_per_frame": 4, "seed": seed, "max_depth": 6}
-    session.set_params(**{**params, **settings})
+    session.set_params(**{**params, **for_build(settings, params)})  # (a build before rrs: adrrs)
     session.update(scene)
     session.render(frames)
     out = {name: _digest(session.read(name)) for name in session.pass_names()}

@@ -36,7 +36,7 @@ def parallax_image(scene, samples, depth, seed, rr_start_depth):
 
     session = pc.Session(scene.width, scene.height, "auto")
     session.set_params(method="mis", samples_per_frame=samples, max_depth=depth, depth_leeway=0, seed=seed,
-                       ic=False, adrrs=False, guiding=False, rr_start_depth=rr_start_depth)
+                       ic=False, rrs="off", guiding=False, rr_start_depth=rr_start_depth)
     session.update(scene)
     session.render(1)
     rays = session.stats()["rays"] / (samples * scene.width * scene.height)

@@ -256,7 +256,7 @@ def render(engine, depsgraph):
             line = f"Sample {samples}/{total} | {rate / 1e6:.1f} M rays/s | {seconds:.1f} s"
             if stats.get("fallback_film"):  # the samples so far are the fallback's
                 line += " | without the techniques while they compile"
-            if settings.ic or settings.adrrs:  # ADRRS builds the cache too
+            if stats.get("ic_capacity"):  # the cache was built: ic on, or for ADRRS' estimates
                 line += f" | {ic_status(stats)}"
             if settings.guiding:
                 line += f" | {guiding_status(stats)}"

@@ -452,7 +452,7 @@ class _DenoiseThread(threading.Thread):
 
 def _without_techniques(params):
     """``params`` with every technique switched off (the quick preview frames)."""
-    return {**params, **{row.name: False for row in properties.technique_switches()}}
+    return {**params, **{row.name: core.load().setting_off(row.name) for row in properties.technique_switches()}}
 
 
 def _as_rgba(image):

@@ -64,3 +64,24 @@ def test_render_blend_with_the_irradiance_cache(tmp_path):
     layers = read_layers(exr)
     assert layers["IC Irradiance"].shape == layers["IC Gradients"].shape == (16, 24, 3)
     assert layers["IC Irradiance"].mean() > 0.0
+
+
+def test_render_blend_with_rrs_and_its_synonym_adrrs(tmp_path):
+    """--set rrs=ears / adrrs=1 (ADRRS' old switch, a synonym of rrs=adrrs) on a .blend: the RRS
+    layers are written, ADRRS (not EARS) builds the irradiance cache; a bad value is an error
+    naming the setting."""
+    layers = {"ADRRS Estimate", "ADRRS Splits", "RRS Factor", "RRS Cost"}
+    short = ("--set", "ic_prepare_frames=2", "--set", "adrrs_estimate_spp=2")
+    for name, value, cache in (("ears", "rrs=ears", False), ("adrrs", "adrrs=1", True)):
+        exr = tmp_path / f"{name}.exr"
+        r = run("render", CORNELL, "-o", str(exr), "--samples", "2", *SMALL, *short, "--set", value)
+        assert bool(re.findall(r"IC \d+/65536 entries", r.stderr)) == cache, (name, r.stderr)
+        found = read_layers(exr)
+        assert layers <= set(found), (name, sorted(found))
+        assert all(np.isfinite(found[layer]).all() for layer in layers), name
+    r = run("render", CORNELL, "-o", str(tmp_path / "off.exr"), "--samples", "1", *SMALL, "--set", "adrrs=0")
+    assert not layers & set(read_layers(tmp_path / "off.exr"))
+    for value, message in (("rrs=bogus", "--set 'rrs=bogus': "), ("adrrs=maybe", "--set 'adrrs=maybe': expected 1/0")):
+        r = run("render", CORNELL, "-o", str(tmp_path / "x.exr"), "--set", value, check=False)
+        assert r.returncode == 2 and f"parallax: error: {message}" in r.stderr, (value, r.stderr)
+        assert "Traceback" not in r.stderr

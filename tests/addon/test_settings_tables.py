@@ -187,9 +187,17 @@ def test_every_row_is_drawn_in_its_panel_in_table_order(fresh, bpy):
         assert where.get(row.name) == (f"PARALLAX_PT_{row.panel}", row.group), row.name
 
 
+def switched(setting, on):
+    """A value of the switch ``setting`` (a bool, or an enum with an item "off") that is on or off."""
+    row = parallax_core.setting(setting)
+    if row.type == "enum":
+        return next(i[0] for i in row.items if i[0] != "off") if on else "off"
+    return on
+
+
 def _all_passes_on(scene):
     for setting in properties.pass_switches():
-        setattr(scene.parallax, setting, True)
+        setattr(scene.parallax, setting, switched(setting, True))
     layer = scene.view_layers[0]
     for toggle in passes.BLENDER_TOGGLES.values():
         if toggle:
@@ -211,7 +219,7 @@ def test_every_pass_reaches_the_compositor_and_its_toggle_is_drawn(fresh, bpy):
     names = {p.name for p in passes.blender_passes()}
     assert {row.label for row in PASSES} <= names <= outputs()
     for setting in properties.pass_switches():
-        setattr(fresh.parallax, setting, False)
+        setattr(fresh.parallax, setting, switched(setting, False))
     assert {row.label for row in PASSES if row.setting}.isdisjoint(outputs())
     assert {row.label for row in PASSES if not row.setting} <= outputs()
 

@@ -130,14 +130,14 @@ def test_stops_once_every_pixel_converged():
 
 
 @pytest.mark.parametrize("technique", [dict(ic=True, ic_prepare_frames=5),
-                                       dict(adrrs=True, ic_prepare_frames=5, ic_create_prob=0.05),
+                                       dict(rrs="adrrs", ic_prepare_frames=5, ic_create_prob=0.05),
                                        dict(guiding=True)], ids=["ic", "adrrs", "guiding"])
 def test_with_a_technique_it_renders_and_matches(scene, reference, technique):
     """Host frames stay whole-image; ADRRS' splits land on their pixels through the list."""
     tested = batches(scene, "mis", 8, 128, spp_per_frame=16, **ADAPTIVE, **technique)
     stats = tested.session.stats()
     assert 0 < stats["adaptive_active_pixels"] < SIZE * SIZE
-    if technique.get("adrrs"):
+    if technique.get("rrs") == "adrrs":
         # Splits happened. They are rare here (0 to 2 pixels of a 128-sample batch split, by
         # seed), so look over up to 16 batches' worth rather than at the last batch alone.
         session = adaptive_session(scene, **technique)
@@ -170,7 +170,7 @@ def test_background_compile_fallback_frames_then_the_technique(scene):
 def test_a_fallback_film_never_reads_as_converged(scene):
     # F12 stops once every pixel converged: the fallback's samples, thrown away when the
     # technique's pipelines are ready, must not end it (a 16-px F12 did, after 3616 of them).
-    s = adaptive_session(scene, adrrs=True, adaptive_threshold=0.5, adaptive_min_samples=1)
+    s = adaptive_session(scene, rrs="adrrs", adaptive_threshold=0.5, adaptive_min_samples=1)
     s.background_compile = True
     s.render(1)
     while s.fallback_film and pc.background_compiles():

@@ -15,7 +15,7 @@ from helpers import batches, means_agree, render, same_render, z_scores
 
 SIZE = 32
 # Small images: a quick cache. The reference is MIS with no roulette at all.
-ADRRS = dict(adrrs=True, ic_prepare_frames=10, ic_create_prob=0.05)
+ADRRS = dict(rrs="adrrs", ic_prepare_frames=10, ic_create_prob=0.05)
 PLAIN = dict(rr_start_depth=0)
 BATCHES, SPP, SPP_PER_FRAME = 8, 32, 4
 
@@ -123,13 +123,15 @@ def test_toggle_resets_and_scene_edit_remakes_the_estimate():
     s.render(1)
     st = s.stats()
     assert st["adrrs_estimate_frames"] == 4 and st["samples"] == 4
-    s.set_params(adrrs=False)
+    s.set_params(rrs="off")
     assert s.stats()["samples"] == 0 and s.stats()["adrrs_estimate_frames"] == 0
 
 
 @pytest.mark.parametrize("name,value", [("adrrs_window", 0.5), ("adrrs_rr_min", 0.0), ("adrrs_rr_min", 1.5),
                                         ("adrrs_max_splits", 65), ("adrrs_estimate_spp", 0),
-                                        ("adrrs_estimate", "blur"), ("adrrs", 2), ("adrrs_window", float("nan"))])
+                                        ("adrrs_estimate", "blur"), ("adrrs", 2), ("adrrs", "adrrs"),
+                                        ("adrrs", 0.5), ("rrs", "bogus"), ("rrs", True),
+                                        ("adrrs_window", float("nan"))])
 def test_bad_settings_are_rejected(name, value):
     s = pc.Session(8, 8)
     with pytest.raises(ValueError, match=name):

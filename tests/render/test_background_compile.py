@@ -20,7 +20,7 @@ CHILD = textwrap.dedent("""
     scene = scenes.cornell_box(24, 24)
     s = pc.Session(24, 24, "cpu")
     s.update(scene)
-    s.set_params(method="mis", adrrs=True, samples_per_frame=2)
+    s.set_params(method="mis", rrs="adrrs", samples_per_frame=2)
     s.background_compile = background
     s.render(1)
     first = s.stats()

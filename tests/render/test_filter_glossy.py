@@ -90,8 +90,9 @@ def test_lobes_rougher_than_the_blur_are_left_alone(device_type):
     assert not np.array_equal(sharp, blurred)
 
 
-@pytest.mark.parametrize("technique", ["adrrs", "ic"])
+@pytest.mark.parametrize("technique", [dict(rrs="adrrs"), dict(rrs="ears"), dict(ic=True)],
+                         ids=["adrrs", "ears", "ic"])
 def test_techniques_render_with_it(technique):
-    # ADRRS' split copies and the cache's hemisphere paths carry the path's min_ray_pdf.
-    img, s = render(glass_sphere_box(16, 16), "mis", spp=16, blur_glossy=1.0, **{technique: True})
+    # ADRRS' and EARS' split copies and the cache's hemisphere paths carry the path's min_ray_pdf.
+    img, s = render(glass_sphere_box(16, 16), "mis", spp=16, blur_glossy=1.0, **technique)
     assert np.isfinite(img).all() and img.mean() > 0.0

@@ -62,8 +62,28 @@ def test_frame_cost_needs_npz():
 def test_frame_cost_leaves_out_settings_an_old_build_lacks():
     from bench import frame_cost
 
-    off = dict(method="nee", ic=False, adrrs=False, guiding=False, guiding_parallax=True)
+    off = dict(method="nee", ic=False, rrs="off", guiding=False, guiding_parallax=True)
     assert frame_cost.supported(off, {"method", "ic"}) == {"method": "nee", "ic": False}
     with pytest.raises(ValueError, match="lacks the settings"):
         frame_cost.supported(dict(off, guiding=True), {"method", "ic"})
+    with pytest.raises(ValueError, match="lacks the settings"):
+        frame_cost.supported(dict(off, rrs="ears"), {"method", "ic"})
     assert frame_cost.supported(dict(off, guiding=True), set(off)) == dict(off, guiding=True)
+    assert frame_cost.supported(dict(off, rrs="ears"), set(off)) == dict(off, rrs="ears")
+
+
+def test_frame_cost_gives_a_build_before_rrs_its_adrrs():
+    """Builds before issue 34 switch ADRRS with the bool adrrs (bench/regression.py runs this
+    tree's frame_cost against them): rrs off / adrrs becomes adrrs False / True; EARS they lack."""
+    from bench import frame_cost
+
+    old = {"method", "ic", "adrrs", "guiding", "guiding_parallax"}
+    off = dict(method="mis", ic=False, rrs="off", guiding=False, guiding_parallax=True)
+    assert frame_cost.supported(off, old) == dict(method="mis", ic=False, adrrs=False, guiding=False,
+                                                  guiding_parallax=True)
+    assert frame_cost.supported(dict(off, rrs="adrrs"), old)["adrrs"] is True
+    with pytest.raises(ValueError, match="this build has no rrs=ears"):
+        frame_cost.supported(dict(off, rrs="ears"), old)
+    # Where the build has rrs, or neither name, nothing is renamed.
+    assert frame_cost.for_build(dict(off, rrs="adrrs"), old | {"rrs"}) == dict(off, rrs="adrrs")
+    assert frame_cost.for_build(dict(off, rrs="adrrs"), {"method"}) == dict(off, rrs="adrrs")

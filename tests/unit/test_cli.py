@@ -126,6 +126,33 @@ def test_npz_render_with_the_irradiance_cache(tmp_path):
     assert np.isfinite(gradients).all() and (gradients[..., 2] == 0).all()
 
 
+def test_npz_render_with_rrs_and_its_synonym_adrrs(tmp_path):
+    """--set rrs=ears / adrrs=1 (ADRRS' old switch, a synonym of rrs=adrrs) reach the core: the
+    RRS layers are written, and ADRRS (not EARS) builds the irradiance cache; bad values exit
+    with an error naming the setting."""
+    npz = tmp_path / "cb.npz"
+    run("scene", "cornell_box", "-o", str(npz), "--width", "16", "--height", "12")
+    short = ("--set", "ic_prepare_frames=2", "--set", "adrrs_estimate_spp=2")
+    layers = {"ADRRS Estimate.R", "ADRRS Splits.X", "RRS Factor.X", "RRS Cost.X"}
+    for name, sets, cache in (("ears", ("rrs=ears",), False), ("adrrs", ("adrrs=1",), True),
+                              ("synonym_off", ("rrs=ears", "adrrs=0"), False)):
+        exr = tmp_path / f"{name}.exr"
+        r = run("render", str(npz), "-o", str(exr), "--spp", "4", *short, *[a for v in sets for a in ("--set", v)])
+        assert bool(re.search(r"IC \d+/65536 entries", r.stdout)) == cache, (name, r.stdout)
+        channels = read_exr(str(exr))
+        if name == "synonym_off":  # the later --set wins: rrs off, no RRS layers
+            assert not layers & set(channels), name
+            continue
+        assert layers <= set(channels), name
+        assert all(np.isfinite(channels[c]).all() for c in layers), name
+    for value, message in (("rrs=bogus", "rrs must be one of off, adrrs, ears, got 'bogus'"),
+                           ("adrrs=maybe", "--set 'adrrs=maybe': expected 1/0"),
+                           ("adrrs=ears", "--set 'adrrs=ears': expected 1/0")):
+        r = run("render", str(npz), "-o", str(tmp_path / "x.exr"), "--set", value, check=False)
+        assert r.returncode == 2 and f"parallax: error: {message}" in r.stderr, (value, r.stderr)
+        assert "Traceback" not in r.stderr
+
+
 def test_npz_denoising_settings_round_trip(tmp_path):
     """Denoising is on by default (as Cycles'): the EXR holds the denoised Combined and the
     Noisy Image; --set turns it off or changes its settings; bad values fail before rendering;

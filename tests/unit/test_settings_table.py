@@ -4,6 +4,7 @@ import dataclasses
 import math
 import re
 
+import numpy as np
 import pytest
 
 import parallax_core as pc
@@ -29,9 +30,19 @@ def test_rows_are_well_formed():
         assert bool(s.items) == (s.type == "enum"), s
         if s.type == "enum":
             assert s.default in [i[0] for i in s.items] and all(len(i) == 3 and all(i) for i in s.items)
-    # Each technique's switch is the bool setting named as the technique.
-    for t in ("ic", "adrrs", "guiding"):
-        assert pc.setting(t).type == "bool" and pc.setting(t).technique == t
+    # Each technique's switch is the first row of its table: the bool named as the technique,
+    # or for Russian roulette and splitting the enum rrs, off by default at its item "off".
+    assert pc.TECHNIQUES == ("ic", "adrrs", "guiding")
+    assert [pc.technique_switch(t).name for t in pc.TECHNIQUES] == ["ic", "rrs", "guiding"]
+    for t in pc.TECHNIQUES:
+        switch = pc.technique_switch(t)
+        assert switch.technique == t and switch == next(s for s in pc.SETTINGS if s.technique == t)
+        assert switch.type == "bool" or (switch.type == "enum" and switch.default == "off" == switch.items[0][0])
+        assert not pc.setting_on(switch.name, switch.default) and pc.setting_off(switch.name) == switch.default
+    assert [i[0] for i in pc.setting("rrs").items] == ["off", "adrrs", "ears"]
+    assert pc.setting_on("rrs", "ears") and pc.setting_on("rrs", "adrrs") and pc.setting_on("ic", True)
+    with pytest.raises(ValueError, match="unknown technique 'base'"):
+        pc.technique_switch("base")
     # The engine's rows (no core field): sampling's, the viewport's adaptive sampling and denoising's
     # (parallax_core.denoise).
     assert [s.name for s in pc.SETTINGS if not s.core] == [
@@ -93,8 +104,42 @@ def test_set_params_takes_enums_by_name_and_relations_are_checked():
         s.set_params(guiding_region_splits=5, guiding_max_regions=16)
     with pytest.raises(ValueError, match="preview frames use no technique: turn ic off"):
         s.set_params(preview=True, ic=True)
+    with pytest.raises(ValueError, match="preview frames use no technique: turn ic, rrs off"):
+        s.set_params(preview=True, ic=True, rrs="ears")
     with pytest.raises(TypeError, match="unknown render parameter"):
         s.set_params(bounces=3)
+
+
+def test_rrs_and_its_synonym_adrrs():
+    """rrs = off | adrrs | ears; adrrs (ADRRS' switch before it) stays a synonym: True sets
+    rrs adrrs, False sets it off, anything but a boolean is a ValueError naming adrrs."""
+    s = pc.Session(4, 4)
+    for value in ("adrrs", "ears", "off"):
+        s.set_params(rrs=value)
+        assert s.params.rrs == value
+    for value, rrs in ((True, "adrrs"), (False, "off"), (1, "adrrs"), (0, "off"), (np.bool_(True), "adrrs")):
+        s.set_params(adrrs=value)
+        assert s.params.rrs == rrs and not hasattr(s.params, "adrrs"), value
+    assert "adrrs" not in dataclasses.asdict(s.params)
+    for value in ("yes", "adrrs", 2, 0.5, None):
+        with pytest.raises(ValueError, match=r"^adrrs must be a boolean .*got " + re.escape(repr(value))):
+            s.set_params(adrrs=value)
+    with pytest.raises(ValueError, match="^rrs must be one of off, adrrs, ears, got 'bogus'"):
+        s.set_params(rrs="bogus")
+    assert s.params.rrs == "adrrs"  # a bad value changes nothing
+    s.set_params(adrrs=True, rrs="adrrs")  # the same: fine
+    with pytest.raises(ValueError, match="adrrs=True sets rrs='adrrs', which contradicts rrs='ears'"):
+        s.set_params(adrrs=True, rrs="ears")
+    assert pc.resolve_synonyms({"adrrs": False, "seed": 3}) == {"rrs": "off", "seed": 3}
+    assert pc.synonym("seed", 3) == ("seed", 3)
+    # --set: the synonym comes back as its setting, a later pair overriding an earlier one.
+    assert parse_params(["adrrs=1"]) == {"rrs": "adrrs"} and parse_params(["adrrs=off"]) == {"rrs": "off"}
+    assert parse_params(["adrrs=on", "rrs=ears"]) == {"rrs": "ears"}
+    assert parse_params(["rrs=ears", "adrrs=0"]) == {"rrs": "off"}
+    with pytest.raises(ValueError, match="'adrrs=maybe': expected 1/0"):
+        parse_params(["adrrs=maybe"])
+    with pytest.raises(ValueError, match="or a synonym: adrrs"):
+        parse_params(["bogus=1"])
 
 
 def test_cli_parses_by_row_type():
@@ -112,9 +157,10 @@ def test_passes_table():
     settings = {s.name: s for s in pc.SETTINGS}
     for p in pc.PASSES:
         assert len(p.channel_ids) == p.channels and p.description, p
-        # A technique's passes are switched by the technique; the engine's Noisy Image by Use Denoising.
-        switch = p.technique if p.core else "use_denoising"
-        assert p.setting == "" or (settings[p.setting].type == "bool" and p.setting == switch), p
+        # A technique's passes are switched by the technique's switch; the engine's Noisy Image by
+        # Use Denoising.
+        switch = (pc.technique_switch(p.technique).name if p.technique != "base" else "") if p.core else "use_denoising"
+        assert p.setting == switch and (p.setting == "" or settings[p.setting].type in ("bool", "enum")), p
         assert layer_channels(p.name, p.channels) == [f"{p.label}.{c}" for c in p.channel_ids]
     assert [p.name for p in pc.PASSES if not p.core] == ["noisy_image"]
     s = pc.Session(3, 2)

@@ -77,7 +77,7 @@ def test_estimators_get_their_own_seeds():
     base = own_seed_base(box, "mis", 64, {"rr_start_depth": 0})
     assert base == own_seed_base(scenes.cornell_box(8, 8), "mis", 64, {"rr_start_depth": 0})
     others = {own_seed_base(box, "pt", 64, {"rr_start_depth": 0}),
-              own_seed_base(box, "mis", 64, {"rr_start_depth": 0, "adrrs": True}),
+              own_seed_base(box, "mis", 64, {"rr_start_depth": 0, "rrs": "adrrs"}),
               own_seed_base(box, "mis", 32, {"rr_start_depth": 0}),
               own_seed_base(furnace, "mis", 64, {"rr_start_depth": 0})}
     assert len(others) == 4 and base not in others

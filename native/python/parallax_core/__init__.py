@@ -16,6 +16,8 @@ import dataclasses
 import operator
 import os
 
+import numpy
+
 from ._native import (LIMITS, DeviceMemoryError, background_compiles, devices, light_tree_min_lights, memory, primitive_order,
                       pixel_filter_table, set_light_tree_min_lights, set_memory_budget, validation_enabled,
                       validation_messages, wait_for_background_compiles)
@@ -27,6 +29,7 @@ from . import node_fields, sky  # noqa: F401  (graphs evaluated on the host: wor
 from .scene import PART_KEYS, PARTS, parts_set
 
 __all__ = ["Session", "RenderParams", "UNBIASED_LIGHT_PATHS", "SETTINGS", "PASSES", "setting", "devices", "METHODS",
+           "TECHNIQUES", "technique_switch", "setting_on", "setting_off", "SYNONYMS", "synonym", "resolve_synonyms",
            "PARTS", "LIMITS",
            "DeviceMemoryError", "memory", "set_memory_budget", "validation_enabled", "validation_messages",
            "light_tree_min_lights", "set_light_tree_min_lights", "primitive_order", "pixel_filter_table",
@@ -58,6 +61,76 @@ def setting(name: str) -> Setting:
 
 
 METHODS = tuple(item[0] for item in setting("method").items)
+# The techniques in table order (the base path tracer's rows are no technique's).
+TECHNIQUES = tuple(dict.fromkeys(s.technique for s in SETTINGS if s.technique != "base"))
+
+
+def technique_switch(technique: str) -> Setting:
+    """The row that switches ``technique`` on: the first of its table (``ic``, ``rrs``,
+    ``guiding``), a bool or an enum with an item "off", as the core reads it (technique_on)."""
+    for row in SETTINGS:
+        if row.technique == technique and technique != "base":
+            return row
+    raise ValueError(f"unknown technique {technique!r} (techniques: {', '.join(TECHNIQUES)})")
+
+
+def setting_on(name: str, value) -> bool:
+    """Whether ``value`` of the switch ``name`` (a technique's, or the setting of a pass) turns
+    on what it switches: a bool row's True, an enum row's any item but "off" (rrs: adrrs and
+    ears), as the core reads a switch (not 0)."""
+    return value != "off" if setting(name).type == "enum" else bool(value)
+
+
+def setting_off(name: str):
+    """The value of the switch ``name`` that turns it off: False, or an enum's "off"."""
+    return "off" if setting(name).type == "enum" else False
+
+
+# Settings by an older name, taken wherever settings come in by name (Session.set_params,
+# --set for .npz and .blend scenes, the add-on's older .blend files) and never stored:
+# name -> (the setting, {the old boolean: the setting's value}). adrrs was ADRRS' switch
+# before rrs (off | adrrs | ears) replaced it (issue 34).
+SYNONYMS = {"adrrs": ("rrs", {True: "adrrs", False: "off"})}
+
+
+def _boolean(value):
+    """``value`` as a bool where a bool row takes it (a bool, or the integers 0 and 1), else None."""
+    if isinstance(value, (bool, numpy.bool_)):
+        return bool(value)
+    try:
+        index = operator.index(value)
+    except TypeError:
+        return None
+    return bool(index) if index in (0, 1) else None
+
+
+def synonym(name: str, value):
+    """(setting, value) that ``name=value`` sets: a synonym's setting and value (SYNONYMS), or
+    ``(name, value)`` unchanged. ValueError naming the synonym for a value it does not take."""
+    if name not in SYNONYMS:
+        return name, value
+    target, values = SYNONYMS[name]
+    flag = _boolean(value)
+    if flag is None:
+        raise ValueError(f"{name} must be a boolean ({name}=1 sets {target}={values[True]}, {name}=0 sets "
+                         f"{target}={values[False]}), got {value!r}")
+    return target, values[flag]
+
+
+def resolve_synonyms(changes: dict) -> dict:
+    """``changes`` ({name: value}) with every synonym replaced by its setting (synonym); a
+    synonym and its setting given together must agree (ValueError naming both)."""
+    out = {}
+    for name, value in changes.items():
+        target, value = synonym(name, value)
+        if target != name:
+            if target in changes and changes[target] != value:
+                raise ValueError(f"{name}={changes[name]!r} sets {target}={value!r}, which contradicts "
+                                 f"{target}={changes[target]!r}")
+            if target in out:
+                continue
+        out[target] = value
+    return out
 
 
 def adaptive_threshold(threshold: float, samples: int) -> float:
@@ -122,7 +195,9 @@ class Session(_NativeSession):
         return dataclasses.replace(self._params)
 
     def set_params(self, **changes) -> None:
-        """Change integrator settings (RenderParams fields); resets accumulation if any differ."""
+        """Change integrator settings (RenderParams fields, or a synonym: ``adrrs=True`` sets
+        ``rrs="adrrs"``, see SYNONYMS); resets accumulation if any differ."""
+        changes = resolve_synonyms(changes)
         unknown = set(changes) - {f.name for f in dataclasses.fields(RenderParams)}
         if unknown:
             raise TypeError(f"unknown render parameter(s): {', '.join(sorted(unknown))}")

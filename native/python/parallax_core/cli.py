@@ -80,8 +80,10 @@ def parse_params(assignments):
     """``NAME=VALUE`` pairs (``--set`` for .npz scenes) -> keyword arguments for
     ``Session.set_params`` (and the engine's settings: ``samples``, ``time_limit``, denoising). NAME is a row of
     ``parallax_core.SETTINGS``; VALUE is parsed by the row's type (the core checks its range
-    or enum name). Raises ValueError naming the item."""
-    from . import SETTINGS
+    or enum name). NAME may be a synonym (``adrrs=1``: ``rrs=adrrs``, parallax_core.SYNONYMS),
+    which comes back as its setting; a later pair overrides an earlier one. Raises ValueError
+    naming the item."""
+    from . import SETTINGS, SYNONYMS, synonym
 
     rows = {s.name: s for s in SETTINGS}
     params = {}
@@ -91,10 +93,16 @@ def parse_params(assignments):
         if not sep:
             raise ValueError(f"--set {item!r}: expected NAME=VALUE")
         row = rows.get(name)
-        if row is None:
-            raise ValueError(f"--set {item!r}: for .npz scenes NAME is a setting: {', '.join(rows)}")
+        if row is None and name not in SYNONYMS:
+            raise ValueError(f"--set {item!r}: for .npz scenes NAME is a setting: {', '.join(rows)} "
+                             f"(or a synonym: {', '.join(SYNONYMS)})")
         try:
-            params[name] = value = _PARSERS[row.type](text)
+            if row is None:  # a synonym of a bool's values
+                name, value = synonym(name, _parse_bool(text))
+                row = rows[name]
+            else:
+                value = _PARSERS[row.type](text)
+            params[name] = value
             if not row.core:  # the core checks its own rows; the engine's are checked here
                 check_engine_value(row, value)
         except ValueError as e:
@@ -236,7 +244,7 @@ def cmd_render(args):
         print(f"parallax: note: {spp} spp is not a multiple of --spp-per-frame {per_frame}; "
               f"rendering {frames * per_frame}", file=sys.stderr)
 
-    from . import PASSES, Session, adaptive_threshold
+    from . import PASSES, Session, adaptive_threshold, setting_on
 
     session = Session(width, height, device=_device_arg(args.device or "auto"))
     params = dict(samples_per_frame=per_frame)
@@ -267,11 +275,10 @@ def cmd_render(args):
     finally:
         sys.stderr.write("\n")
 
-    ic, adrrs, guiding = params.get("ic", False), params.get("adrrs", False), params.get("guiding", False)
     # A pass whose setting is off is left out (a technique's passes only with the technique on).
     settings = {**dataclasses.asdict(session.params), **engine}
     passes = {p.name: session.read(p.name) for p in PASSES
-              if p.core and (not p.setting or settings[p.setting])}
+              if p.core and (not p.setting or setting_on(p.setting, settings[p.setting]))}
     denoised = denoise_line = None
     if settings["use_denoising"]:
         denoised, denoise_line = denoise_film(session, settings)
@@ -288,9 +295,9 @@ def cmd_render(args):
           + (f", {args.png}" if args.png else ""))
     if denoise_line:
         print(denoise_line)
-    if ic or adrrs:
+    if stats.get("ic_capacity"):  # the cache was built: ic on, or for ADRRS' estimates
         print(ic_status(stats))
-    if guiding:
+    if settings["guiding"]:
         print(guiding_status(stats))
     return 0
 

@@ -269,8 +269,14 @@ uint32_t light_path_limits(const RenderParams& p) {
            (p.blur_glossy > 0.0f ? LIMIT_BLUR_GLOSSY : 0u);
 }
 
+const SettingInfo& technique_switch(const std::string& name) {
+    for (const SettingInfo& r : settings())
+        if (name == r.technique) return r;
+    throw std::invalid_argument("unknown technique '" + name + "'");
+}
+
 bool technique_on(const RenderParams& p, const std::string& name) {
-    return read_setting(&p, setting(name)) != 0;
+    return read_setting(&p, technique_switch(name)) != 0;
 }
 
 void validate(const RenderParams& p) {
@@ -279,7 +285,8 @@ void validate(const RenderParams& p) {
     if (!p.preview) return;
     std::string on;
     for (const Block& b : blocks())
-        if (std::strcmp(b.table.technique, "base") != 0 && technique_on(p, b.table.technique)) on += std::string(on.empty() ? "" : ", ") + b.table.technique;
+        if (std::strcmp(b.table.technique, "base") != 0 && technique_on(p, b.table.technique))
+            on += std::string(on.empty() ? "" : ", ") + technique_switch(b.table.technique).name;
     if (!on.empty()) throw std::invalid_argument("preview frames use no technique: turn " + on + " off");
 }
 

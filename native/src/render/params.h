@@ -54,8 +54,10 @@ const SettingInfo& setting(const std::string& name);
 const std::vector<PassInfo>& passes();
 const PassInfo& pass(const std::string& name);  // std::invalid_argument listing the names
 
-// Whether technique `name` is switched on in `p`: its switch is the bool setting named as the
-// technique (ic, adrrs, guiding).
+// The setting that switches technique `name` on: the first row of its table (ic, rrs,
+// guiding), a bool, or an enum whose item "off" (value 0) turns it off.
+const SettingInfo& technique_switch(const std::string& name);
+// Whether technique `name` is switched on in `p` (its switch is not 0).
 bool technique_on(const RenderParams& p, const std::string& name);
 
 // The LIMIT_* bits of the light-path limits that can change a render with these settings (a
