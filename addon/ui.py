@@ -25,6 +25,8 @@ ONLY_WITH = {
     "adrrs_window": ("rrs", ("adrrs",)),
     "adrrs_estimate": ("rrs", ("adrrs",)),
     "adrrs_ic_glossy": ("rrs", ("adrrs",)),
+    "rrs_grid": ("rrs", ("ears",)),
+    "rrs_min_records": ("rrs", ("ears",)),
 }
 
 

@@ -540,12 +540,13 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
     PathResult res = path_result();
     PathState ps = path_state(origin, dir, t_min, t_max, opt);
     tp = technique_path(topt);
+    EarsPath ears = ears_path();  // EARS' records of the path's decisions
     for (;;) {
         // No vertex precedes the first ray, so no shadow ray can be pending: every path of a
         // warp skips this call alike (an empty call there cost the H200 a quarter of its rays,
         // bench/results/shadow_calls_h200).
         if (res.segments > 0u) trace_pending_shadow(ps, res, tp);
-        ears_continuation_start(tp.ears, res.radiance, res.rays);
+        ears_continuation_start(ears, res.radiance, res.rays);
         hit.instance = ps.self_instance;
         hit.primitive = ps.self_primitive;
         traceRayEXT(tlas, surface_ray_flags(ps.self_instance), 0xff, 0, 0, MISS_SCENE, ps.origin, ps.t_min, ps.dir, ps.t_max, 0);
@@ -571,14 +572,16 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         if (tv.last) break;
         // ADRRS may roulette or split the continuation in place of the throughput roulette.
         bool killed;
-        bool adrrs_decided = adrrs_continuation(topt.adrrs, tv.ic, v, resumed, ps, tp.ears, res.segments,
-                                                opt.from_camera && res.segments == 1u, rng, killed);
+        uint ears_slot;
+        bool adrrs_decided = adrrs_continuation(topt.adrrs, tv.ic, v, resumed, ps, res.segments,
+                                                opt.from_camera && res.segments == 1u, rng, killed, ears_slot, tp.ears);
         if (killed) break;
+        ears_open(ears, ears_slot, ps.throughput);
         if (!continuation_stage(ps, res, tp, opt, topt, v, tv, rng)) break;
         if (!adrrs_decided && !roulette_stage(ps, opt, rng)) break;
     }
     trace_pending_shadow(ps, res, tp);
     guiding_path_end(tp.guiding, res.radiance);
-    ears_path_end(tp.ears, res.radiance, res.rays, rng);
+    ears_path_end(ears, res.radiance, res.rays, rng);
     return res;
 }

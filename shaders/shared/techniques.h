@@ -79,6 +79,8 @@ struct AdrrsParams {
     uint estimate;                       // adrrs_estimate: ADRRS_ESTIMATE_IC or _IMAGE
     uint ic_glossy;                      // adrrs_ic_glossy: the ic estimate reads the cache at
                                          // glossy vertices too (thesis 4.4 "IC on glossy")
+    uint grid;                           // rrs_grid: EARS' cells along the scene's longest axis
+    uint min_records;                    // rrs_min_records: EARS' records a cell needs for factors
     uint slots PX_DEFAULT(0);            // derived by the host: queue entries per pixel
     // Derived by the host: the adjoint grid (BINDING_ADRRS_ADJOINT), the cache's entries
     // averaged per cell and per normal direction (the 6 signed axes).
@@ -86,7 +88,7 @@ struct AdrrsParams {
     float grid_cell PX_DEFAULT(0.0f);  // cell edge (0: no grid yet)
     uint grid_nx PX_DEFAULT(0), grid_ny PX_DEFAULT(0), grid_nz PX_DEFAULT(0);
     uint grid_pad PX_DEFAULT(0);
-    // Derived by the host for EARS (techniques/ears.h): the statistics' grid (EARS_GRID cells
+    // Derived by the host for EARS (techniques/ears.h): the statistics' grid (`grid` cells
     // along the scene's longest axis, hashed into ears_slots), and the image's factors.
     vec3 ears_min PX_DEFAULT((vec3{0.0f, 0.0f, 0.0f}));
     float ears_cell PX_DEFAULT(0.0f);        // cell edge (0: no grid, EARS records nothing)
@@ -99,7 +101,6 @@ struct AdrrsParams {
 };
 
 // ---- EARS' statistics (BINDING_EARS_CELLS, BINDING_EARS_FACTORS) -----------------------------
-PX_CONST uint EARS_GRID = 64;           // cells along the scene's longest axis
 PX_CONST uint EARS_PROBES = 8;          // linear probes of the hash table
 PX_CONST uint EARS_PATH_VERTICES = 8;   // decisions of one path that record statistics
 PX_CONST float EARS_FIXED_SCALE = 65536.0;  // sums are 64-bit fixed point (two uints) in 1/65536
@@ -109,7 +110,7 @@ PX_CONST float EARS_MAX_VARIANCE = 1e4; // a pixel's relative variance per sampl
 // path weight and pixel variance is taken relative to sqrt(I^2 + EARS_EPSILON^2) (Rath et al.
 // take I + 1e-2; this is the relMSE of bench.converge and of Mueller et al.).
 PX_CONST float EARS_EPSILON = 0.1;
-// One cell of the learning table: summed over this iteration's records, as 64-bit fixed point
+// One cell of the learning table (BINDING_EARS_CELLS): summed over this iteration's records, as 64-bit fixed point
 // (lo, hi words: the shaders add with a carry, so sums are the same whatever the order).
 struct EarsCell {
     uint key;      // 1 + packed cell and normal direction (0: empty slot)
@@ -118,15 +119,16 @@ struct EarsCell {
     uint lr2_lo, lr2_hi;  // sum of (Lr / S)^2
     uint cost_lo, cost_hi;  // sum of the rays the continuation traced
 };
-// The image's sums, ahead of the cells: its cost per camera sample.
-struct EarsImageSums {
-    uint samples_lo, samples_hi;  // camera samples
-    uint rays_lo, rays_hi;        // rays of every path (split copies too), fixed point
-};
 // Per pixel (BINDING_EARS_PIXELS), over the iteration: the radiance (luminance) of its odd and
-// of its even samples, each with their split copies (A and B), and how many of each (k_a, k_b).
-// (A/k_a - B/k_b)^2 / (1/k_a + 1/k_b) estimates the variance of one sample without needing the
-// pixel's mean; the host divides it by the pixel estimate squared.
+// of its even samples, each with their split copies (A and B), how many of each (k_a, k_b) and
+// the rays of them all. (A/k_a - B/k_b)^2 / (1/k_a + 1/k_b) estimates the variance of one sample
+// without needing the pixel's mean; the host divides it by the metric's I^2 + eps^2.
+struct EarsPixel {
+    float odd_sum, even_sum;
+    uint odd_samples, even_samples;
+    uint rays;
+    uint pad;
+};
 // What a slot's paths decide by (the host's fit of the last iteration).
 struct EarsFactor {
     float second_moment;  // E[Lr^2] / cost (Rath et al. 2022, earsFactorR)

@@ -71,10 +71,10 @@ PX_CONST uint BINDING_PIXEL_FILTER = 41;
 PX_CONST uint BINDING_NODE_PROGRAMS = 42;
 PX_CONST uint BINDING_CORNER_TANGENTS = 43;  // vec4 [3] per triangle: tangent, bitangent sign (Normal Map)
 PX_CONST uint BINDING_CORNER_ATTRIBUTES = 44;  // vec4 [slots][3 per triangle] (SceneInfo.attribute_*)
-// EARS: EarsImageSums, then EarsCell[adrrs.ears_slots] (the iteration being learnt)
+// EARS: EarsCell[adrrs.ears_slots] (the iteration being learnt)
 PX_CONST uint BINDING_EARS_CELLS = 45;
 PX_CONST uint BINDING_EARS_FACTORS = 46;  // EarsFactor[adrrs.ears_slots] (the last iteration's)
-PX_CONST uint BINDING_EARS_PIXELS = 47;   // vec4 per pixel: A, B, k_a, k_b (techniques.h, EarsImageSums)
+PX_CONST uint BINDING_EARS_PIXELS = 47;   // EarsPixel per pixel (the iteration being learnt)
 PX_CONST uint BINDING_COUNT = 48;
 
 // ---- shader binding table: miss shaders and hit groups (RayTracingPipeline group order) -

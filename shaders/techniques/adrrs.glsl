@@ -169,24 +169,22 @@ void adrrs_vertex_adjoint(AdrrsOptions o, Surface surf, bool delta, vec3 p, vec3
 // With EARS (ears.glsl) q comes from its statistics instead, and the path keeps a record of the
 // decision for them.
 // A split copy's first vertex (`resumed`) is the one it was split at: it does not decide again.
-bool adrrs_continuation(AdrrsOptions o, IcVertex ic, Vertex v, bool resumed, inout PathState ps, inout EarsPath ears,
-                        uint segments, bool camera_segment, inout Rng rng, out bool killed) {
+// `ears_slot`: where the path records this decision for EARS (ears_open; NO_INDEX: nowhere).
+bool adrrs_continuation(AdrrsOptions o, IcVertex ic, Vertex v, bool resumed, inout PathState ps, uint segments,
+                        bool camera_segment, inout Rng rng, out bool killed, out uint ears_slot, inout vec4 ears_pass) {
     killed = false;
+    ears_slot = NO_INDEX;
     if (!(USES(TECH_ADRRS) && o.on && !v.delta) || resumed) return false;
     float q;
-    uint slot = NO_INDEX;
     bool decided;
     if (USES(TECH_EARS)) {
-        decided = ears_factor(ears, ps.throughput, v.sh.p, v.ns, o.estimate, q, slot);
+        decided = ears_factor(ps.throughput, v.sh.p, v.ns, o.estimate, ears_pass, q, ears_slot);
         if (tech.adrrs.splitting == 0u) q = min(q, 1.0);
     } else {
         decided = ic.found;
         q = decided ? adrrs_factor(ps.throughput, v.surf.albedo, ic.irradiance, o.estimate) : 1.0;
     }
-    if (!decided) {
-        ears_open(ears, slot, ps.throughput);  // no statistics yet: learn, the roulette decides
-        return false;
-    }
+    if (!decided) return false;  // (EARS without statistics yet: the path learns, the roulette decides)
     if (q < 1.0) {
         if (rnd(rng) >= q) {
             killed = true;
@@ -212,7 +210,6 @@ bool adrrs_continuation(AdrrsOptions o, IcVertex ic, Vertex v, bool resumed, ino
                                    ps.self_instance, ps.self_primitive, ps.min_ray_pdf));
         }
     }
-    ears_open(ears, slot, ps.throughput);
     return true;
 }
 

@@ -14,17 +14,14 @@
 // Statistics: a path remembers each decision it survived (the cell, its throughput after the
 // decision, its radiance and rays when the continuation started) and at its end records, per
 // decision, Lr = (radiance gained since) / throughput and the rays traced since. The records
-// are summed per cell of a hashed grid (EARS_GRID cells along the scene's longest axis, times
+// are summed per cell of a hashed grid (rrs_grid cells along the scene's longest axis, times
 // the 6 signed normal axes) in 64-bit fixed point, so the sums do not depend on the order the
 // paths add them in. The host turns one iteration's sums into the factors the next one uses
 // (native/src/techniques/ears.cpp).
 
-layout(set = 0, binding = BINDING_EARS_CELLS, scalar) buffer EarsCellBuffer {
-    EarsImageSums ears_image;
-    EarsCell ears_cells[];
-};
+layout(set = 0, binding = BINDING_EARS_CELLS, scalar) buffer EarsCellBuffer { EarsCell ears_cells[]; };
 layout(set = 0, binding = BINDING_EARS_FACTORS, scalar) readonly buffer EarsFactorBuffer { EarsFactor ears_factors[]; };
-layout(set = 0, binding = BINDING_EARS_PIXELS, scalar) buffer EarsPixelBuffer { vec4 ears_pixels[]; };
+layout(set = 0, binding = BINDING_EARS_PIXELS, scalar) buffer EarsPixelBuffer { EarsPixel ears_pixels[]; };
 
 bool ears_on() { return USES(TECH_EARS) && tech.adrrs.mode == RRS_EARS; }
 
@@ -46,11 +43,12 @@ bool ears_on() { return USES(TECH_EARS) && tech.adrrs.mode == RRS_EARS; }
 uint ears_key(vec3 p, vec3 n) {
     if (!(tech.adrrs.ears_cell > 0.0) || any(isnan(p)) || any(isinf(p))) return 0u;
     ivec3 c = ivec3(floor((p - tech.adrrs.ears_min) / tech.adrrs.ears_cell));
-    if (any(lessThan(c, ivec3(0))) || any(greaterThanEqual(c, ivec3(int(EARS_GRID))))) return 0u;
+    uint grid = tech.adrrs.grid;
+    if (any(lessThan(c, ivec3(0))) || any(greaterThanEqual(c, ivec3(int(grid))))) return 0u;
     vec3 a = abs(n);
     uint axis = a.x >= a.y && a.x >= a.z ? 0u : a.y >= a.z ? 1u : 2u;
     uint dir = 2u * axis + (n[axis] < 0.0 ? 1u : 0u);
-    return 1u + ((uint(c.z) * EARS_GRID + uint(c.y)) * EARS_GRID + uint(c.x)) * 6u + dir;
+    return 1u + ((uint(c.z) * grid + uint(c.y)) * grid + uint(c.x)) * 6u + dir;
 }
 
 // The slot holding `key` (claimed for it when `claim`), NO_INDEX where none is found within
@@ -59,7 +57,7 @@ uint ears_key(vec3 p, vec3 n) {
 uint ears_slot(uint key, bool claim) {
     if (key == 0u) return NO_INDEX;
     uint mask = tech.adrrs.ears_slots - 1u;
-    uint slot = tea(key, 0x45415253u) & mask;
+    uint slot = hash_u32(key) & mask;
     for (uint i = 0u; i < EARS_PROBES; ++i, slot = (slot + 1u) & mask) {
         uint found = ears_cells[slot].key;
         if (found == key) return slot;
@@ -75,7 +73,8 @@ uint ears_slot(uint key, bool claim) {
 #ifdef PX_TRACE_LOOP
 // ---- hooks of the trace loop (lib/integrator.glsl via techniques.glsl, adrrs.glsl) ---------
 
-// A path's open records: the decisions it survived, waiting for its end.
+// A path's open records: the decisions it survived, waiting for its end. Kept by trace_path
+// itself (not in TechniquePath, which every hook copies).
 struct EarsPath {
     uint count;
     uint slot[EARS_PATH_VERTICES];
@@ -83,27 +82,20 @@ struct EarsPath {
     float radiance[EARS_PATH_VERTICES];    // luminance of the path's radiance when its continuation started
     uint rays[EARS_PATH_VERTICES];         // the path's rays then
     bool starting;                         // the last record's continuation starts at the next segment
-    float q_sum;                           // the factors of its decisions (the RRS Factor pass)
-    uint decisions;
-    float first_cost;                      // the learnt relative cost at its first decision (RRS Cost)
-    bool costed;
 };
 
 EarsPath ears_path() {
     EarsPath e;
     e.count = 0u;
     e.starting = false;
-    e.q_sum = 0.0;
-    e.decisions = 0u;
-    e.first_cost = 0.0;
-    e.costed = false;
     return e;
 }
 
 // EARS' factor for a path of throughput v at (p, n) in a pixel of estimate luminance I; false
 // where the vertex's cell has no statistics yet (the throughput roulette decides). `slot`: the
-// cell's slot for the path's record (NO_INDEX: none).
-bool ears_factor(inout EarsPath e, vec3 throughput, vec3 p, vec3 n, float estimate, out float q, out uint slot) {
+// cell's slot for the path's record (NO_INDEX: none). `pass` sums the path's factors and
+// counts them, and holds the learnt relative cost at its first decision (the RRS passes).
+bool ears_factor(vec3 throughput, vec3 p, vec3 n, float estimate, inout vec4 pass, out float q, out uint slot) {
     q = 1.0;
     slot = NO_INDEX;
     if (!ears_on() || tech.adrrs.ears_learn == 0u) return false;
@@ -118,12 +110,7 @@ bool ears_factor(inout EarsPath e, vec3 throughput, vec3 p, vec3 n, float estima
     q = q_r > 1.0 ? max(q_s, 1.0) : q_r;
     q = max(q, tech.adrrs.rr_min);
     if (isnan(q)) q = 1.0;
-    e.q_sum += q;
-    e.decisions++;
-    if (!e.costed) {
-        e.first_cost = f.cost;
-        e.costed = true;
-    }
+    pass += vec4(q, 1.0, pass.y == 0.0 ? vec2(f.cost, 1.0) : vec2(0.0));
     return true;
 }
 
@@ -164,20 +151,25 @@ void ears_path_end(inout EarsPath e, vec3 radiance, uint rays, inout Rng rng) {
 }
 
 // The image's cost and relative variance per sample: a pixel's camera dispatch (n samples from
-// its `first`, with `sum_odd` the radiance of its odd ones) adds its cost and its halves
-// (ears_pixels); its split dispatch adds its copies' radiance to the halves they belong to.
+// its `first`, with `sum_odd` the radiance of its odd ones) adds its halves and its rays to
+// its EarsPixel; its split dispatch adds its copies' radiance to the halves they belong to.
+// One writer per pixel and dispatch: no atomics.
 void ears_pixel_frame(uint pixel_index, vec3 sum, vec3 sum_odd, uint first, uint n, uint rays) {
     if (!ears_on() || tech.adrrs.ears_learn == 0u) return;
-    uint old = atomicAdd(ears_image.samples_lo, n);
-    if (old + n < old) atomicAdd(ears_image.samples_hi, 1u);
-    EARS_ADD_FIXED(ears_image.rays_lo, ears_image.rays_hi, float(rays), 0.0);
     uint odd = (first + n) / 2u - first / 2u;
-    ears_pixels[pixel_index] += vec4(luminance(sum_odd), luminance(sum - sum_odd), float(odd), float(n - odd));
+    EarsPixel e = ears_pixels[pixel_index];
+    e.odd_sum += luminance(sum_odd);
+    e.even_sum += luminance(sum - sum_odd);
+    e.odd_samples += odd;
+    e.even_samples += n - odd;
+    e.rays += rays;
+    ears_pixels[pixel_index] = e;
 }
 
 void ears_split_frame(uint pixel_index, vec3 sum, vec3 sum_odd, uint rays) {
     if (!ears_on() || tech.adrrs.ears_learn == 0u) return;
-    EARS_ADD_FIXED(ears_image.rays_lo, ears_image.rays_hi, float(rays), 0.0);
-    ears_pixels[pixel_index].xy += vec2(luminance(sum_odd), luminance(sum - sum_odd));
+    ears_pixels[pixel_index].odd_sum += luminance(sum_odd);
+    ears_pixels[pixel_index].even_sum += luminance(sum - sum_odd);
+    ears_pixels[pixel_index].rays += rays;
 }
 #endif

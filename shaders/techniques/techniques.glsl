@@ -72,11 +72,11 @@ bool techniques_frame_output(vec3 sum_radiance, uint pixel_index) {
 struct TechniquePath {
     IcPath ic;
     GuidingPath guiding;
-    EarsPath ears;
+    vec4 ears;  // EARS' factors summed and counted, the relative cost at the first decision (ears_factor)
 };
 
 TechniquePath technique_path(TechniqueOptions o) {
-    return TechniquePath(ic_path(), guiding_path(o.guiding), ears_path());
+    return TechniquePath(ic_path(), guiding_path(o.guiding), vec4(0.0));
 }
 
 // The techniques at a vertex: the guiding mixture there, and the cached (or adjoint)
@@ -103,7 +103,7 @@ void techniques_add_sample(inout TechniquePixel px, TechniqueOptions o, Techniqu
                            vec3 origin, vec3 dir, float first_t) {
     ic_add_sample(px.ic, path.ic);
     guiding_add_sample(px.guiding, o.guiding, s, pixel, origin, dir, first_t);
-    if (ears_on()) px.ears += vec4(path.ears.q_sum, float(path.ears.decisions), path.ears.first_cost, path.ears.costed ? 1.0 : 0.0);
+    if (ears_on()) px.ears += path.ears;
 }
 
 void techniques_write_passes(TechniquePixel px, uint pixel_index) {

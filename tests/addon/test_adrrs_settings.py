@@ -14,6 +14,7 @@ import parallax_core
 
 ADRRS_ONLY = {"adrrs_window", "adrrs_estimate", "adrrs_ic_glossy"}  # apply with rrs adrrs only
 SHARED = {"adrrs_splitting", "adrrs_rr_min", "adrrs_max_splits", "adrrs_estimate_spp"}  # with rrs on
+EARS_ONLY = {"rrs_grid", "rrs_min_records"}  # with rrs ears only
 
 
 def test_f12_writes_the_adrrs_layers(bpy, tmp_path):
@@ -144,13 +145,14 @@ def test_the_panel_is_rrs_and_greys_what_does_not_apply(fresh):
     assert panel.bl_label == "Russian Roulette & Splitting" == parallax_core.setting("rrs").label
     assert panel.header is None and panel.switches == ("rrs",)  # an enum: the first row, not a checkbox
     rows = [row.name for row in parallax_core.SETTINGS if row.panel == "adrrs"]
-    assert list(panel.rows) == rows and rows[0] == "rrs" and set(rows) == {"rrs"} | ADRRS_ONLY | SHARED
+    assert list(panel.rows) == rows and rows[0] == "rrs" and set(rows) == {"rrs"} | ADRRS_ONLY | EARS_ONLY | SHARED
     for rrs in ("off", "adrrs", "ears"):
         fresh.parallax.rrs = rrs
         shown = _drawn(panel, fresh)
         assert list(shown) == rows and shown["rrs"], rrs
         assert all(shown[name] == (rrs == "adrrs") for name in ADRRS_ONLY), (rrs, shown)
         assert all(shown[name] == (rrs != "off") for name in SHARED), (rrs, shown)
+        assert all(shown[name] == (rrs == "ears") for name in EARS_ONLY), (rrs, shown)
 
 
 def test_the_rrs_passes_follow_rrs(fresh):

@@ -77,6 +77,12 @@ const SettingTable& adrrs_table() {
                            "The image rendered so far, blurred; refreshed each time the samples double (the "
                            "alternative the thesis names in 4.5)", ADRRS_ESTIMATE_IMAGE}},
                          "Estimate", "Where the pixel estimate comes from", "adrrs"),
+            int_setting("rrs_grid", PX_FIELD(AdrrsParams, grid), 32, 2, 256, "Grid",
+                        "EARS: cells of its statistics along the scene's longest axis (each also split by the "
+                        "normal's direction); finer cells adapt better but need more paths to settle", "adrrs"),
+            int_setting("rrs_min_records", PX_FIELD(AdrrsParams, min_records), 256, 1, 1 << 24, "Min Records",
+                        "EARS: paths a cell must have recorded in a training iteration before its factors are "
+                        "used (noisy factors cost more than they save)", "adrrs"),
             bool_setting("adrrs_ic_glossy", PX_FIELD(AdrrsParams, ic_glossy), true, "Cache on Glossy",
                          "The Irradiance Cache estimate reads the cache at glossy surfaces too (thesis, sec. 4.4)",
                          "adrrs"),
@@ -142,7 +148,7 @@ void Adrrs::setup(const AdrrsParams& params, const SceneHost& scene, uint32_t wi
                   uint32_t samples_per_frame) {
     params_ = params;
     if (ears()) params_.estimate = ADRRS_ESTIMATE_IMAGE;  // EARS' pixel estimate is the image's
-    ears_.configure(ears(), scene, width, height);
+    ears_.configure(ears(), scene, width, height, params_.grid, params_.min_records);
     width_ = width;
     height_ = height;
     // Off: one-element buffers keep every binding valid (the shaders never touch them).

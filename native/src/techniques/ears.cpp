@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdlib>
 #include <cstring>
 #include <vector>
 
@@ -20,26 +19,28 @@ double fixed_sum(uint32_t lo, uint32_t hi) {
 }  // namespace
 
 EarsStatistics::EarsStatistics(Context& ctx) : ctx_(ctx) {
-    cells_ = Buffer(ctx_, sizeof(EarsImageSums) + sizeof(EarsCell), kStorageUsage);
+    cells_ = Buffer(ctx_, sizeof(EarsCell), kStorageUsage);
     factors_ = Buffer(ctx_, sizeof(EarsFactor), kStorageUsage);
-    pixels_ = Buffer(ctx_, sizeof(vec4), kStorageUsage);
+    pixels_ = Buffer(ctx_, sizeof(EarsPixel), kStorageUsage);
     reset();
 }
 
-void EarsStatistics::configure(bool enabled, const SceneHost& scene, uint32_t width, uint32_t height) {
+void EarsStatistics::configure(bool enabled, const SceneHost& scene, uint32_t width, uint32_t height, uint32_t grid,
+                               uint32_t min_records) {
     enabled_ = enabled;
+    min_records_ = std::max(min_records, 1u);
     slots_ = enabled ? kEarsSlots : 1;
-    const size_t cell_bytes = sizeof(EarsImageSums) + size_t(slots_) * sizeof(EarsCell);
+    const size_t cell_bytes = size_t(slots_) * sizeof(EarsCell);
     if (cells_.size() != cell_bytes) cells_ = Buffer(ctx_, cell_bytes, kStorageUsage);
     if (factors_.size() != size_t(slots_) * sizeof(EarsFactor))
         factors_ = Buffer(ctx_, size_t(slots_) * sizeof(EarsFactor), kStorageUsage);
-    const size_t pixel_bytes = (enabled ? size_t(width) * height : 1) * sizeof(vec4);
+    const size_t pixel_bytes = (enabled ? size_t(width) * height : 1) * sizeof(EarsPixel);
     if (pixels_.size() != pixel_bytes) pixels_ = Buffer(ctx_, pixel_bytes, kStorageUsage);
     float lo[3], hi[3];
     scene_bounds(scene, lo, hi);
     const float extent = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 1e-6f});
     // Half a cell of margin each way, so that points on the box's faces fall inside.
-    cell_ = extent / float(EARS_GRID - 1);
+    cell_ = extent / float(std::max(grid, 2u) - 1);
     for (int a = 0; a < 3; ++a) grid_min_[a] = lo[a] - 0.5f * cell_;
     reset();
 }
@@ -84,40 +85,37 @@ void EarsStatistics::end_iteration(const std::vector<float>& estimate) {
     for (float l : estimate) luminance_sum += l;
     const float scale = estimate.empty() ? 0.0f : float(luminance_sum / double(estimate.size()));
     if (learning_) {
-        std::vector<vec4> halves(pixels_.size() / sizeof(vec4));
-        pixels_.download(halves.data(), pixels_.size());
-        double variance_sum = 0;
+        std::vector<EarsPixel> pixels(pixels_.size() / sizeof(EarsPixel));
+        pixels_.download(pixels.data(), pixels_.size());
+        double variance_sum = 0, rays = 0, samples = 0;
         uint64_t variance_pixels = 0;
-        for (size_t i = 0; i < halves.size() && i < estimate.size(); ++i) {
-            const vec4& h = halves[i];
-            debug_ab_ += h.x + h.y; debug_k_ += h.z + h.w; debug_est_ += estimate[i] * (h.z + h.w);
-            if (!(h.z > 0 && h.w > 0)) continue;
-            const double d = h.x / h.z - h.y / h.w, v = d * d / (1.0 / h.z + 1.0 / h.w);
-            const double relative = v / (double(estimate[i]) * estimate[i] + double(EARS_EPSILON) * EARS_EPSILON);
+        for (size_t i = 0; i < pixels.size() && i < estimate.size(); ++i) {
+            const EarsPixel& p = pixels[i];
+            rays += p.rays;
+            samples += double(p.odd_samples) + p.even_samples;
+            if (p.odd_samples == 0 || p.even_samples == 0) continue;
+            const double a = p.odd_samples, b = p.even_samples, d = p.odd_sum / a - p.even_sum / b;
+            const double relative = d * d / (1.0 / a + 1.0 / b) /
+                                    (double(estimate[i]) * estimate[i] + double(EARS_EPSILON) * EARS_EPSILON);
             if (!std::isfinite(relative)) continue;
             variance_sum += std::min(relative, double(EARS_MAX_VARIANCE));
             ++variance_pixels;
         }
         pixels_.fill_zero();
-        std::vector<uint8_t> bytes(cells_.size());
-        cells_.download(bytes.data(), bytes.size());
-        EarsImageSums image;
-        std::memcpy(&image, bytes.data(), sizeof(image));
-        auto* cells = reinterpret_cast<EarsCell*>(bytes.data() + sizeof(EarsImageSums));
-        const double samples = double(image.samples_hi) * 4294967296.0 + double(image.samples_lo);
         if (samples > 0 && variance_pixels > 0) {
-            image_cost_ = fixed_sum(image.rays_lo, image.rays_hi) / samples;
+            image_cost_ = rays / samples;
             image_variance_ = variance_sum / double(variance_pixels);
             if (image_variance_ > 0 && image_cost_ > 0) image_factor_ = float(std::sqrt(image_cost_ / image_variance_));
-            if (const char* f = std::getenv("PX_EARS_F")) image_factor_ = float(std::atof(f));  // DEBUG
         }
+        std::vector<EarsCell> cells(slots_);
+        cells_.download(cells.data(), cells.size() * sizeof(EarsCell));
         const double unit = double(scale_) * double(scale_);
         cells_with_factors_ = full_slots_ = 0;
         for (uint32_t s = 0; s < slots_; ++s) {
             EarsCell& c = cells[s];
             if (c.key == 0) continue;
             ++full_slots_;
-            if (c.count >= kEarsMinRecords) {
+            if (c.count >= min_records_) {
                 const double n = c.count, m1 = fixed_sum(c.lr_lo, c.lr_hi) / n, m2 = fixed_sum(c.lr2_lo, c.lr2_hi) / n;
                 const double cost = fixed_sum(c.cost_lo, c.cost_hi) / n;
                 EarsFactor& f = factors_host_[s];
@@ -132,8 +130,7 @@ void EarsStatistics::end_iteration(const std::vector<float>& estimate) {
             c = EarsCell{};
             c.key = key;  // the slot stays the cell's: paths find it again
         }
-        std::memset(bytes.data(), 0, sizeof(EarsImageSums));
-        cells_.upload(bytes.data(), bytes.size());
+        cells_.upload(cells.data(), cells.size() * sizeof(EarsCell));
         factors_.upload(factors_host_.data(), factors_host_.size() * sizeof(EarsFactor));
         active_ = cells_with_factors_ > 0 && image_factor_ > 0;
         ++iterations_;
@@ -149,7 +146,6 @@ void EarsStatistics::stats(StatList& out) const {
                            {"ears_cells", uint64_t(full_slots_)},
                            {"ears_cell_size", double(cell_)},
                            {"ears_scale", double(scale_)},
-                           {"ears_debug_ab", debug_ab_}, {"ears_debug_k", debug_k_}, {"ears_debug_est", debug_est_},
                            {"ears_cells_with_factors", uint64_t(cells_with_factors_)},
                            {"ears_image_factor", double(image_factor_)},
                            {"ears_image_cost", image_cost_},

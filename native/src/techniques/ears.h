@@ -14,15 +14,14 @@
 
 namespace px {
 
-// The fewest records a cell needs before its factors are trusted (Rath et al.'s caches wait
-// for their training iterations; TECHNIQUES.md: "don't trust the factors before they settle").
-constexpr uint32_t kEarsMinRecords = 32;
-
 class EarsStatistics {
 public:
     explicit EarsStatistics(Context& ctx);
     // New scene, settings or image: the grid spans the scene's box, every statistic is dropped.
-    void configure(bool enabled, const SceneHost& scene, uint32_t width, uint32_t height);
+    // `grid`: cells along the box's longest axis; `min_records`: the records a cell needs before
+    // its factors are trusted (TECHNIQUES.md: don't trust the factors before they settle).
+    void configure(bool enabled, const SceneHost& scene, uint32_t width, uint32_t height, uint32_t grid,
+                   uint32_t min_records);
     void reset();  // statistics dropped; learning waits for the next image estimate
     void bind(DescriptorSet& set) const;
     // The grid, the image's factor and the phase into `params` (AdrrsParams' ears_* fields).
@@ -40,7 +39,7 @@ private:
     Context& ctx_;
     bool enabled_ = false;
     Buffer cells_, factors_, pixels_;
-    uint32_t slots_ = 1;
+    uint32_t slots_ = 1, min_records_ = 1;
     float grid_min_[3] = {0, 0, 0};
     float cell_ = 0.0f;
     bool learning_ = false;  // paths record (an estimate exists)
@@ -50,7 +49,6 @@ private:
     uint32_t iterations_ = 0, cells_with_factors_ = 0, full_slots_ = 0;
     double image_cost_ = 0, image_variance_ = 0, fit_milliseconds_ = 0;
     std::vector<EarsFactor> factors_host_;
-    double debug_ab_ = 0, debug_k_ = 0, debug_est_ = 0;
 };
 
 }  // namespace px
