@@ -105,14 +105,14 @@ PX_CONST uint EARS_PROBES = 8;          // linear probes of the hash table
 PX_CONST uint EARS_PATH_VERTICES = 2;   // decisions of one path that record statistics (its first ones:
                                         // lavapipe keeps longer record arrays in memory, 1.3x slower at 8)
 PX_CONST float EARS_FIXED_SCALE = 65536.0;  // sums are 64-bit fixed point (two uints) in 1/65536
-PX_CONST float EARS_MAX_RECORD = 1e10;  // a record's (Lr/S)^2 is clamped here (a sum's 64 bits hold 2^32 of them)
+PX_CONST float EARS_MAX_RECORD = 1e10;  // a record's (Lr/S)^2 is clamped here
 PX_CONST float EARS_MAX_VARIANCE = 1e4; // a pixel's relative variance per sample is clamped here
 // The metric EARS minimises is relMSE's, (x - I)^2 / (I^2 + EARS_EPSILON^2) per pixel: each
 // path weight and pixel variance is taken relative to sqrt(I^2 + EARS_EPSILON^2) (Rath et al.
 // take I + 1e-2; this is the relMSE of bench.converge and of Mueller et al.).
 PX_CONST float EARS_EPSILON = 0.1;
-// One cell of the learning table (BINDING_EARS_CELLS): summed over this iteration's records, as 64-bit fixed point
-// (lo, hi words: the shaders add with a carry, so sums are the same whatever the order).
+// One cell of the learning table (BINDING_EARS_CELLS): this iteration's records summed as 64-bit
+// fixed point (lo, hi words: the shaders add with a carry, so sums are the same whatever the order).
 struct EarsCell {
     uint key;      // 1 + packed cell and normal direction (0: empty slot)
     uint count;    // records

@@ -165,11 +165,10 @@ void adrrs_vertex_adjoint(AdrrsOptions o, Surface surf, bool delta, vec3 p, vec3
 // ADRRS on the continuation of a non-delta vertex v, whose cached (or adjoint) irradiance is
 // ic's: roulette or split by the adjoint. The split copies start on the segment that reached
 // the vertex (ps' origin, dir, t_min, t_max). Returns whether ADRRS decided (the throughput
-// roulette then stands aside); `killed`: the path ends.
-// With EARS (ears.glsl) q comes from its statistics instead, and the path keeps a record of the
-// decision for them.
-// A split copy's first vertex (`resumed`) is the one it was split at: it does not decide again.
-// `ears_slot`: where the path records this decision for EARS (ears_open; NO_INDEX: nowhere).
+// roulette then stands aside); `killed`: the path ends. With EARS (ears.glsl) q comes from its
+// statistics instead; `ears_slot` is where the path records the decision for them (ears_open;
+// NO_INDEX: nowhere), `ears_pass` sums its factors for the RRS passes. A split copy's first
+// vertex (`resumed`) is the one it was split at: it does not decide again.
 bool adrrs_continuation(AdrrsOptions o, IcVertex ic, Vertex v, bool resumed, inout PathState ps, uint segments,
                         bool camera_segment, inout Rng rng, out bool killed, out uint ears_slot, inout vec4 ears_pass) {
     killed = false;

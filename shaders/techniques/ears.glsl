@@ -2,18 +2,18 @@
 // 2022, "EARS"): the factor q of a path's continuation at a non-delta vertex x minimises
 // variance x cost of the image. With the path's throughput v, the pixel estimate I, the second
 // moment and cost of the continuation's estimate Lr(x) learnt per cell, and the image's cost
-// and relative variance per sample (their eq. 12-14):
+// and relative variance per sample:
 //
 //     q = v / sqrt(I^2 + eps^2) * sqrt(E[Lr^2] / C(x)) * sqrt(C_image / V_image)
 //
-// and, where the second moment says split, the variance Var[Lr] in place of E[Lr^2] (their
-// section 5.2: split by the variance only where both agree). q < 1 is a roulette, q > 1 a
+// and, where the second moment says split, the variance Var[Lr] in place of E[Lr^2] (as their
+// implementation does: split only where both agree). q < 1 is a roulette, q > 1 a
 // split into q expected copies: the machinery of adrrs.glsl (pixel estimate, split queue), which
 // this file only feeds with q. Any q keeps the estimate unbiased.
 //
-// Statistics: a path remembers each decision it survived (the cell, its throughput after the
-// decision, its radiance and rays when the continuation started) and at its end records, per
-// decision, Lr = (radiance gained since) / throughput and the rays traced since. The records
+// Statistics: a path remembers its first EARS_PATH_VERTICES decisions (the cell, its throughput
+// after the decision, its radiance and rays when the continuation started) and at its end
+// records, per decision, Lr = (radiance gained since) / throughput and the rays traced since. The records
 // are summed per cell of a hashed grid (rrs_grid cells along the scene's longest axis, times
 // the 6 signed normal axes) in 64-bit fixed point, so the sums do not depend on the order the
 // paths add them in. The host turns one iteration's sums into the factors the next one uses
@@ -106,7 +106,7 @@ bool ears_factor(vec3 throughput, vec3 p, vec3 n, float estimate, inout vec4 pas
     float w = luminance(throughput) / sqrt(sqr(estimate) + sqr(EARS_EPSILON));
     float q_r = w * sqrt(f.second_moment) * tech.adrrs.ears_image_factor;
     float q_s = w * sqrt(f.variance) * tech.adrrs.ears_image_factor;
-    // Rath et al. 2022, 5.2: roulette by the second moment; split only where the variance agrees.
+    // Roulette by the second moment; split only where the variance agrees (Rath et al.'s code).
     q = q_r > 1.0 ? max(q_s, 1.0) : q_r;
     q = max(q, tech.adrrs.rr_min);
     if (isnan(q)) q = 1.0;

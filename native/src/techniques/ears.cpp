@@ -73,7 +73,7 @@ void EarsStatistics::write_params(AdrrsParams& params) const {
     params.ears_image_factor = image_factor_;
 }
 
-// Rath et al. 2022, eq. 14 per cell: the factors are E[Lr^2] / C and Var[Lr] / C in absolute
+// Rath et al. 2022, per cell: the factors are E[Lr^2] / C and Var[Lr] / C in absolute
 // units (the records are in units of the scale the iteration ran with), and the image's
 // sqrt(C / V): C the rays per camera sample, V the mean over pixels of one sample's variance
 // (from the pixel's two halves) relative to the estimate squared, each pixel's at most

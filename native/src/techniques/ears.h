@@ -24,7 +24,8 @@ public:
                    uint32_t min_records);
     void reset();  // statistics dropped; learning waits for the next image estimate
     void bind(DescriptorSet& set) const;
-    // The grid, the image's factor and the phase into `params` (AdrrsParams' ears_* fields).
+    // The grid, the image's factor and whether paths learn and decide, into `params`
+    // (AdrrsParams' ears_* fields).
     void write_params(AdrrsParams& params) const;
     // An iteration ends: the pixel estimate was just refreshed to `estimate` (luminance per
     // pixel). The learnt sums become the factors; learning goes on in the unit of the
@@ -32,8 +33,6 @@ public:
     void end_iteration(const std::vector<float>& estimate);
 
     void stats(StatList& out) const;
-    // The fit of the last iteration, for tests: cells with factors, mean factor, image factor.
-    uint32_t cells_with_factors() const { return cells_with_factors_; }
 
 private:
     Context& ctx_;
