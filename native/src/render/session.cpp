@@ -82,24 +82,14 @@ void Session::reset_accumulation(bool view_only) {
     // Built where a technique that is on needs it (Technique::needs), even if off itself.
     const auto needed = [&](const Technique& t) {
         for (const auto& other : techniques_)
-            for (const std::string& name : other->needs())
+            for (const std::string& name : other->needs(params_))
                 if (name == t.name() && technique_on(params_, other->name())) return true;
         return false;
     };
-    std::vector<bool> configured_needed;
     for (const auto& t : techniques_) {
-        configured_needed.push_back(needed(*t));
-        t->configure(params_, setup, configured_needed.back());
+        t->configure(params_, setup, needed(*t));
         t->bind(*set_);  // configure may have made new buffers and a new TLAS
     }
-    // A technique's needs may follow its own settings, which it takes in configure (ADRRS needs
-    // the cache, EARS not): one configured before the technique that needs it is configured
-    // again where that changed.
-    for (size_t i = 0; i < techniques_.size(); ++i)
-        if (needed(*techniques_[i]) != configured_needed[i]) {
-            techniques_[i]->configure(params_, setup, !configured_needed[i]);
-            techniques_[i]->bind(*set_);
-        }
     upload_technique_params();
 }
 

@@ -131,7 +131,7 @@ void Adrrs::begin_host_frame(FrameParams& frame) const {
 }
 
 void Adrrs::sync(TechniqueHost& host, const Technique* stepped) {
-    if (params_.mode != RRS_ADRRS || (stepped && !depends_on(*stepped)) || !update_adjoint()) return;
+    if (params_.mode != RRS_ADRRS || (stepped && stepped != &cache_) || !update_adjoint()) return;
     bind(host.descriptors());
     host.upload_technique_params();
 }

@@ -28,8 +28,8 @@ public:
     // Technique (technique.h).
     const SettingTable& table() const override { return adrrs_table(); }
     // ADRRS' adjoint is the cache; EARS learns its own statistics.
-    std::vector<std::string> needs() const override {
-        return params_.mode == RRS_ADRRS ? std::vector<std::string>{"ic"} : std::vector<std::string>{};
+    std::vector<std::string> needs(const RenderParams& params) const override {
+        return params.adrrs.mode == RRS_ADRRS ? std::vector<std::string>{"ic"} : std::vector<std::string>{};
     }
     void configure(const RenderParams& params, const TechniqueSetup& setup, bool needed) override;
     void view_changed() override { reset(); }  // the pixel estimate is made again

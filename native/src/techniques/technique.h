@@ -81,8 +81,9 @@ public:
     // technique is its name.
     virtual const SettingTable& table() const = 0;
     const char* name() const { return table().technique; }
-    // The techniques it needs built (by name): they are configured as `needed` while it is on.
-    virtual std::vector<std::string> needs() const { return {}; }
+    // The techniques it needs built (by name) under `params`: they are configured as `needed`
+    // while it is on.
+    virtual std::vector<std::string> needs(const RenderParams& /*params*/) const { return {}; }
     // New settings, scene or image size: everything starts over. `needed`: a technique that
     // needs this one is on (the cache is built for ADRRS even with ic off).
     virtual void configure(const RenderParams& params, const TechniqueSetup& setup, bool needed) = 0;
@@ -132,11 +133,6 @@ public:
     // After a host step: follows what the techniques it needs changed. `stepped`: the
     // technique whose host frame ran (nullptr: the steps after a render frame).
     virtual void sync(TechniqueHost& /*host*/, const Technique* /*stepped*/) {}
-    bool depends_on(const Technique& other) const {
-        for (const std::string& name : needs())
-            if (name == other.name()) return true;
-        return false;
-    }
 
     virtual void stats(StatList& /*out*/) const {}
 };
