@@ -79,15 +79,13 @@ void Session::reset_accumulation(bool view_only) {
         return;
     }
     const TechniqueSetup setup{scene_->host(), scene_version_, width_, height_, film_passes()};
-    // Built where a technique that is on needs it (Technique::needs), even if off itself.
-    const auto needed = [&](const Technique& t) {
+    for (const auto& t : techniques_) {
+        // Built where a technique that is on needs it (Technique::needs), even if off itself.
+        bool needed = false;
         for (const auto& other : techniques_)
             for (const std::string& name : other->needs(params_))
-                if (name == t.name() && technique_on(params_, other->name())) return true;
-        return false;
-    };
-    for (const auto& t : techniques_) {
-        t->configure(params_, setup, needed(*t));
+                needed = needed || (name == t->name() && technique_on(params_, other->name()));
+        t->configure(params_, setup, needed);
         t->bind(*set_);  // configure may have made new buffers and a new TLAS
     }
     upload_technique_params();
