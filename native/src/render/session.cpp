@@ -550,10 +550,9 @@ void Session::host_frame(Technique& technique) {
 }
 
 // Frames go to the device in submissions of dispatches up to the plan's budget; cancel() is
-// checked between submissions. Where a technique steps after each frame (Technique::
-// steps_after_frame) a submission ends with its frame, which is followed by
-// the techniques' after_frame; a new frame is preceded by the host frames the techniques still
-// need: all of them for render(), one per call for render_rows() (so a caller can still stop
+// checked between submissions. A frame after which a technique steps (Technique::
+// steps_after_frame) ends its submission and is followed by the techniques' after_frame; a
+// new frame is preceded by the host frames the techniques still need: all of them for render(), one per call for render_rows() (so a caller can still stop
 // between short calls).
 uint32_t Session::trace(uint32_t frames, uint32_t rows) {
     if (!scene_) throw std::runtime_error("no scene: call update(scene) before render()");
@@ -615,19 +614,23 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
             adaptive_->reset();
             start = std::chrono::steady_clock::now();
         }
-        // Techniques that step after each frame: a submission holds at most one frame.
-        bool host_step = false;
-        for (const auto& t : techniques_) host_step = host_step || (!fallback && t->steps_after_frame());
+        // A frame after which a technique steps ends its submission.
+        auto steps_after = [&](uint64_t samples) {
+            for (const auto& t : techniques_)
+                if (!fallback && t->steps_after_frame(samples)) return true;
+            return false;
+        };
         bool frame_done = false, step = false;
         const auto submit_start = std::chrono::steady_clock::now();
         ctx_->submit_and_wait([&](VkCommandBuffer cmd) {
-            if (cursor_.at_frame_start() && !fallback)
-                for (const auto& t : techniques_) t->record_frame_start(cmd, nullptr);
             uint64_t work = 0;
             while (work < plan.budget && (frames ? completed < frames : rows_left > 0)) {
+                if (cursor_.at_frame_start() && !fallback)
+                    for (const auto& t : techniques_) t->record_frame_start(cmd, nullptr);
                 work += record_dispatch(cmd, pipe, plan, stats_.frames + completed, rows_left, frame_done);
                 if (!frame_done) continue;
-                if (host_step) {  // the techniques' steps come next
+                if (steps_after(stats_.samples + uint64_t(completed + 1) * params_.samples_per_frame)) {
+                    // the techniques' steps come next
                     step = true;
                     break;
                 }
@@ -643,7 +646,7 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
             const uint64_t paths = uint64_t(adaptive_->active_pixels()) * params_.samples_per_frame;
             const FrameEnd end{frame_params(stats_.frames + completed), paths, samples, frame_milliseconds};
             for (const auto& t : techniques_)
-                if (t->steps_after_frame()) t->after_frame(*this, end);
+                if (t->steps_after_frame(samples)) t->after_frame(*this, end);
             frame_milliseconds = 0;
             ++completed;
             for (const auto& t : techniques_) t->sync(*this, nullptr);

@@ -248,7 +248,7 @@ void Adrrs::record_before_trace(VkCommandBuffer cmd) const {
 void Adrrs::after_frame(TechniqueHost& host, const FrameEnd& frame) {
     const Buffer& film = host.film();
     const uint64_t samples = frame.samples;
-    if (!enabled() || params_.estimate != ADRRS_ESTIMATE_IMAGE || samples < next_refresh_) return;
+    if (!steps_after_frame(samples)) return;
     while (next_refresh_ <= samples) next_refresh_ *= 2;
     const size_t pixels = size_t(width_) * height_;
     std::vector<vec4> sums(pixels);

@@ -38,8 +38,14 @@ public:
     void bind(DescriptorSet& set) const override;
     void write_params(TechniqueParams& params) const override;
     uint32_t spec_bit(bool) const override { return enabled() ? TECH_ADRRS | (ears() ? TECH_EARS : 0u) : 0u; }
-    // A pixel sample's paths: itself and up to max_splits copies split off.
-    uint64_t copies_per_sample() const override { return enabled() ? 1 + params_.max_splits : 1; }
+    // A pixel sample's paths for sizing dispatches: itself and, while splitting, one copy. Not
+    // the worst case 1 + max_splits: that shrank every camera dispatch 11-fold (a 320-px frame
+    // became 3 dispatches that fill the H200 badly: 1.5x a MIS frame with no split). A
+    // pixel's copies stay within its split budget (max_splits per sample); on the bench scenes
+    // a sample makes well under one on average (bench/results/gpu_rrs).
+    uint64_t copies_per_sample() const override {
+        return enabled() && params_.splitting && params_.max_splits > 0 ? 2 : 1;
+    }
     // Each camera dispatch starts with an empty split queue and is followed by a split
     // dispatch over the same pixels (FRAME_ADRRS_SPLITS) that traces the copies.
     void record_before_trace(VkCommandBuffer cmd) const override;
@@ -54,8 +60,10 @@ public:
     void end_host_frame(TechniqueHost&, const FrameParams&, double) override { ++estimate_frames_; }
     // ADRRS_ESTIMATE_IMAGE (always with EARS): after a frame the estimate becomes the blurred
     // image once the samples reach estimate_spp, and again each time they double; each time
-    // also ends one of EARS' training iterations.
-    bool steps_after_frame() const override { return enabled(); }
+    // also ends one of EARS' training iterations. Other frames need no host step.
+    bool steps_after_frame(uint64_t samples) const override {
+        return enabled() && params_.estimate == ADRRS_ESTIMATE_IMAGE && samples >= next_refresh_;
+    }
     void after_frame(TechniqueHost& host, const FrameEnd& frame) override;
     // The adjoint grid follows the cache's entries (after its prepare frames and render frames).
     void sync(TechniqueHost& host, const Technique* stepped) override;

@@ -55,7 +55,7 @@ public:
     bool needs_host_frame() const override { return enabled() && prepared_frames_ < params_.prepare_frames; }
     void begin_host_frame(FrameParams& frame) const override;
     void end_host_frame(TechniqueHost& host, const FrameParams& frame, double milliseconds) override;
-    bool steps_after_frame() const override { return enabled(); }
+    bool steps_after_frame(uint64_t) const override { return enabled(); }
     void after_frame(TechniqueHost& host, const FrameEnd& frame) override;
     void stats(StatList& out) const override;
 

@@ -9,8 +9,8 @@
 //                 frames, ADRRS' estimate frames): begin_host_frame,
 //                 record_frame_start, the trace, end_host_frame, then every technique's sync.
 //   render frame  record_frame_start; per dispatch record_before_trace, the camera trace,
-//                 record_after_trace; after the frame (if any technique steps_after_frame: a
-//                 submission then ends with its frame) every after_frame, then every sync.
+//                 record_after_trace; after a frame that some technique steps_after_frame
+//                 (a submission then ends with it) every after_frame, then every sync.
 #pragma once
 #include "render/params.h"
 #include "scene/scene.h"
@@ -109,7 +109,8 @@ public:
 
     // ---- frames ---------------------------------------------------------------------------
     virtual void fill_frame_params(FrameParams& /*frame*/) const {}  // every frame's, render and host
-    // A pixel sample's worst-case rays (the dispatch plan): (base + extra) x copies.
+    // A pixel sample's rays for the dispatch plan: (base + extra) x copies, the path's
+    // worst-case rays times the paths a sample makes.
     virtual uint64_t extra_rays_per_sample() const { return 0; }
     virtual uint64_t copies_per_sample() const { return 1; }
     // At the start of a frame's first submission; `host_frame`: the technique whose host frame
@@ -126,9 +127,9 @@ public:
     // Its host frame's parameters: mode, frame index (in a space of its own) and the like.
     virtual void begin_host_frame(FrameParams& /*frame*/) const {}
     virtual void end_host_frame(TechniqueHost& /*host*/, const FrameParams& /*frame*/, double /*milliseconds*/) {}
-    // Whether it needs after_frame() after each render frame (a submission then holds at most
-    // one frame).
-    virtual bool steps_after_frame() const { return false; }
+    // Whether it needs after_frame() after the render frame that brings the image to `samples`
+    // per pixel (that frame then ends its submission: the host waits for it).
+    virtual bool steps_after_frame(uint64_t /*samples*/) const { return false; }
     virtual void after_frame(TechniqueHost& /*host*/, const FrameEnd& /*frame*/) {}
     // After a host step: follows what the techniques it needs changed. `stepped`: the
     // technique whose host frame ran (nullptr: the steps after a render frame).

@@ -86,7 +86,7 @@ public:
     // frame that records (keep training).
     void record_frame_start(VkCommandBuffer cmd, const Technique* host_frame) const override;
     // Recording frames (thesis 4.6.2) step after the frame: readback, fit, upload.
-    bool steps_after_frame() const override { return records_render_frames(); }
+    bool steps_after_frame(uint64_t) const override { return records_render_frames(); }
     void after_frame(TechniqueHost& host, const FrameEnd& frame) override;
     void stats(StatList& out) const override;
 
