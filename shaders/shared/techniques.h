@@ -30,7 +30,8 @@ PX_CONST uint PROGRAM_COUNT = 3;
 PX_CONST uint FRAME_RENDER = 0;      // camera paths accumulate into the film
 PX_CONST uint FRAME_IC_PREPARE = 1;  // camera paths only queue cache entries (thesis 4.4)
 PX_CONST uint FRAME_ADRRS_ESTIMATE = 2;  // camera paths to the first non-delta vertex build ADRRS' pixel estimate
-PX_CONST uint FRAME_ADRRS_SPLITS = 3;    // one invocation per queued pixel traces its split paths
+PX_CONST uint FRAME_ADRRS_SPLITS = 3;    // the split queue's entries, spread over the invocations, are traced
+PX_CONST uint FRAME_ADRRS_SPLIT_SUMS = 4;  // one invocation per pixel with splits adds its entries' sums to the film
 
 // ---- irradiance cache (thesis 3.2.3, 4.4; Ward et al. 1988; Ward & Heckbert 1992) ----------
 // Stratified hemisphere of one entry: IC_THETA x IC_PHI cosine-weighted rays (thesis eq. 3.20).
@@ -138,9 +139,11 @@ struct EarsFactor {
     float pad;
 };
 
-// A split path (BINDING_ADRRS_QUEUE): the ray that reached the vertex where it was split,
+// A split path (BINDING_ADRRS_SPLITS): the ray that reached the vertex where it was split,
 // traced again by each copy, which then samples its own continuation there. The vertex's
-// emission and NEE were counted once, by the path that split.
+// emission and NEE were counted once, by the path that split. The split dispatch traces the
+// copies (and the copies they split off in turn) and writes their sums into the entry
+// (radiance, rays, paths), which the sums dispatch adds to the pixel in queue order.
 struct AdrrsSplit {
     vec3 origin;
     float t_min;
@@ -155,6 +158,10 @@ struct AdrrsSplit {
     uint self_instance;   // the triangle the ray starts on (NO_INDEX: none)
     uint self_primitive;
     float min_ray_pdf;    // the path's (PathState.min_ray_pdf)
+    uint budget;          // copies the entry's copies may still split off, all together
+    vec3 radiance;        // written by the split dispatch: the copies' radiance, summed
+    uint rays;            // ... their rays
+    uint paths;           // ... the paths traced (the copies and those they split off)
 };
 PX_CONST uint ADRRS_SPLIT_CAMERA_RAY = 1u;
 PX_CONST uint ADRRS_SPLIT_HALF = 2u;  // queued by a sample of adaptive sampling's half buffer

@@ -12,10 +12,15 @@
 // the luminance of v * rho/pi * E against that of I~, so a zero channel never makes C infinite.
 // Below the window the continuation survives with q = max(v/delta-, rr_min) and is weighted
 // 1/q; above it the path is split into q = v/delta+ expected copies (an expected-value split:
-// floor(q) or floor(q)+1 with mean q), each weighted 1/q, at most max_splits per pixel sample
-// (a pixel's budget in a dispatch of n samples is n max_splits copies, in at most
-// adrrs.slots queue entries). Copies beyond the first go to a per-pixel queue that a later
-// dispatch of the same frame traces (FRAME_ADRRS_SPLITS); their own splits join the queue.
+// floor(q) or floor(q)+1 with mean q), each weighted 1/q. A pixel sample splits off at most
+// max_splits copies, its own and its copies' splits together: each split shares what is left
+// of that budget among the path and its copies. Copies beyond the first go to a per-pixel
+// queue (at most adrrs.slots entries per pixel and dispatch). The split dispatch
+// (FRAME_ADRRS_SPLITS) spreads the entries over its invocations: one traces an entry's copies
+// and, depth first, the copies they split off, and writes their sums into the entry; the sums
+// dispatch (FRAME_ADRRS_SPLIT_SUMS) adds a pixel's entries to its film in queue order, so the
+// image does not depend on which invocation traced what. An invocation traces at most one
+// sample's budget of copies: no pixel's splits hold up the whole dispatch.
 
 // The weight-window factor for r = v / C: q < 1 roulette (survival probability), q > 1
 // split (expected copies), 1 inside the window [delta-, delta+] = [2/(1+s), 2s/(1+s)] C.
@@ -38,7 +43,7 @@ layout(set = 0, binding = BINDING_ADRRS_ESTIMATE, scalar) buffer AdrrsEstimateBu
 layout(set = 0, binding = BINDING_ADRRS_QUEUE, scalar) buffer AdrrsQueueBuffer {
     uint adrrs_active_count;  // pixels of this dispatch with queued splits
     uint adrrs_pad0, adrrs_pad1, adrrs_pad2;
-    // [2 local]: entries, [2 local + 1]: copies queued so far; [2 P + i]: the i-th active pixel
+    // [local]: the pixel's entries; [P + i]: the i-th active pixel
     uint adrrs_words[];
 };
 layout(set = 0, binding = BINDING_ADRRS_SPLITS, scalar) buffer AdrrsSplitBuffer { AdrrsSplit adrrs_splits[]; };
@@ -76,24 +81,8 @@ float adrrs_factor(vec3 throughput, vec3 albedo, vec3 irradiance, float estimate
     return adrrs_window_factor(r, tech.adrrs.window, tech.adrrs.rr_min, tech.adrrs.splitting != 0u);
 }
 
-// Copies pixel `local` may still queue in this dispatch of `samples` samples per pixel.
-uint adrrs_copies_left(uint local, uint samples) {
-    if (adrrs_words[2u * local] >= tech.adrrs.slots) return 0u;  // no queue entry left
-    uint budget = tech.adrrs.max_splits * samples, queued = adrrs_words[2u * local + 1u];
-    return budget - min(queued, budget);
-}
-
-uint adrrs_copies_queued(uint local) { return adrrs_words[2u * local + 1u]; }
-
-// Queues `split` for pixel `local` of this dispatch (P pixels). The caller checked
-// adrrs_copies_left, so the pixel's slots never overflow.
-void adrrs_queue(uint local, uint P, AdrrsSplit split) {
-    uint entries = adrrs_words[2u * local];
-    adrrs_splits[local * tech.adrrs.slots + entries] = split;
-    adrrs_words[2u * local] = entries + 1u;
-    adrrs_words[2u * local + 1u] += split.copies;
-    if (entries == 0u) adrrs_words[2u * P + atomicAdd(adrrs_active_count, 1u)] = local;
-}
+// The j-th of n paths' share of `budget` copies: an even split, the remainder to the first.
+uint adrrs_budget_share(uint budget, uint n, uint j) { return budget / n + (j < budget % n ? 1u : 0u); }
 
 // EARS' statistics and factors (it shares the estimate and the queue above).
 #include "ears.glsl"
@@ -108,16 +97,44 @@ struct AdrrsOptions {
     float estimate;         // luminance of the pixel estimate I~
     uint local;             // the pixel's slot in this dispatch's split queue
     uint pixels;            // pixels of this dispatch
-    uint samples;           // samples per pixel of this dispatch (the split budget's multiple)
+    uint budget;            // copies the path may still split off
+    bool split_copy;        // a copy of the split dispatch: its splits go to the invocation's stack
     bool half_sample;       // the sample belongs to adaptive sampling's half buffer: so do its copies
 };
 
-AdrrsOptions adrrs_no_options() { return AdrrsOptions(false, false, 0.0, 0u, 0u, 1u, false); }
+AdrrsOptions adrrs_no_options() { return AdrrsOptions(false, false, 0.0, 0u, 0u, 0u, false, false); }
+
+// The split dispatch's entries still to trace in this invocation (trace_split_entry): a copy's
+// own splits wait here, at most ADRRS_STACK of them.
+const uint ADRRS_STACK = 4u;
+AdrrsSplit adrrs_stack[ADRRS_STACK];
+uint adrrs_stack_size = 0u;
+
+// Copies the path may split off now: its budget, while there is room to queue them.
+uint adrrs_copies_left(AdrrsOptions o) {
+    bool room = o.split_copy ? adrrs_stack_size < ADRRS_STACK : adrrs_words[o.local] < tech.adrrs.slots;
+    return room ? o.budget : 0u;
+}
+
+// Queues `split` for the pixel's split dispatch (a camera path), or for this invocation (a copy).
+// The caller checked adrrs_copies_left, so neither overflows.
+void adrrs_queue(AdrrsOptions o, AdrrsSplit split) {
+    if (o.split_copy) {
+        adrrs_stack[adrrs_stack_size++] = split;
+        return;
+    }
+    uint entries = adrrs_words[o.local];
+    adrrs_splits[o.local * tech.adrrs.slots + entries] = split;
+    adrrs_words[o.local] = entries + 1u;
+    if (entries == 0u) adrrs_words[o.pixels + atomicAdd(adrrs_active_count, 1u)] = o.local;
+}
 
 // FRAME_ADRRS_ESTIMATE: camera paths to the first non-delta vertex build the pixel estimate.
 bool adrrs_estimate_frame() { return USES(TECH_ADRRS) && params.mode == FRAME_ADRRS_ESTIMATE; }
-// FRAME_ADRRS_SPLITS: the dispatch traces the split queue (adrrs_split_*).
+// FRAME_ADRRS_SPLITS: the dispatch traces the split queue's entries (adrrs_split_*);
+// FRAME_ADRRS_SPLIT_SUMS: it adds them to the film.
 bool adrrs_split_frame() { return USES(TECH_ADRRS) && params.mode == FRAME_ADRRS_SPLITS; }
+bool adrrs_split_sums_frame() { return USES(TECH_ADRRS) && params.mode == FRAME_ADRRS_SPLIT_SUMS; }
 
 // The ADRRS pass of a pixel: its estimate (rgb) while rendering.
 struct AdrrsPixel {
@@ -135,11 +152,15 @@ AdrrsOptions adrrs_camera_options(uint pixel_index, uint local, uint P, out Adrr
         o.estimate = luminance(px.estimate);
         o.local = local;
         o.pixels = P;
-        o.samples = params.sample_count;
-        adrrs_words[2u * local] = 0u;  // this dispatch's queue of the pixel starts empty
-        adrrs_words[2u * local + 1u] = 0u;
+        adrrs_words[local] = 0u;  // this dispatch's queue of the pixel starts empty
     }
     return o;
+}
+
+// Each pixel sample starts with the whole split budget.
+void adrrs_sample_options(inout AdrrsOptions o, bool half_sample) {
+    o.budget = tech.adrrs.max_splits;
+    o.half_sample = half_sample;
 }
 
 // Estimate frames sum the pixel's radiance into the estimate; true: the film is left alone.
@@ -168,8 +189,9 @@ void adrrs_vertex_adjoint(AdrrsOptions o, Surface surf, bool delta, vec3 p, vec3
 // roulette then stands aside); `killed`: the path ends. With EARS (ears.glsl) q comes from its
 // statistics instead; `ears_slot` is where the path records the decision for them (ears_open;
 // NO_INDEX: nowhere), `ears_pass` sums its factors for the RRS passes. A split copy's first
-// vertex (`resumed`) is the one it was split at: it does not decide again.
-bool adrrs_continuation(AdrrsOptions o, IcVertex ic, Vertex v, bool resumed, inout PathState ps, uint segments,
+// vertex (`resumed`) is the one it was split at: it does not decide again. A split spends the
+// path's budget (o.budget) on its copies and shares the rest among them and the path.
+bool adrrs_continuation(inout AdrrsOptions o, IcVertex ic, Vertex v, bool resumed, inout PathState ps, uint segments,
                         bool camera_segment, inout Rng rng, out bool killed, out uint ears_slot, inout vec4 ears_pass) {
     killed = false;
     ears_slot = NO_INDEX;
@@ -192,39 +214,40 @@ bool adrrs_continuation(AdrrsOptions o, IcVertex ic, Vertex v, bool resumed, ino
         ps.throughput /= q;
         ps.roulette_throughput /= q;
     } else if (q > 1.0) {
-        // Within the pixel's split budget: q is capped before the expected-value
+        // Within the path's split budget: q is capped before the expected-value
         // split, so every copy's weight 1/q stays exact.
-        q = min(q, 1.0 + float(adrrs_copies_left(o.local, o.samples)));
+        q = min(q, 1.0 + float(adrrs_copies_left(o)));
         uint copies = adrrs_split_copies(q, rnd(rng));
         ps.throughput /= q;
         ps.roulette_throughput /= q;
         if (copies > 1u) {
+            uint budget = o.budget - (copies - 1u);  // what the path and its copies share
+            o.budget = adrrs_budget_share(budget, copies, 0u);
             // The path's kind counts (PathState.kind_bounces, 30 bits) ride above the flags.
             uint flags = (camera_segment ? ADRRS_SPLIT_CAMERA_RAY : 0u) | (o.half_sample ? ADRRS_SPLIT_HALF : 0u) |
                          (ps.kind_bounces << ADRRS_SPLIT_KIND_SHIFT);
             uint seed = uint(rnd(rng) * 4294967040.0) ^ (segments << 24);
-            adrrs_queue(o.local, o.pixels,
-                        AdrrsSplit(ps.origin, ps.t_min, ps.dir, ps.t_max, ps.throughput, seed,
-                                   ps.bounces | (ps.discrete << 16), copies - 1u, flags, segments,
-                                   ps.self_instance, ps.self_primitive, ps.min_ray_pdf));
+            adrrs_queue(o, AdrrsSplit(ps.origin, ps.t_min, ps.dir, ps.t_max, ps.throughput, seed,
+                                      ps.bounces | (ps.discrete << 16), copies - 1u, flags, segments,
+                                      ps.self_instance, ps.self_primitive, ps.min_ray_pdf, budget, vec3(0.0), 0u, 0u));
         }
     }
     return true;
 }
 
-// ---- the split queue (FRAME_ADRRS_SPLITS) ------------------------------------------------
-// Invocation i traces every copy queued for the i-th pixel with splits, in queue order (copies
-// may queue more), and adds them to that pixel's film sums: one writer per pixel, so the sums
-// stay deterministic. A copy that fails (a NaN, a lost path) adds nothing and the rest of the
-// queue still runs.
+// ---- the split queue (FRAME_ADRRS_SPLITS, FRAME_ADRRS_SPLIT_SUMS) -------------------------
+// The split dispatch's invocations take the queue's entries (pixel i, entry k) in turns of P:
+// entry i slots + k goes to invocation (i slots + k) mod P. Each writes its entry's sums; a
+// copy that fails (a NaN, a lost path) adds nothing. The sums dispatch has one invocation per
+// pixel with splits, which adds them up in queue order: one writer per pixel, so the film's
+// sums stay deterministic.
 
 // The i-th active pixel of this dispatch (P pixels), if there is one: its slot and its index.
-bool adrrs_split_pixel(uint P, out uint local, out uint pixel_index) {
-    uint i = gl_LaunchIDEXT.y * gl_LaunchSizeEXT.x + gl_LaunchIDEXT.x;
+bool adrrs_split_pixel(uint i, uint P, out uint local, out uint pixel_index) {
     local = 0u;
     pixel_index = 0u;
     if (i >= adrrs_active_count) return false;
-    local = adrrs_words[2u * P + i];
+    local = adrrs_words[P + i];
     // The pixel the camera dispatch traced at launch index `local` (through adaptive sampling's
     // active list where it has one).
     uvec2 pixel;
@@ -233,10 +256,17 @@ bool adrrs_split_pixel(uint P, out uint local, out uint pixel_index) {
     return true;
 }
 
-uint adrrs_split_entries(uint local) { return adrrs_words[2u * local]; }
+uint adrrs_split_entries(uint local) { return adrrs_words[local]; }
 AdrrsSplit adrrs_split_entry(uint local, uint k) { return adrrs_splits[local * tech.adrrs.slots + k]; }
 
-// A copy's own ADRRS options: the pixel's estimate, its queue slot.
+void adrrs_split_result(uint local, uint k, vec3 radiance, uint rays, uint paths) {
+    uint e = local * tech.adrrs.slots + k;
+    adrrs_splits[e].radiance = radiance;
+    adrrs_splits[e].rays = rays;
+    adrrs_splits[e].paths = paths;
+}
+
+// A copy's own ADRRS options: the pixel's estimate; its splits stay in the invocation.
 AdrrsOptions adrrs_split_options(uint pixel_index, uint local, uint P) {
     AdrrsOptions o = adrrs_no_options();
     vec3 estimate;
@@ -244,13 +274,13 @@ AdrrsOptions adrrs_split_options(uint pixel_index, uint local, uint P) {
     o.estimate = luminance(estimate);
     o.local = local;
     o.pixels = P;
-    o.samples = params.sample_count;
+    o.split_copy = true;
     return o;
 }
 
-void adrrs_split_write(uint local, uint pixel_index, vec3 sum, uint rays) {
+void adrrs_split_write(uint pixel_index, vec3 sum, uint rays, uint paths) {
     film_add(PASS_COMBINED, pixel_index, vec4(sum, 0.0));
-    film_add(PASS_ADRRS_SPLITS, pixel_index, vec4(float(adrrs_copies_queued(local)), 0.0, 0.0, 0.0));
+    film_add(PASS_ADRRS_SPLITS, pixel_index, vec4(float(paths), 0.0, 0.0, 0.0));
     ray_count[pixel_index] += rays;
 }
 #endif

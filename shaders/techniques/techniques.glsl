@@ -48,7 +48,7 @@ TechniqueOptions camera_techniques(uint pixel_index, uint local, uint P, out Tec
 // half_sample: the sample goes to adaptive sampling's half buffer (so do its split copies).
 void techniques_sample(inout TechniqueOptions o, uint s, uint pixel_index, uint npix, bool half_sample) {
     guiding_sample_options(o.guiding, s, pixel_index, npix);
-    o.adrrs.half_sample = half_sample;
+    adrrs_sample_options(o.adrrs, half_sample);
 }
 
 // A split copy's (adrrs.glsl's split queue).

@@ -10,7 +10,7 @@ namespace px {
 
 namespace {
 
-constexpr uint64_t kMaxQueuedSplits = 1u << 21;  // split entries of the whole image (128 MiB)
+constexpr uint64_t kMaxQueuedSplits = 1u << 21;  // split entries of the whole image (176 MiB)
 constexpr int kBlurRadius = 3;                   // image estimate: two box passes of 7 pixels
 constexpr uint32_t kGridCells = 48;              // adjoint grid cells along its longest axis
 constexpr int kMaxSplatCells = 3;                // an entry reaches at most 3 cells each way
@@ -121,6 +121,8 @@ void Adrrs::record_after_trace(const FrameParams& frame,
     FrameParams splits = frame;
     splits.mode = FRAME_ADRRS_SPLITS;
     retrace(splits);
+    splits.mode = FRAME_ADRRS_SPLIT_SUMS;
+    retrace(splits);
 }
 
 // Estimate frames are numbered from 2^30 (FrameParams.frame): their random streams are apart
@@ -153,13 +155,13 @@ void Adrrs::setup(const AdrrsParams& params, const SceneHost& scene, uint32_t wi
     height_ = height;
     // Off: one-element buffers keep every binding valid (the shaders never touch them).
     const uint64_t pixels = enabled() ? uint64_t(width) * height : 1;
-    // Entries per pixel: a frame's budget of copies (each entry holds one or more), at most
-    // what kMaxQueuedSplits leaves per pixel (at least 2). Splits past a full queue are not
-    // made: the decision comes before the split, so the estimator stays unbiased.
+    // Entries per pixel and dispatch: a frame's budget of copies (each entry holds one or
+    // more), at most what kMaxQueuedSplits leaves per pixel (at least 2). Splits past a full
+    // queue are not made: the decision comes before the split, so the estimator stays unbiased.
     const uint64_t wanted = uint64_t(params_.max_splits) * samples_per_frame;
     params_.slots = uint32_t(std::min<uint64_t>(wanted, std::max<uint64_t>(2, kMaxQueuedSplits / pixels)));
     const size_t estimate_bytes = size_t(pixels) * sizeof(vec4);
-    const size_t queue_bytes = 16 + size_t(pixels) * 3 * sizeof(uint32_t);
+    const size_t queue_bytes = 16 + size_t(pixels) * 2 * sizeof(uint32_t);
     const size_t split_bytes = std::max<size_t>(1, size_t(pixels) * params_.slots) * sizeof(AdrrsSplit);
     if (estimate_.size() != estimate_bytes) estimate_ = Buffer(ctx_, estimate_bytes, kStorageUsage);
     if (queue_.size() != queue_bytes) queue_ = Buffer(ctx_, queue_bytes, kStorageUsage);

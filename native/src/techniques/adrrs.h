@@ -9,7 +9,8 @@
 // blurred, refreshed each time the samples double. The queue holds, per pixel of one dispatch,
 // adrrs.slots split entries (max_splits per sample of a frame, fewer where the image is so large
 // that the queue would pass kMaxQueuedSplits); each camera dispatch is followed by a split
-// dispatch over the same pixels (record_after_trace).
+// dispatch, which spreads the entries over its invocations, and a sums dispatch, which adds
+// them to their pixels in queue order (record_after_trace).
 #pragma once
 #include "scene/scene.h"
 #include "techniques/ears.h"
@@ -46,8 +47,9 @@ public:
     uint64_t copies_per_sample() const override {
         return enabled() && params_.splitting && params_.max_splits > 0 ? 2 : 1;
     }
-    // Each camera dispatch starts with an empty split queue and is followed by a split
-    // dispatch over the same pixels (FRAME_ADRRS_SPLITS) that traces the copies.
+    // Each camera dispatch starts with an empty split queue and is followed by the split
+    // dispatch (FRAME_ADRRS_SPLITS), which traces the copies, and the sums dispatch
+    // (FRAME_ADRRS_SPLIT_SUMS), which adds them to the film; both over the same launch size.
     void record_before_trace(VkCommandBuffer cmd) const override;
     void record_after_trace(const FrameParams& frame,
                             const std::function<void(const FrameParams&)>& retrace) const override;
