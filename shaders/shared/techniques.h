@@ -163,6 +163,7 @@ struct AdrrsSplit {
     uint rays;            // ... their rays
     uint paths;           // ... the paths traced (the copies and those they split off)
 };
+PX_CONST float ADRRS_MIN_ROUGHNESS = 0.5;  // Principled lobes this rough count as Lambertian for ADRRS' adjoint
 PX_CONST uint ADRRS_SPLIT_CAMERA_RAY = 1u;
 PX_CONST uint ADRRS_SPLIT_HALF = 2u;  // queued by a sample of adaptive sampling's half buffer
 PX_CONST uint ADRRS_SPLIT_KIND_SHIFT = 2u;  // flags >> this: the path's kind bounce counts

@@ -90,6 +90,15 @@ uint adrrs_budget_share(uint budget, uint n, uint j) { return budget / n + (j < 
 #ifdef PX_TRACE_LOOP
 // ---- hooks of the trace loop (lib/integrator.glsl, techniques.glsl) ----------------------
 
+// Whether ADRRS' adjoint rho/pi E describes what the continuation brings: near-Lambertian
+// lobes only (thesis eq. 4.1's directionally uniform f_BSDF). At a glossy vertex the
+// BSDF-sampled continuation also carries its MIS share of the direct light, which the
+// cache's indirect E lacks: there ADRRS ended most paths at the rr_min floor (Veach MIS: 3.7x
+// MIS' relMSE at equal time), and the throughput roulette decides instead.
+bool adrrs_lambertian(Surface surf, float roughness) {
+    return surf.type == MATERIAL_DIFFUSE || (surf.type == MATERIAL_PRINCIPLED && roughness >= ADRRS_MIN_ROUGHNESS);
+}
+
 // A path's use of ADRRS.
 struct AdrrsOptions {
     bool on;                // roulette and split by the adjoint (needs a pixel estimate)
@@ -202,7 +211,7 @@ bool adrrs_continuation(inout AdrrsOptions o, IcVertex ic, Vertex v, bool resume
         decided = ears_factor(ps.throughput, v.sh.p, v.ns, o.estimate, ears_pass, q, ears_slot);
         if (tech.adrrs.splitting == 0u) q = min(q, 1.0);
     } else {
-        decided = ic.found;
+        decided = ic.found && adrrs_lambertian(v.surf, v.roughness);
         q = decided ? adrrs_factor(ps.throughput, v.surf.albedo, ic.irradiance, o.estimate) : 1.0;
     }
     if (!decided) return false;  // (EARS without statistics yet: the path learns, the roulette decides)
@@ -236,8 +245,8 @@ bool adrrs_continuation(inout AdrrsOptions o, IcVertex ic, Vertex v, bool resume
 }
 
 // ---- the split queue (FRAME_ADRRS_SPLITS, FRAME_ADRRS_SPLIT_SUMS) -------------------------
-// The split dispatch's invocations take the queue's entries (pixel i, entry k) in turns of P:
-// entry i slots + k goes to invocation (i slots + k) mod P. Each writes its entry's sums; a
+// The split dispatch's invocations take the queue's entries (active pixel i, entry k) in turns
+// of P (trace_split_queue in raygen.rgen). Each writes its entry's sums; a
 // copy that fails (a NaN, a lost path) adds nothing. The sums dispatch has one invocation per
 // pixel with splits, which adds them up in queue order: one writer per pixel, so the film's
 // sums stay deterministic.
