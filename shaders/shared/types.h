@@ -47,8 +47,8 @@ PX_CONST uint BINDING_IC_QUEUE = 24;       // uint count, 3 pad, IcRequest[]
 PX_CONST uint BINDING_IC_JOBS = 25;        // IcJob[], written by the host
 PX_CONST uint BINDING_IC_SAMPLES = 26;     // IcSample[jobs * IC_STRATA]
 PX_CONST uint BINDING_ADRRS_ESTIMATE = 27; // vec4 per pixel: ADRRS' pixel estimate (rgb, a > 0: valid)
-PX_CONST uint BINDING_ADRRS_QUEUE = 28;    // uint active count, 3 pad; per pixel of a dispatch: entries,
-                                           // copies; then the list of active pixels
+PX_CONST uint BINDING_ADRRS_QUEUE = 28;    // uint active count, 3 pad; per pixel of a dispatch: its
+                                           // entries; then the list of active pixels
 PX_CONST uint BINDING_ADRRS_SPLITS = 29;   // AdrrsSplit[pixel of a dispatch][adrrs.slots]
 PX_CONST uint BINDING_GUIDING_TLAS = 30;    // guiding: TLAS over the regions' AABBs (spatial order)
 PX_CONST uint BINDING_GUIDING_REGIONS = 31; // GuidingRegion[regions]

@@ -19,8 +19,8 @@
 // (FRAME_ADRRS_SPLITS) spreads the entries over its invocations: one traces an entry's copies
 // and, depth first, the copies they split off, and writes their sums into the entry; the sums
 // dispatch (FRAME_ADRRS_SPLIT_SUMS) adds a pixel's entries to its film in queue order, so the
-// image does not depend on which invocation traced what. An invocation traces at most one
-// sample's budget of copies: no pixel's splits hold up the whole dispatch.
+// image does not depend on which invocation traced what. An entry holds at most one sample's
+// budget of copies, so no pixel's splits hold up the whole dispatch.
 
 // The weight-window factor for r = v / C: q < 1 roulette (survival probability), q > 1
 // split (expected copies), 1 inside the window [delta-, delta+] = [2/(1+s), 2s/(1+s)] C.
