@@ -552,8 +552,8 @@ void Session::host_frame(Technique& technique) {
 // Frames go to the device in submissions of dispatches up to the plan's budget; cancel() is
 // checked between submissions. A frame after which a technique steps (Technique::
 // steps_after_frame) ends its submission and is followed by the techniques' after_frame; a
-// new frame is preceded by the host frames the techniques still need: all of them for render(), one per call for render_rows() (so a caller can still stop
-// between short calls).
+// new frame is preceded by the host frames the techniques still need: all of them for
+// render(), one per call for render_rows() (so a caller can still stop between short calls).
 uint32_t Session::trace(uint32_t frames, uint32_t rows) {
     if (!scene_) throw std::runtime_error("no scene: call update(scene) before render()");
     if (cancel_.exchange(false)) return 0;
