@@ -587,6 +587,13 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
     uint32_t rows_left = frames ? UINT32_MAX : rows;
     bool stop = false;
     double frame_milliseconds = 0;  // the submissions of the frame in progress (FrameEnd)
+    // A frame after which a technique steps ends its submission (the fallback has none).
+    auto steps_after = [&](uint64_t samples) {
+        if (fallback) return false;
+        for (const auto& t : techniques_)
+            if (t->steps_after_frame(samples)) return true;
+        return false;
+    };
     while (!stop && (frames ? completed < frames : rows_left > 0)) {
         // Adaptive sampling between frames: the convergence check when due, and no frame once
         // every pixel converged.
@@ -614,12 +621,6 @@ uint32_t Session::trace(uint32_t frames, uint32_t rows) {
             adaptive_->reset();
             start = std::chrono::steady_clock::now();
         }
-        // A frame after which a technique steps ends its submission.
-        auto steps_after = [&](uint64_t samples) {
-            for (const auto& t : techniques_)
-                if (!fallback && t->steps_after_frame(samples)) return true;
-            return false;
-        };
         bool frame_done = false, step = false;
         const auto submit_start = std::chrono::steady_clock::now();
         ctx_->submit_and_wait([&](VkCommandBuffer cmd) {

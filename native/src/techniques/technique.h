@@ -113,8 +113,8 @@ public:
     // worst-case rays times the paths a sample makes.
     virtual uint64_t extra_rays_per_sample() const { return 0; }
     virtual uint64_t copies_per_sample() const { return 1; }
-    // At the start of a frame's first submission; `host_frame`: the technique whose host frame
-    // it is (nullptr: a render frame).
+    // At the start of each frame, in the submission that records it; `host_frame`: the
+    // technique whose host frame it is (nullptr: a render frame).
     virtual void record_frame_start(VkCommandBuffer /*cmd*/, const Technique* /*host_frame*/) const {}
     // Around each camera dispatch of a render frame; `retrace` traces the same pixels again
     // with other frame parameters (and a barrier after).
