@@ -60,18 +60,19 @@ EXTRA_SCENES = ("sun_room", "clocks")  # sun_room: indirect light through a wind
 # --suite thesis: the scenes of the thesis' chapter 5 our repository can hold (bench/thesis.py
 # pairs them with its tables); thesis_* are converted from ../shared/scenes on first use.
 THESIS_SUITE = ("atrium", "thesis_veach_mis", "cornell_dielectric", "clocks", "thesis_irradiance_cache")
-# ic: MIS + the irradiance cache; adrrs: MIS + ADRRS; guiding: MIS + path guiding (defaults);
+# ic: MIS + the irradiance cache (its default mode, consistent); ic_thesis: the thesis' mode
+# (paths end at the cache); ic_noupdate: the thesis' mode, entries never refreshed; adrrs: MIS + ADRRS; guiding: MIS + path guiding (defaults);
 # guiding_pt: guiding without NEE; guiding_noparallax: guiding with parallax off; guiding_device:
 # guiding fitted by compute passes on the device (guiding_fit = device); guiding_pt_device: both;
 # guiding_auto: MIS + path guiding at every guiding default (the row issue 35's goal is judged on).
 # mis_adaptive: MIS with adaptive sampling at its defaults (Cycles'; every other method: off).
 # mis_clean: F12's defaults (adaptive sampling and denoising on), the path length pinned.
-METHODS = ("pt", "nee", "mis", "ic", "ic_noupdate", "adrrs", "ears", "guiding", "guiding_pt", "guiding_noparallax",
+METHODS = ("pt", "nee", "mis", "ic", "ic_thesis", "ic_noupdate", "adrrs", "ears", "guiding", "guiding_pt", "guiding_noparallax",
            "guiding_device", "guiding_pt_device", "guiding_auto", "mis_adaptive", "mis_clean")
 # cycles_clean: Cycles with its F12 defaults (adaptive sampling, OIDN), the path length pinned.
 PEERS = ("cycles", "cycles_guiding", "cycles_clean", "mitsuba")
-# Every method row of the thesis' tables 5.1-5.4 (ic_noupdate: the cache never refreshes an entry).
-THESIS_METHODS = ("pt", "nee", "mis", "ic_noupdate", "ic", "adrrs", "guiding_pt", "guiding", "guiding_device",
+# Every method row of the thesis' tables 5.1-5.4.
+THESIS_METHODS = ("pt", "nee", "mis", "ic_noupdate", "ic_thesis", "adrrs", "guiding_pt", "guiding", "guiding_device",
                   "guiding_pt_device")
 MAX_DEPTH = 8  # Cycles' Max Bounces in every scene; Parallax with no discrete leeway
 # The reference's method per scene (default mis): where every light is behind glass, NEE's
@@ -279,8 +280,11 @@ def _method_params(method):
         return dict(off, method="pt" if method.startswith("guiding_pt") else "mis", guiding=True,
                     guiding_parallax=method != "guiding_noparallax", guiding_training_spp=0,
                     guiding_fit="device" if method.endswith("_device") else "cpu")
-    if method.startswith("ic"):
-        return dict(off, method="mis", ic=True, **({"ic_update_prob": 0.0} if method == "ic_noupdate" else {}))
+    if method == "ic":
+        return dict(off, method="mis", ic=True)
+    if method in ("ic_thesis", "ic_noupdate"):
+        return dict(off, method="mis", ic=True, ic_mode="thesis",
+                    **({"ic_update_prob": 0.0} if method == "ic_noupdate" else {}))
     return dict(off, method=method)
 
 
@@ -788,7 +792,7 @@ def run(scenes=SCENES, seconds=120.0, device="auto", methods=("pt", "nee", "mis"
                 continue
             image, spp, used, curve, info = render_parallax(scene, method, seconds, device, reference, label, seed=seed)
             rows.append(dict(renderer=f"Parallax {method}", image=image, spp=spp, seconds=used, curve=curve,
-                             **({"ic": info} if method in ("ic", "adrrs") else {}), info=info))
+                             **({"ic": info} if method.startswith("ic") or method == "adrrs" else {}), info=info))
         for peer in peers:
             points = None
             if peer.startswith("cycles"):

@@ -3,6 +3,7 @@
 #include "render/pixel_filter.h"
 #include "render/session.h"
 #include "techniques/guiding/guiding.h"
+#include "techniques/irradiance_cache.h"
 #include "scene/light_tree.h"
 
 #include <nanobind/nanobind.h>
@@ -149,6 +150,27 @@ NB_MODULE(_native, m) {
           }, "type"_a, "width"_a,
           "The pixel filter's inverted CDF that camera samples are drawn from (render/pixel_filter.h): "
           "PIXEL_FILTER_TABLE_SIZE offsets in pixels, entry i for the CDF value i / (size - 1).");
+    m.def("ic_combine",
+          [](nb::ndarray<const float, nb::shape<-1, -1, 4>, nb::c_contig, nb::device::cpu> rgba,
+             nb::ndarray<const float, nb::shape<-1, -1>, nb::c_contig, nb::device::cpu> samples,
+             nb::ndarray<const float, nb::shape<-1, -1, 4>, nb::c_contig, nb::device::cpu> residual) {
+              const uint32_t h = uint32_t(rgba.shape(0)), w = uint32_t(rgba.shape(1));
+              if (samples.shape(0) != h || samples.shape(1) != w || residual.shape(0) != h || residual.shape(1) != w)
+                  throw std::invalid_argument("ic_combine: rgba, samples and residual differ in size");
+              const size_t n = size_t(w) * h;
+              std::vector<float> image(n * 4), counts(n);
+              std::vector<px::vec4> sums(n);
+              if (n) {  // an empty array's data may be null
+                  std::memcpy(image.data(), rgba.data(), n * 4 * sizeof(float));
+                  std::memcpy(counts.data(), samples.data(), n * sizeof(float));
+                  std::memcpy(sums.data(), residual.data(), n * sizeof(px::vec4));
+              }
+              px::ic_combine(image, counts, sums, w, h);
+              return to_numpy(std::move(image), {h, w, 4});
+          }, "rgba"_a, "samples"_a, "residual"_a,
+          "Consistent cache mode's image (irradiance_cache.h ic_combine): rgba (H x W x 4) the paths' "
+          "means, samples (H x W) their counts, residual (H x W x 4) the sums of cache estimate less "
+          "path (rgb) and of its squared norm (a); returns the combined RGBA (H x W x 4).");
     m.def("set_light_tree_min_lights", &px::set_light_tree_min_lights, "n"_a,
           "Sets light_tree_min_lights for scenes updated from now on (0 or 1: always the tree; "
           "2**32 - 1: never); a benchmark and test knob.");

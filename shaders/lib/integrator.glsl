@@ -545,7 +545,10 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         // No vertex precedes the first ray, so no shadow ray can be pending: every path of a
         // warp skips this call alike (an empty call there cost the H200 a quarter of its rays,
         // bench/results/shadow_calls_h200).
-        if (res.segments > 0u) trace_pending_shadow(ps, res, tp);
+        if (res.segments > 0u) {
+            trace_pending_shadow(ps, res, tp);
+            techniques_light_resolved(tp, res.radiance);
+        }
         ears_continuation_start(ears, res.radiance, res.rays);
         hit.instance = ps.self_instance;
         hit.primitive = ps.self_primitive;
@@ -581,6 +584,7 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         if (!adrrs_decided && !roulette_stage(ps, opt, rng)) break;
     }
     trace_pending_shadow(ps, res, tp);
+    techniques_light_resolved(tp, res.radiance);
     guiding_path_end(tp.guiding, res.radiance);
     ears_path_end(ears, res.radiance, res.rays, rng);
     return res;

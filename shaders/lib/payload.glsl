@@ -18,6 +18,8 @@ struct IcQuery {
     vec3 weighted_irradiance;  // sum of w_i E_i(x)
     float weight;              // sum of w_i
     vec2 weighted_gradients;   // sum of w_i (|grad_t|, |grad_r|)
+    float nearest_distance;    // of the nearest usable entry (IC Radius)
+    float nearest_radius;      // its validity radius, accuracy * R_i
 };
 
 // The guiding region query (shaders/techniques/guiding_field.glsl): the region found (NO_INDEX:

@@ -40,6 +40,9 @@ PX_CONST uint IC_PHI = 20;
 PX_CONST uint IC_STRATA = IC_THETA * IC_PHI;
 PX_CONST float IC_MAX_RADIUS_FACTOR = 64.0;  // R <= 64 * min_radius (Krivanek et al. 2008 clamp)
 PX_CONST float IC_QUERY_T = 1e-3;            // t_max of the zero-length cache query ray
+// IcParams.mode (the setting ic_mode)
+PX_CONST uint IC_MODE_CONSISTENT = 0;  // paths go on past the cache; the image shrinks them toward it (ic_combine.cpp)
+PX_CONST uint IC_MODE_THESIS = 1;      // paths end at cached vertices (thesis 4.4): biased, smooth
 
 struct IcParams {
     uint enabled;                           // ic
@@ -55,6 +58,7 @@ struct IcParams {
     uint capacity;                          // entries
     uint rebuild_interval;                  // frames between BLAS rebuilds (refits in between)
     uint highlight;                         // IC Irradiance pass: colour only (thesis fig. 4.13)
+    uint mode;                              // ic_mode: IC_MODE_CONSISTENT or IC_MODE_THESIS
     uint queue_capacity PX_DEFAULT(0);      // derived by the host: requests one frame may queue
     uint shade PX_DEFAULT(0);               // derived by the host: paths are shaded from the cache
                                             // (ic on); ADRRS alone builds it for its adjoint only

@@ -104,7 +104,9 @@ PX_CONST uint PASS_GUIDING_LOBES = 11;      // rgb = VMM pdf: probe inset (lat-l
 PX_CONST uint PASS_NEE_VISIBILITY = 12;     // x = shadow rays that reached their light, y = shadow rays traced
 PX_CONST uint PASS_RRS_FACTOR = 13;  // x = sum of EARS' factors q, y = decisions (x / y: the mean)
 PX_CONST uint PASS_RRS_COST = 14;    // x = sum of the learnt relative cost at the first decision, y = count
-PX_CONST uint PASS_COUNT = 15;     // film slots
+PX_CONST uint PASS_IC_RESIDUAL = 15;  // rgb = sum of (cache estimate - path) per sample, a = sum of its squared norm
+PX_CONST uint PASS_IC_RADIUS = 16;    // x = validity radius (accuracy * R) of the nearest entry at the first diffuse vertex
+PX_CONST uint PASS_COUNT = 17;     // film slots
 // Samples per pixel: no film slot of its own, Session::read takes Combined's w (the count).
 PX_CONST uint PASS_SAMPLE_COUNT = PASS_COUNT;
 

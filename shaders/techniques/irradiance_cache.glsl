@@ -1,10 +1,15 @@
 // Irradiance cache (thesis 3.2.3, 4.4, 4.4.1; Ward, Rubinstein & Clear 1988; Ward & Heckbert
-// 1992). Entries hold the indirect irradiance E at a point; a diffuse vertex that finds entries
-// around it is shaded with emission + NEE + albedo/pi * E(x) (thesis eq. 3.17) and ends its
-// path. Entries are found by a zero-length ray into their own AABB TLAS: ic_query.rint accepts
-// the entries whose influence sphere holds the origin and ic_query.rahit adds their weighted
-// values (eq. 3.18). Uncovered vertices queue creation requests, which the host turns into
-// jobs for ic_hemisphere.rgen and ic_finish.comp after the frame (creation never runs inline).
+// 1992). Entries hold the indirect irradiance E at a point. Entries are found by a zero-length
+// ray into their own AABB TLAS: ic_query.rint accepts the entries whose influence sphere holds
+// the origin and ic_query.rahit adds their weighted values (eq. 3.18). Uncovered vertices queue
+// creation requests, which the host turns into jobs for ic_hemisphere.rgen and ic_finish.comp
+// after the frame (creation never runs inline).
+// - ic_mode thesis: a diffuse vertex that finds entries around it is shaded with emission + NEE
+//   + albedo/pi * E(x) (thesis eq. 3.17) and ends its path. Biased; the bias never goes away.
+// - ic_mode consistent: the path goes on. Its sample also yields the cache's estimate A (the
+//   path up to the first diffuse vertex and its NEE, plus albedo/pi * E there), and the film
+//   sums A - B against the path's own B (PASS_IC_RESIDUAL). The image B is shrunk toward A by
+//   James-Stein factors that tend to 1 as B's variance vanishes (render/ic_combine.cpp).
 //
 // Entry points that cannot trace rays (intersection, any-hit, compute) define PX_NO_TRACE
 // and get only the bindings and the weight maths.
@@ -41,21 +46,25 @@ layout(set = 0, binding = BINDING_IC_QUEUE, scalar) buffer IcQueueBuffer {
 };
 layout(location = 2) rayPayloadEXT IcQuery ic_query;
 
-// The weighted mean of the usable entries around (p, n) (eq. 3.18) and their mean gradient
-// lengths; false where there is none.
-bool ic_lookup(vec3 p, vec3 n, out vec3 irradiance, out vec2 gradient_lengths) {
+// The weighted mean of the usable entries around (p, n) (eq. 3.18), their mean gradient
+// lengths and the nearest one's validity radius; false where there is none.
+bool ic_lookup(vec3 p, vec3 n, out vec3 irradiance, out vec2 gradient_lengths, out float radius) {
     irradiance = vec3(0.0);
     gradient_lengths = vec2(0.0);
+    radius = 0.0;
     if (!USES(TECH_IC)) return false;
     ic_query.position = p;
     ic_query.normal = n;
     ic_query.weighted_irradiance = vec3(0.0);
     ic_query.weight = 0.0;
     ic_query.weighted_gradients = vec2(0.0);
+    ic_query.nearest_distance = INFINITY_F;
+    ic_query.nearest_radius = 0.0;
     traceRayEXT(ic_tlas, gl_RayFlagsSkipClosestHitShaderEXT, 0xff, 0, 0, MISS_IC_QUERY, p, 0.0, n, IC_QUERY_T, 2);
     if (!(ic_query.weight > 0.0)) return false;
     irradiance = ic_query.weighted_irradiance / ic_query.weight;
     gradient_lengths = ic_query.weighted_gradients / ic_query.weight;
+    radius = ic_query.nearest_radius;
     return true;
 }
 
@@ -74,12 +83,15 @@ void ic_request(vec3 p, vec3 n, uint pixel, uint sample_index) {
 struct IcOptions {
     bool use;      // shade diffuse vertices from the irradiance cache where it has entries
     bool glossy;   // ... and glossy ones (ADRRS' estimate, thesis 4.4 "IC on glossy")
+    bool combine;  // consistent mode: the first diffuse vertex yields the cache's estimate, the path goes on
     bool create;   // queue cache creation requests at uncovered diffuse vertices
     bool prepare;  // prepare frame: stop at the first diffuse vertex after the query
     uint pixel;    // for creation requests (their order on the host)
 };
 
-IcOptions ic_no_options() { return IcOptions(false, false, false, false, 0u); }
+IcOptions ic_no_options() { return IcOptions(false, false, false, false, false, 0u); }
+
+bool ic_consistent() { return tech.ic.mode == IC_MODE_CONSISTENT; }
 
 // FRAME_IC_PREPARE: camera paths only queue cache entries.
 bool ic_prepare_frame() { return USES(TECH_IC) && params.mode == FRAME_IC_PREPARE; }
@@ -88,8 +100,10 @@ bool ic_prepare_frame() { return USES(TECH_IC) && params.mode == FRAME_IC_PREPAR
 // or new adjoint grids between the frames it renders.
 IcOptions ic_camera_options(uint pixel_index, bool estimate_frame) {
     IcOptions o;
-    o.use = tech.ic.shade != 0u || estimate_frame;
+    bool shade = tech.ic.shade != 0u && !estimate_frame;
+    o.use = (shade && !ic_consistent()) || estimate_frame;
     o.glossy = estimate_frame && tech.adrrs.ic_glossy != 0u;
+    o.combine = shade && ic_consistent();
     o.create = USES(TECH_IC) && !estimate_frame &&
                (tech.ic.shade != 0u || params.mode == FRAME_IC_PREPARE);
     o.prepare = ic_prepare_frame();
@@ -97,22 +111,30 @@ IcOptions ic_camera_options(uint pixel_index, bool estimate_frame) {
     return o;
 }
 
-// ADRRS' split copies of a pixel's paths.
+// ADRRS' split copies of a pixel's paths (in consistent mode their sums join B only).
 IcOptions ic_split_options(uint pixel_index) {
-    return IcOptions(tech.ic.shade != 0u, false, tech.ic.shade != 0u, false, pixel_index);
+    bool shade = tech.ic.shade != 0u && !ic_consistent();
+    return IcOptions(shade, false, false, shade, false, pixel_index);
 }
 
 // Entry rays (ic_hemisphere.rgen) read existing entries, never queue new ones.
-IcOptions ic_hemisphere_options() { return IcOptions(true, false, false, false, 0u); }
+IcOptions ic_hemisphere_options() { return IcOptions(true, false, false, false, false, 0u); }
 
-// What a path found at its first diffuse vertex (the IC passes).
+// What a path found at its first diffuse vertex (the IC passes, consistent mode's estimate).
 struct IcPath {
     bool recorded;
     vec3 irradiance;  // cache value at the first diffuse vertex (0: no entry there)
     vec2 gradients;   // its entries' mean |g_t|, |g_r|
+    float radius;     // the nearest entry's validity radius (0: no entry)
+    // Consistent mode: cached = throughput * albedo/pi * E at the first diffuse vertex, and the
+    // path's radiance once that vertex's NEE is in (`after_light`); until then `waiting`.
+    bool combined;
+    bool waiting;
+    vec3 cached;
+    vec3 after_light;
 };
 
-IcPath ic_path() { return IcPath(false, vec3(0.0), vec2(0.0)); }
+IcPath ic_path() { return IcPath(false, vec3(0.0), vec2(0.0), 0.0, false, false, vec3(0.0), vec3(0.0)); }
 
 // The cache at a vertex.
 struct IcVertex {
@@ -130,16 +152,23 @@ IcVertex ic_vertex(inout IcPath path, IcOptions o, Surface surf, bool delta, vec
                    vec3 throughput, uint segments, inout vec3 radiance, inout Rng rng, out bool handled) {
     IcVertex v = IcVertex(false, vec3(0.0), false, false);
     bool ic_surface = surf.type == MATERIAL_DIFFUSE || ((USES(TECH_ADRRS) || o.glossy) && !delta);
-    handled = USES(TECH_IC) && ic_surface && !resumed && (o.use || o.prepare);
+    // Consistent mode asks the cache once, at the path's first diffuse vertex.
+    bool first_diffuse = o.combine && !path.recorded && surf.type == MATERIAL_DIFFUSE;
+    handled = USES(TECH_IC) && ic_surface && !resumed && (o.use || o.prepare || first_diffuse);
     if (!handled) return v;
     vec2 gradients;
-    v.found = ic_lookup(p, n, v.irradiance, gradients);
+    float radius;
+    v.found = ic_lookup(p, n, v.irradiance, gradients, radius);
     if (!path.recorded) {
         path.irradiance = v.irradiance;
         path.gradients = gradients;
+        path.radius = radius;
         path.recorded = true;
     }
-    if (v.found && o.use && (surf.type == MATERIAL_DIFFUSE || o.glossy)) {
+    if (v.found && first_diffuse) {
+        path.combined = path.waiting = true;
+        path.cached = throughput * surf.albedo * INV_PI * v.irradiance;
+    } else if (v.found && o.use && (surf.type == MATERIAL_DIFFUSE || o.glossy)) {
         radiance += throughput * surf.albedo * INV_PI * v.irradiance;
         v.shaded = true;
     } else if (!v.found && o.create && rnd(rng) < tech.ic.create_prob) {
@@ -152,26 +181,45 @@ IcVertex ic_vertex(inout IcPath path, IcOptions o, Surface surf, bool delta, vec
     return v;
 }
 
+// The path's radiance has taken in the NEE of every vertex so far (trace_path, after a pending
+// shadow ray): the first one after the cached vertex is what the cache stands in for from.
+void ic_light_resolved(inout IcPath path, vec3 radiance) {
+    if (!USES(TECH_IC) || !path.waiting) return;
+    path.after_light = radiance;
+    path.waiting = false;
+}
+
 // The IC passes of a pixel: sums over its samples.
 struct IcPixel {
     vec3 irradiance;
     vec2 gradients;
+    float radius;
+    vec4 residual;  // consistent mode: sum of A - B per sample (rgb) and of |A - B|^2 (a)
 };
 
-IcPixel ic_pixel() { return IcPixel(vec3(0.0), vec2(0.0)); }
+IcPixel ic_pixel() { return IcPixel(vec3(0.0), vec2(0.0), 0.0, vec4(0.0)); }
 
-void ic_add_sample(inout IcPixel px, IcPath path) {
+// `radiance`: the sample's (B). A differs from B by the cached value less what the path
+// gathered after the cached vertex's NEE.
+void ic_add_sample(inout IcPixel px, IcPath path, vec3 radiance) {
     if (!USES(TECH_IC)) return;
     // Colour highlight (thesis fig. 4.13): the irradiance less its white part.
     vec3 e = tech.ic.highlight != 0u ? path.irradiance - vec3(min(path.irradiance.x, min(path.irradiance.y, path.irradiance.z))) : path.irradiance;
     if (!any(isinf(e)) && !any(isnan(e))) px.irradiance += e;
     px.gradients += path.gradients / max(tech.ic.gradient_max, 1e-6);
+    px.radius += path.radius;
+    if (path.combined) {
+        vec3 d = path.cached - (radiance - path.after_light);
+        if (!any(isinf(d)) && !any(isnan(d))) px.residual += vec4(d, dot(d, d));
+    }
 }
 
 void ic_write_passes(IcPixel px, uint pixel_index) {
     if (!USES(TECH_IC)) return;
     film_add(PASS_IC_IRRADIANCE, pixel_index, vec4(px.irradiance, 0.0));
     film_add(PASS_IC_GRADIENTS, pixel_index, vec4(px.gradients, 0.0, 0.0));
+    film_add(PASS_IC_RADIUS, pixel_index, vec4(px.radius, 0.0, 0.0, 0.0));
+    if (ic_consistent()) film_add(PASS_IC_RESIDUAL, pixel_index, vec4(px.residual));
 }
 #endif
 #endif

@@ -99,9 +99,15 @@ TechniqueVertex techniques_vertex(inout TechniquePath path, TechniqueOptions o, 
     return tv;
 }
 
-void techniques_add_sample(inout TechniquePixel px, TechniqueOptions o, TechniquePath path, uint s, uvec2 pixel,
-                           vec3 origin, vec3 dir, float first_t) {
-    ic_add_sample(px.ic, path.ic);
+// The path's radiance now holds the NEE of every vertex so far (a pending shadow ray was traced).
+void techniques_light_resolved(inout TechniquePath path, vec3 radiance) {
+    ic_light_resolved(path.ic, radiance);
+}
+
+// `radiance`: the sample's, as added to the film.
+void techniques_add_sample(inout TechniquePixel px, TechniqueOptions o, TechniquePath path, vec3 radiance, uint s,
+                           uvec2 pixel, vec3 origin, vec3 dir, float first_t) {
+    ic_add_sample(px.ic, path.ic, radiance);
     guiding_add_sample(px.guiding, o.guiding, s, pixel, origin, dir, first_t);
     if (ears_on()) px.ears += path.ears;
 }

@@ -21,6 +21,8 @@ namespace px {
 
 namespace {
 
+constexpr uint32_t IC_COMBINE_WINDOW = 9;  // pixels per side of the window of one James-Stein factor
+
 // Jobs per hemisphere dispatch (IC_STRATA paths each); a frame's jobs go in several.
 constexpr uint32_t kJobsPerDispatch = 2048;
 constexpr uint32_t kMaxRefreshes = 4096;       // per frame
@@ -48,7 +50,16 @@ const SettingTable& ic_table() {
             bool_setting("ic", PX_FIELD(IcParams, enabled), false, "Irradiance Cache",
                          "Reuse indirect diffuse irradiance from sparse cache entries, each the mean of a hemisphere "
                          "of paths, interpolated between nearby entries (Ward, Rubinstein & Clear 1988; thesis, sec. "
-                         "4.4). Biased but smooth", "ic"),
+                         "4.4)", "ic"),
+            enum_setting("ic_mode", PX_FIELD(IcParams, mode), IC_MODE_CONSISTENT,
+                         {{"consistent", "Consistent",
+                           "Paths go on past the cache; the image leans on the cache's smooth estimate where the "
+                           "paths are still noisy and converges to the paths' unbiased result (James-Stein "
+                           "shrinkage)", IC_MODE_CONSISTENT},
+                          {"thesis", "Thesis",
+                           "Paths end at cached points, shaded from the cache (thesis, sec. 4.4): smooth and fast, "
+                           "but biased, and the bias stays", IC_MODE_THESIS}},
+                         "Mode", "How the image uses the cache", "ic"),
             float_setting("ic_accuracy", PX_FIELD(IcParams, accuracy), 0.2, 0.001, 2.0, "Accuracy",
                           "Ward's accuracy a: an entry is used where its error estimate is below a, i.e. within a "
                           "times its radius and for normals close to its own. Smaller is more accurate and needs "
@@ -96,8 +107,69 @@ const SettingTable& ic_table() {
             {"ic_gradients", "IC Gradients", 3, "RGB",
              "Irradiance cache: R = length of the translational gradient, G = of the rotational gradient",
              PASS_IC_GRADIENTS, "ic"},
+            {"ic_radius", "IC Radius", 1, "X",
+             "Irradiance cache: the validity radius of the nearest entry at the first diffuse hit (0: none)",
+             PASS_IC_RADIUS, "ic"},
+            {"ic_residual", "IC Residual", 4, "RGBA",
+             "Irradiance cache, consistent mode: RGB = the cache's estimate less the path's, A = its squared norm "
+             "(means per sample): where the cache is wrong or the paths are noisy", PASS_IC_RESIDUAL, "ic"},
         }};
     return table;
+}
+
+// James & Stein 1961, positive part (Baranchik 1964): for d coordinates of B with noise of
+// total variance V around unknown means, A + (1 - (d - 2)/d V / |B - A|^2)+ (B - A) has a lower
+// expected squared error than B itself, whatever A is. Here A is the cache's estimate, so the
+// factor is near 0 where the paths are still noisier than the cache is wrong, and tends to 1
+// (B, unbiased) as their variance falls: the image is consistent. Each pixel's factor comes from
+// the window around it (its pixels' three channels are the coordinates), so it varies smoothly.
+void ic_combine(std::vector<float>& rgba, const std::vector<float>& samples, const std::vector<vec4>& residual,
+                uint32_t width, uint32_t height) {
+    constexpr int kHalf = IC_COMBINE_WINDOW / 2;
+    const size_t pixels = size_t(width) * height;
+    if (residual.size() != pixels || samples.size() != pixels || rgba.size() != pixels * 4)
+        throw std::invalid_argument("ic_combine: the image, sample counts and residual sums differ in size");
+    // Summed-area tables of |mean(A - B)|^2, of its variance estimate and of the pixels with one.
+    const size_t stride = size_t(width) + 1;
+    std::vector<double> sq((height + 1) * stride, 0.0), var(sq.size(), 0.0), dims(sq.size(), 0.0);
+    for (uint32_t y = 0; y < height; ++y)
+        for (uint32_t x = 0; x < width; ++x) {
+            const size_t i = size_t(y) * width + x;
+            const double n = samples[i];
+            double s = 0, v = 0, d = 0;
+            if (n >= 2) {  // a variance needs two samples
+                const vec4& r = residual[i];
+                const double mx = r.x / n, my = r.y / n, mz = r.z / n;
+                s = mx * mx + my * my + mz * mz;
+                v = std::max(0.0, r.w / n - s) / (n - 1);  // of the mean, summed over the channels
+                d = 3;
+            }
+            const size_t at = (y + 1) * stride + x + 1;
+            sq[at] = s + sq[at - 1] + sq[at - stride] - sq[at - stride - 1];
+            var[at] = v + var[at - 1] + var[at - stride] - var[at - stride - 1];
+            dims[at] = d + dims[at - 1] + dims[at - stride] - dims[at - stride - 1];
+        }
+    const auto window = [&](const std::vector<double>& t, int x0, int y0, int x1, int y1) {
+        return t[size_t(y1) * stride + x1] - t[size_t(y0) * stride + x1] - t[size_t(y1) * stride + x0] +
+               t[size_t(y0) * stride + x0];
+    };
+    for (uint32_t y = 0; y < height; ++y)
+        for (uint32_t x = 0; x < width; ++x) {
+            const size_t i = size_t(y) * width + x;
+            const float n = samples[i];
+            if (!(n > 0)) continue;
+            const int x0 = std::max(0, int(x) - kHalf), x1 = std::min(int(width), int(x) + kHalf + 1);
+            const int y0 = std::max(0, int(y) - kHalf), y1 = std::min(int(height), int(y) + kHalf + 1);
+            const double s = window(sq, x0, y0, x1, y1), v = window(var, x0, y0, x1, y1);
+            const double d = window(dims, x0, y0, x1, y1);
+            // Weight of B: 0 (the cache's A) until this pixel has a variance estimate.
+            double keep = 0;
+            if (n >= 2 && d > 2) keep = s > 0 ? std::clamp(1.0 - (d - 2) / d * v / s, 0.0, 1.0) : 1.0;
+            const float toward_cache = float(1.0 - keep);
+            rgba[i * 4 + 0] += toward_cache * residual[i].x / n;
+            rgba[i * 4 + 1] += toward_cache * residual[i].y / n;
+            rgba[i * 4 + 2] += toward_cache * residual[i].z / n;
+        }
 }
 
 IrradianceCache::IrradianceCache(Context& ctx) : ctx_(ctx) {
@@ -161,6 +233,18 @@ void IrradianceCache::end_host_frame(TechniqueHost& host, const FrameParams& fra
 
 void IrradianceCache::after_frame(TechniqueHost& host, const FrameEnd& frame) {
     make_entries(host, frame.frame, frame.paths, false);
+}
+
+uint32_t IrradianceCache::film_passes(const RenderParams& params) const {
+    return params.ic.enabled && params.ic.mode == IC_MODE_CONSISTENT ? 1u << PASS_IC_RESIDUAL : 0u;
+}
+
+void IrradianceCache::resolve_combined(std::vector<float>& rgba, const std::vector<float>& samples, uint32_t width,
+                                       uint32_t height,
+                                       const std::function<std::vector<vec4>(uint32_t)>& sums) const {
+    if (!enabled() || !params_.shade || params_.mode != IC_MODE_CONSISTENT) return;
+    const std::vector<vec4> residual = sums(PASS_IC_RESIDUAL);
+    if (!residual.empty()) ic_combine(rgba, samples, residual, width, height);
 }
 
 void IrradianceCache::stats(StatList& out) const {

@@ -19,6 +19,13 @@ namespace px {
 // The cache's settings (the fields of IcParams) and passes.
 const SettingTable& ic_table();
 
+// Consistent mode's image (ic_mode consistent): B, the paths' mean (`rgba`, RGBA per pixel),
+// shrunk toward the cache's estimate A = B + mean(A - B) by a positive-part James-Stein factor
+// fitted on the IC_COMBINE_WINDOW-wide window around each pixel. `residual` holds the sums of
+// A - B (rgb) and |A - B|^2 (w) over `samples` samples per pixel.
+void ic_combine(std::vector<float>& rgba, const std::vector<float>& samples, const std::vector<vec4>& residual,
+                uint32_t width, uint32_t height);
+
 struct IcStats {
     uint32_t entries = 0;   // used slots
     uint32_t capacity = 0;
@@ -56,6 +63,10 @@ public:
     void begin_host_frame(FrameParams& frame) const override;
     void end_host_frame(TechniqueHost& host, const FrameParams& frame, double milliseconds) override;
     bool steps_after_frame(uint64_t) const override { return enabled(); }
+    // Consistent mode: the residual pass, and Combined shrunk toward the cache (ic_combine).
+    uint32_t film_passes(const RenderParams& params) const override;
+    void resolve_combined(std::vector<float>& rgba, const std::vector<float>& samples, uint32_t width,
+                          uint32_t height, const std::function<std::vector<vec4>(uint32_t)>& sums) const override;
     void after_frame(TechniqueHost& host, const FrameEnd& frame) override;
     void stats(StatList& out) const override;
 

@@ -1,0 +1,96 @@
+"""The consistent irradiance-cache mode's image (ic_combine, techniques/irradiance_cache.cpp):
+the paths' mean B shrunk toward the cache's estimate A by positive-part James-Stein factors,
+each fitted on the window around its pixel. Synthetic images with known truth, noise and cache
+error, so every claim is checked against the exact answer."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import parallax_core as pc
+
+combine = pc._native.ic_combine
+
+
+def combined(paths, cached):
+    """(the combined image, B) for per-sample path values `paths` (n, H, W, 3) and the cache's
+    estimate `cached` (H, W, 3), as the film holds them: Combined's mean and count, and the sums
+    of A - B and |A - B|^2 (the IC Residual pass)."""
+    n = paths.shape[0]
+    b = paths.mean(0)
+    rgba = np.concatenate([b, np.ones_like(b[..., :1])], -1).astype(np.float32)
+    d = cached[None] - paths
+    residual = np.concatenate([d.sum(0), (d ** 2).sum(-1).sum(0)[..., None]], -1).astype(np.float32)
+    out = combine(rgba, np.full(b.shape[:2], n, np.float32), residual)
+    np.testing.assert_array_equal(out[..., 3], 1.0)  # alpha untouched
+    return out[..., :3], b
+
+
+def smooth_image(rng, h=48, w=64):
+    y, x = np.mgrid[0:h, 0:w] / 16.0
+    base = 1.0 + 0.5 * np.sin(x)[..., None] * np.cos(y)[..., None] * np.array([1.0, 0.7, 0.4])
+    return base + 0.05 * rng.random((h, w, 3))
+
+
+def test_without_cache_hits_the_image_is_the_paths():
+    """Pixels whose paths met no entry have a zero residual: their image is the paths'."""
+    rng = np.random.default_rng(1)
+    rgba = rng.random((24, 32, 4)).astype(np.float32)
+    out = combine(rgba, np.full((24, 32), 8, np.float32), np.zeros((24, 32, 4), np.float32))
+    np.testing.assert_array_equal(out, rgba)
+
+
+def test_one_sample_shows_the_cache():
+    """No variance estimate yet: the cache's estimate (as the thesis mode would show it)."""
+    rng = np.random.default_rng(2)
+    truth = smooth_image(rng)
+    cached = truth * 1.05
+    out, _ = combined(truth + rng.normal(0.0, 0.3, (1,) + truth.shape), cached)
+    np.testing.assert_allclose(out, cached, rtol=1e-5, atol=1e-5)
+
+
+def test_noiseless_paths_win_over_a_wrong_cache():
+    rng = np.random.default_rng(3)
+    truth = smooth_image(rng)
+    out, b = combined(np.repeat(truth[None], 4, 0), truth * 1.1)
+    np.testing.assert_allclose(out, truth, rtol=1e-5)
+
+
+@pytest.mark.parametrize("samples", [4, 64])
+def test_never_worse_than_the_paths(samples):
+    """James and Stein's dominance: whatever the cache's error, the combined image's squared
+    error is no larger than the paths' own (within the spread of this one draw), and a good
+    cache takes most of the paths' noise away. A biased cache's share shrinks as samples
+    grow (the image is consistent)."""
+    rng = np.random.default_rng(4 + samples)
+    truth = smooth_image(rng)
+    sigma = 0.8
+    paths = truth + rng.normal(0.0, sigma, (samples,) + truth.shape)
+    mse_paths = float(((paths.mean(0) - truth) ** 2).mean())
+    ratios = {}
+    for error in (0.0, 0.02, 0.1, 0.3, 1.0):
+        out, _ = combined(paths, truth * (1.0 + error))
+        ratios[error] = float(((out - truth) ** 2).mean()) / mse_paths
+    print(f"{samples} samples: MSE / the paths' {ratios}")
+    assert max(ratios.values()) < 1.05, ratios
+    assert ratios[0.0] < 0.1 and ratios[0.02] < 0.5, ratios
+
+
+def test_the_cache_error_left_in_the_image_shrinks_with_samples():
+    rng = np.random.default_rng(5)
+    truth = smooth_image(rng)
+    left = []
+    for samples in (4, 64, 1024):
+        paths = truth + rng.normal(0.0, 0.8, (samples,) + truth.shape)
+        out, b = combined(paths, truth * 1.1)
+        # The mean error of the image is what is left of the cache's +10 % (the paths' noise
+        # averages out over the image).
+        left.append(float((out - truth).mean() / (0.1 * truth.mean())))
+    # In theory V / (b^2 + V), V the paths' variance of the mean: 0.94, 0.5, 0.06 here.
+    print("share of the cache's error left:", left)
+    assert left[0] > 0.8 and left[1] < 0.6 * left[0] and left[2] < 0.2 * left[1], left
+
+
+def test_mismatched_sizes_are_rejected():
+    with pytest.raises(ValueError, match="differ in size"):
+        combine(np.zeros((4, 4, 4), np.float32), np.zeros((4, 5), np.float32), np.zeros((4, 4, 4), np.float32))
