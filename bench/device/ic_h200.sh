@@ -14,21 +14,12 @@
 # Waits name their PIDs: a bare `wait` also waits for process substitutions and can hang.
 # Files back (at most 8): log.txt, frames.{txt,json}, frames_err.txt, refs320.tgz, ic1280.txt, ic1280.tgz.
 set -u
-base=${1:?base commit (exported to .wt/src/BASE)}
+BASE=${1:?base commit (exported to .wt/h200/src.tgz)}
+base=$BASE
 scenes1280=${2:-sun_room,thesis_irradiance_cache}
 skip_frames=${3:-0}
-T0=$(date +%s)
-log() { echo "[t=$(( $(date +%s) - T0 ))s] $*" | tee -a "$OUT/log.txt"; }
-left() { echo $(( ${BUDGET:-570} - $(date +%s) + T0 )); }
-for f in .gl/*.deb; do dpkg -x "$f" /; done
-ldconfig
-mkdir -p .wt && tar xzf .wt/h200/src.tgz -C .wt
-PX_SRC=$PWD PX_TAG=new PX_JOBS=8 PX_PYTHON=python3 bash scripts/device_build.sh >/tmp/build_new.txt 2>&1 &
-p1=$!
-PX_SRC=$PWD/.wt/src/$base PX_TAG=$base PX_JOBS=8 PX_PYTHON=python3 bash scripts/device_build.sh >/tmp/build_base.txt 2>&1 &
-p2=$!
-wait $p1 $p2
-log "built"
+BUDGET=${BUDGET:-570}
+. bench/device/setup.sh
 if [ "$skip_frames" = 0 ]; then
     timeout 150 python3 bench/regression.py "$base=.wt/src/$base" new=. --benches frame_cost --npz .wt/h200/npz \
         --scenes cornell_box,veach_mis,sun_room,atrium,light_behind_glass --methods pt,nee,mis --rounds 2 --seconds 0.5 \

@@ -13,19 +13,10 @@
 # At most 8 files come back from $OUT: log.txt, frames.{txt,json}, frames_err.txt,
 # rrs_cost_split{0,1}.txt, conv.txt and conv.tgz (the per-scene tables).
 set -u
-base=${1:?base commit (exported to .wt/src/BASE)}
-T0=$(date +%s)
-log() { echo "[t=$(( $(date +%s) - T0 ))s] $*" | tee -a "$OUT/log.txt"; }
-left() { echo $(( ${BUDGET:-560} - $(date +%s) + T0 )); }
-for f in .gl/*.deb; do dpkg -x "$f" /; done
-ldconfig
-mkdir -p .wt && tar xzf .wt/h200/src.tgz -C .wt
-PX_SRC=$PWD PX_TAG=new PX_JOBS=8 PX_PYTHON=python3 bash scripts/device_build.sh >/tmp/build_new.txt 2>&1 &
-p1=$!
-PX_SRC=$PWD/.wt/src/$base PX_TAG=$base PX_JOBS=8 PX_PYTHON=python3 bash scripts/device_build.sh >/tmp/build_base.txt 2>&1 &
-p2=$!
-wait $p1 $p2
-log "built"; tail -3 /tmp/build_new.txt /tmp/build_base.txt >>"$OUT/log.txt"
+BASE=${1:?base commit (exported to .wt/h200/src.tgz)}
+base=$BASE
+BUDGET=${BUDGET:-560}
+. bench/device/setup.sh
 timeout $(( $(left) / 3 )) python3 bench/regression.py "$base=.wt/src/$base" new=. --benches frame_cost --npz .wt/h200/npz \
     --scenes cornell_box,veach_mis,sun_room,atrium,light_behind_glass --methods pt,nee,mis --rounds 2 --seconds 0.5 \
     --device gpu --debs .gl --json "$OUT/frames.json" >"$OUT/frames.txt" 2>"$OUT/frames_err.txt"
