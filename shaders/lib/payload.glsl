@@ -20,6 +20,7 @@ struct IcQuery {
     vec2 weighted_gradients;   // sum of w_i (|grad_t|, |grad_r|)
     float nearest_distance;    // of the nearest usable entry (IC Radius)
     float nearest_radius;      // its validity radius, accuracy * R_i
+    uint found;                // usable entries seen
 };
 
 // The guiding region query (shaders/techniques/guiding_field.glsl): the region found (NO_INDEX:

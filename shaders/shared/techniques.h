@@ -43,6 +43,7 @@ PX_CONST float IC_QUERY_T = 1e-3;            // t_max of the zero-length cache q
 // IcParams.mode (the setting ic_mode)
 PX_CONST uint IC_MODE_CONSISTENT = 0;  // paths go on past the cache; the image shrinks them toward it (ic_combine.cpp)
 PX_CONST uint IC_MODE_THESIS = 1;      // paths end at cached vertices (thesis 4.4): biased, smooth
+PX_CONST uint IC_QUERY_MAX_ENTRIES = 4;  // consistent mode: a query ends after this many usable entries
 
 struct IcParams {
     uint enabled;                           // ic

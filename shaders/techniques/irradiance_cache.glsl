@@ -60,6 +60,7 @@ bool ic_lookup(vec3 p, vec3 n, out vec3 irradiance, out vec2 gradient_lengths, o
     ic_query.weighted_gradients = vec2(0.0);
     ic_query.nearest_distance = INFINITY_F;
     ic_query.nearest_radius = 0.0;
+    ic_query.found = 0u;
     traceRayEXT(ic_tlas, gl_RayFlagsSkipClosestHitShaderEXT, 0xff, 0, 0, MISS_IC_QUERY, p, 0.0, n, IC_QUERY_T, 2);
     if (!(ic_query.weight > 0.0)) return false;
     irradiance = ic_query.weighted_irradiance / ic_query.weight;
@@ -126,15 +127,15 @@ struct IcPath {
     vec3 irradiance;  // cache value at the first diffuse vertex (0: no entry there)
     vec2 gradients;   // its entries' mean |g_t|, |g_r|
     float radius;     // the nearest entry's validity radius (0: no entry)
-    // Consistent mode: cached = throughput * albedo/pi * E at the first diffuse vertex, and the
-    // path's radiance once that vertex's NEE is in (`after_light`); until then `waiting`.
+    // Consistent mode: A - B = `estimate` - B, `estimate` = throughput * albedo/pi * E at the
+    // first diffuse vertex plus the path's radiance once that vertex's NEE is in (until then
+    // `waiting`).
     bool combined;
     bool waiting;
-    vec3 cached;
-    vec3 after_light;
+    vec3 estimate;
 };
 
-IcPath ic_path() { return IcPath(false, vec3(0.0), vec2(0.0), 0.0, false, false, vec3(0.0), vec3(0.0)); }
+IcPath ic_path() { return IcPath(false, vec3(0.0), vec2(0.0), 0.0, false, false, vec3(0.0)); }
 
 // The cache at a vertex.
 struct IcVertex {
@@ -167,7 +168,7 @@ IcVertex ic_vertex(inout IcPath path, IcOptions o, Surface surf, bool delta, vec
     }
     if (v.found && first_diffuse) {
         path.combined = path.waiting = true;
-        path.cached = throughput * surf.albedo * INV_PI * v.irradiance;
+        path.estimate = throughput * surf.albedo * INV_PI * v.irradiance;
     } else if (v.found && o.use && (surf.type == MATERIAL_DIFFUSE || o.glossy)) {
         radiance += throughput * surf.albedo * INV_PI * v.irradiance;
         v.shaded = true;
@@ -185,7 +186,7 @@ IcVertex ic_vertex(inout IcPath path, IcOptions o, Surface surf, bool delta, vec
 // shadow ray): the first one after the cached vertex is what the cache stands in for from.
 void ic_light_resolved(inout IcPath path, vec3 radiance) {
     if (!USES(TECH_IC) || !path.waiting) return;
-    path.after_light = radiance;
+    path.estimate += radiance;
     path.waiting = false;
 }
 
@@ -199,8 +200,7 @@ struct IcPixel {
 
 IcPixel ic_pixel() { return IcPixel(vec3(0.0), vec2(0.0), 0.0, vec4(0.0)); }
 
-// `radiance`: the sample's (B). A differs from B by the cached value less what the path
-// gathered after the cached vertex's NEE.
+// `radiance`: the sample's (B).
 void ic_add_sample(inout IcPixel px, IcPath path, vec3 radiance) {
     if (!USES(TECH_IC)) return;
     // Colour highlight (thesis fig. 4.13): the irradiance less its white part.
@@ -209,7 +209,7 @@ void ic_add_sample(inout IcPixel px, IcPath path, vec3 radiance) {
     px.gradients += path.gradients / max(tech.ic.gradient_max, 1e-6);
     px.radius += path.radius;
     if (path.combined) {
-        vec3 d = path.cached - (radiance - path.after_light);
+        vec3 d = path.estimate - radiance;
         if (!any(isinf(d)) && !any(isnan(d))) px.residual += vec4(d, dot(d, d));
     }
 }

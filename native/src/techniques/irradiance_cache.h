@@ -21,8 +21,9 @@ const SettingTable& ic_table();
 
 // Consistent mode's image (ic_mode consistent): B, the paths' mean (`rgba`, RGBA per pixel),
 // shrunk toward the cache's estimate A = B + mean(A - B) by a positive-part James-Stein factor
-// fitted on the IC_COMBINE_WINDOW-wide window around each pixel. `residual` holds the sums of
-// A - B (rgb) and |A - B|^2 (w) over `samples` samples per pixel.
+// fitted on the IC_COMBINE_WINDOW-wide window around each pixel in a relative norm; A alone
+// until a pixel has IC_COMBINE_MIN_SAMPLES. `residual` holds the sums of A - B (rgb) and
+// |A - B|^2 (w) over `samples` samples per pixel.
 void ic_combine(std::vector<float>& rgba, const std::vector<float>& samples, const std::vector<vec4>& residual,
                 uint32_t width, uint32_t height);
 
