@@ -113,7 +113,8 @@ const SettingTable& ic_table() {
              "Irradiance cache: R = length of the translational gradient, G = of the rotational gradient",
              PASS_IC_GRADIENTS, "ic"},
             {"ic_radius", "IC Radius", 1, "X",
-             "Irradiance cache: the validity radius of the nearest entry at the first diffuse hit (0: none)",
+             "Irradiance cache: the validity radius of the nearest entry the query read at the first diffuse hit "
+             "(0: none; consistent mode reads at most 4)",
              PASS_IC_RADIUS, "ic"},
             {"ic_residual", "IC Residual", 4, "RGBA",
              "Irradiance cache, consistent mode: RGB = the cache's estimate less the path's, A = its squared norm "
