@@ -41,7 +41,7 @@ PX_CONST uint IC_STRATA = IC_THETA * IC_PHI;
 PX_CONST float IC_MAX_RADIUS_FACTOR = 64.0;  // R <= 64 * min_radius (Krivanek et al. 2008 clamp)
 PX_CONST float IC_QUERY_T = 1e-3;            // t_max of the zero-length cache query ray
 // IcParams.mode (the setting ic_mode)
-PX_CONST uint IC_MODE_CONSISTENT = 0;  // paths go on past the cache; the image shrinks them toward it (ic_combine.cpp)
+PX_CONST uint IC_MODE_CONSISTENT = 0;  // paths go on past the cache; the image shrinks them toward it (ic_combine)
 PX_CONST uint IC_MODE_THESIS = 1;      // paths end at cached vertices (thesis 4.4): biased, smooth
 PX_CONST uint IC_QUERY_MAX_ENTRIES = 4;  // consistent mode: a query ends after this many usable entries
 

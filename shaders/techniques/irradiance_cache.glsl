@@ -9,7 +9,8 @@
 // - ic_mode consistent: the path goes on. Its sample also yields the cache's estimate A (the
 //   path up to the first diffuse vertex and its NEE, plus albedo/pi * E there), and the film
 //   sums A - B against the path's own B (PASS_IC_RESIDUAL). The image B is shrunk toward A by
-//   James-Stein factors that tend to 1 as B's variance vanishes (render/ic_combine.cpp).
+//   James-Stein factors that tend to 1 as B's variance vanishes (ic_combine in
+//   native/src/techniques/irradiance_cache.cpp).
 //
 // Entry points that cannot trace rays (intersection, any-hit, compute) define PX_NO_TRACE
 // and get only the bindings and the weight maths.
@@ -182,8 +183,8 @@ IcVertex ic_vertex(inout IcPath path, IcOptions o, Surface surf, bool delta, vec
     return v;
 }
 
-// The path's radiance has taken in the NEE of every vertex so far (trace_path, after a pending
-// shadow ray): the first one after the cached vertex is what the cache stands in for from.
+// After a pending shadow ray (trace_path): the radiance holds the NEE of every vertex so far.
+// The first call after the cached vertex marks where the part the cache stands in for begins.
 void ic_light_resolved(inout IcPath path, vec3 radiance) {
     if (!USES(TECH_IC) || !path.waiting) return;
     path.estimate += radiance;
