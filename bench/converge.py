@@ -61,14 +61,15 @@ EXTRA_SCENES = ("sun_room", "clocks")  # sun_room: indirect light through a wind
 # pairs them with its tables); thesis_* are converted from ../shared/scenes on first use.
 THESIS_SUITE = ("atrium", "thesis_veach_mis", "cornell_dielectric", "clocks", "thesis_irradiance_cache")
 # ic: MIS + the irradiance cache (its default mode, consistent); ic_thesis: the thesis' mode
-# (paths end at the cache); ic_noupdate: the thesis' mode, entries never refreshed; adrrs: MIS + ADRRS; guiding: MIS + path guiding (defaults);
+# (paths end at the cache); ic_noupdate: the thesis' mode, entries never refreshed;
+# adrrs: MIS + ADRRS; guiding: MIS + path guiding (defaults);
 # guiding_pt: guiding without NEE; guiding_noparallax: guiding with parallax off; guiding_device:
 # guiding fitted by compute passes on the device (guiding_fit = device); guiding_pt_device: both;
 # guiding_auto: MIS + path guiding at every guiding default (the row issue 35's goal is judged on).
 # mis_adaptive: MIS with adaptive sampling at its defaults (Cycles'; every other method: off).
 # mis_clean: F12's defaults (adaptive sampling and denoising on), the path length pinned.
-METHODS = ("pt", "nee", "mis", "ic", "ic_thesis", "ic_noupdate", "adrrs", "ears", "guiding", "guiding_pt", "guiding_noparallax",
-           "guiding_device", "guiding_pt_device", "guiding_auto", "mis_adaptive", "mis_clean")
+METHODS = ("pt", "nee", "mis", "ic", "ic_thesis", "ic_noupdate", "adrrs", "ears", "guiding", "guiding_pt",
+           "guiding_noparallax", "guiding_device", "guiding_pt_device", "guiding_auto", "mis_adaptive", "mis_clean")
 # cycles_clean: Cycles with its F12 defaults (adaptive sampling, OIDN), the path length pinned.
 PEERS = ("cycles", "cycles_guiding", "cycles_clean", "mitsuba")
 # Every method row of the thesis' tables 5.1-5.4.

@@ -24,7 +24,8 @@ THESIS_PIXELS = 1280 * 720
 # Our method names (bench.converge.METHODS) for the thesis' columns.
 THESIS_METHOD_NAMES = {
     "pt": "Path Tracer", "nee": "NEE", "mis": "NEE + MIS", "ic_noupdate": "IC no updates",
-    "ic_thesis": "Irradiance Cache", "ic": "Irradiance Cache, consistent", "adrrs": "ADRRS", "guiding_pt": "Guiding Parallax",
+    "ic_thesis": "Irradiance Cache", "ic": "Irradiance Cache, consistent", "adrrs": "ADRRS",
+    "guiding_pt": "Guiding Parallax",
     "guiding": "Guiding Parallax + NEE", "guiding_device": "Guiding Parallax + NEE, device fit",
     "guiding_pt_device": "Guiding Parallax, device fit",
 }
