@@ -705,15 +705,13 @@ std::vector<float> Session::read(const std::string& pass, uint32_t& channels) {
         for (size_t i = 0; i < pixels; ++i)
             if (counts[i].w == 0) out[i] = 1e10f;
     if (info->index == PASS_COMBINED) {
-        std::vector<float> samples(pixels);
-        for (size_t i = 0; i < pixels; ++i) samples[i] = counts[i].w;
         const auto download = [&](uint32_t slot) {
             std::vector<vec4> slot_sums(allocated_passes_ >> slot & 1u ? pixels : 0);  // not held: none
             if (slot_sums.empty()) return slot_sums;
             film_.download(slot_sums.data(), pixels * sizeof(vec4), film_offset(slot));
             return slot_sums;
         };
-        for (const auto& t : techniques_) t->resolve_combined(out, samples, width_, height_, download);
+        for (const auto& t : techniques_) t->resolve_combined(out, counts, width_, height_, download);
     }
     return out;
 }

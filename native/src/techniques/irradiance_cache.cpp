@@ -251,12 +251,15 @@ uint32_t IrradianceCache::film_passes(const RenderParams& params) const {
     return params.ic.enabled && params.ic.mode == IC_MODE_CONSISTENT ? 1u << PASS_IC_RESIDUAL : 0u;
 }
 
-void IrradianceCache::resolve_combined(std::vector<float>& rgba, const std::vector<float>& samples, uint32_t width,
+void IrradianceCache::resolve_combined(std::vector<float>& rgba, const std::vector<vec4>& combined, uint32_t width,
                                        uint32_t height,
                                        const std::function<std::vector<vec4>(uint32_t)>& sums) const {
     if (!enabled() || !params_.shade || params_.mode != IC_MODE_CONSISTENT) return;
     const std::vector<vec4> residual = sums(PASS_IC_RESIDUAL);
-    if (!residual.empty()) ic_combine(rgba, samples, residual, width, height);
+    if (residual.empty()) return;
+    std::vector<float> samples(combined.size());
+    for (size_t i = 0; i < combined.size(); ++i) samples[i] = combined[i].w;
+    ic_combine(rgba, samples, residual, width, height);
 }
 
 void IrradianceCache::stats(StatList& out) const {

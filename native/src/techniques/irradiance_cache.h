@@ -66,7 +66,7 @@ public:
     bool steps_after_frame(uint64_t) const override { return enabled(); }
     // Consistent mode: the residual pass, and Combined shrunk toward the cache (ic_combine).
     uint32_t film_passes(const RenderParams& params) const override;
-    void resolve_combined(std::vector<float>& rgba, const std::vector<float>& samples, uint32_t width,
+    void resolve_combined(std::vector<float>& rgba, const std::vector<vec4>& combined, uint32_t width,
                           uint32_t height, const std::function<std::vector<vec4>(uint32_t)>& sums) const override;
     void after_frame(TechniqueHost& host, const FrameEnd& frame) override;
     void stats(StatList& out) const override;

@@ -139,10 +139,10 @@ public:
     // Passes (bit PASS_*) the film must hold under `params`, listed or not: what its
     // resolve_combined reads.
     virtual uint32_t film_passes(const RenderParams& /*params*/) const { return 0; }
-    // Combined as read (RGBA means per pixel, width x height) from its sums: the technique may
-    // change it. `sums(pass)` downloads a pass' per-pixel sums (empty if the film does not hold
-    // it); `samples` is Combined's w.
-    virtual void resolve_combined(std::vector<float>& /*rgba*/, const std::vector<float>& /*samples*/,
+    // Combined as read (RGBA means per pixel, width x height) from its sums (`combined`, whose w
+    // is the pixel's sample count): the technique may change it. `sums(pass)` downloads a
+    // pass' per-pixel sums (empty if the film does not hold it).
+    virtual void resolve_combined(std::vector<float>& /*rgba*/, const std::vector<vec4>& /*combined*/,
                                   uint32_t /*width*/, uint32_t /*height*/,
                                   const std::function<std::vector<vec4>(uint32_t)>& /*sums*/) const {}
 
