@@ -8,6 +8,7 @@
 
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
+#include <nanobind/stl/optional.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
 
@@ -150,27 +151,44 @@ NB_MODULE(_native, m) {
           }, "type"_a, "width"_a,
           "The pixel filter's inverted CDF that camera samples are drawn from (render/pixel_filter.h): "
           "PIXEL_FILTER_TABLE_SIZE offsets in pixels, entry i for the CDF value i / (size - 1).");
+    using ImageRgba = nb::ndarray<const float, nb::shape<-1, -1, 4>, nb::c_contig, nb::device::cpu>;
+    using ImageScalar = nb::ndarray<const float, nb::shape<-1, -1>, nb::c_contig, nb::device::cpu>;
+    const auto copy = [](const auto& array, auto& into) {  // an empty array's data may be null
+        if (!into.empty()) std::memcpy(into.data(), array.data(), into.size() * sizeof(into[0]));
+    };
     m.def("ic_combine",
-          [](nb::ndarray<const float, nb::shape<-1, -1, 4>, nb::c_contig, nb::device::cpu> rgba,
-             nb::ndarray<const float, nb::shape<-1, -1>, nb::c_contig, nb::device::cpu> samples,
-             nb::ndarray<const float, nb::shape<-1, -1, 4>, nb::c_contig, nb::device::cpu> residual) {
+          [copy](ImageRgba rgba, ImageScalar samples, ImageRgba residual, std::optional<ImageScalar> sequence_variance) {
               const uint32_t h = uint32_t(rgba.shape(0)), w = uint32_t(rgba.shape(1));
-              if (samples.shape(0) != h || samples.shape(1) != w || residual.shape(0) != h || residual.shape(1) != w)
-                  throw std::invalid_argument("ic_combine: rgba, samples and residual differ in size");
+              if (samples.shape(0) != h || samples.shape(1) != w || residual.shape(0) != h || residual.shape(1) != w ||
+                  (sequence_variance && (sequence_variance->shape(0) != h || sequence_variance->shape(1) != w)))
+                  throw std::invalid_argument("ic_combine: rgba, samples, residual and sequence_variance differ in size");
               const size_t n = size_t(w) * h;
-              std::vector<float> image(n * 4), counts(n);
+              std::vector<float> image(n * 4), counts(n), variance(sequence_variance ? n : 0);
               std::vector<px::vec4> sums(n);
-              if (n) {  // an empty array's data may be null
-                  std::memcpy(image.data(), rgba.data(), n * 4 * sizeof(float));
-                  std::memcpy(counts.data(), samples.data(), n * sizeof(float));
-                  std::memcpy(sums.data(), residual.data(), n * sizeof(px::vec4));
-              }
-              px::ic_combine(image, counts, sums, w, h);
+              copy(rgba, image);
+              copy(samples, counts);
+              copy(residual, sums);
+              if (sequence_variance) copy(*sequence_variance, variance);
+              px::ic_combine(image, counts, sums, w, h, variance);
               return to_numpy(std::move(image), {h, w, 4});
-          }, "rgba"_a, "samples"_a, "residual"_a,
+          }, "rgba"_a, "samples"_a, "residual"_a, "sequence_variance"_a = nb::none(),
           "Consistent cache mode's image (irradiance_cache.h ic_combine): rgba (H x W x 4) the paths' "
           "means, samples (H x W) their counts, residual (H x W x 4) the sums of cache estimate less "
-          "path (rgb) and of its squared norm (a); returns the combined RGBA (H x W x 4).");
+          "path (rgb) and of its squared norm (a), sequence_variance (H x W, optional) from "
+          "ic_sequence_variance; returns the combined RGBA (H x W x 4).");
+    m.def("ic_sequence_variance",
+          [copy](ImageRgba first, ImageRgba both) {
+              const uint32_t h = uint32_t(both.shape(0)), w = uint32_t(both.shape(1));
+              if (first.shape(0) != h || first.shape(1) != w)
+                  throw std::invalid_argument("ic_sequence_variance: the snapshots differ in size");
+              std::vector<px::vec4> a(size_t(w) * h), b(a.size());
+              copy(first, a);
+              copy(both, b);
+              return to_numpy(px::ic_sequence_variance(a, b), {h, w});
+          }, "first"_a, "both"_a,
+          "n_b times the variance of the mean of n_b samples of the cache's residual, from IC Residual's "
+          "sums (rgb; w: sample count) at n_a and n_b > n_a samples (irradiance_cache.h); H x W, "
+          "negative where a part has fewer than 4 samples.");
     m.def("set_light_tree_min_lights", &px::set_light_tree_min_lights, "n"_a,
           "Sets light_tree_min_lights for scenes updated from now on (0 or 1: always the tree; "
           "2**32 - 1: never); a benchmark and test knob.");

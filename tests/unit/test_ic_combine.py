@@ -96,3 +96,69 @@ def test_the_cache_error_left_in_the_image_shrinks_with_samples():
 def test_mismatched_sizes_are_rejected():
     with pytest.raises(ValueError, match="differ in size"):
         combine(np.zeros((4, 4, 4), np.float32), np.zeros((4, 5), np.float32), np.zeros((4, 4, 4), np.float32))
+
+
+def stratified_paths(rng, truth, n, sigma):
+    """n samples per pixel whose mean converges faster than 1/n, as Owen-scrambled Sobol
+    points' do: each half is one uniform per stratum of n/2, shuffled (the truth + sigma (u -
+    1/2)). Their mean's error is ~ sigma n^-1.5, where Var/n says sigma^2 / (12 n)."""
+    half = n // 2
+    parts = []
+    for _ in range(2):
+        u = (np.arange(half)[:, None, None, None] + rng.random((half,) + truth.shape)) / half
+        parts.append(rng.permuted(u, axis=0))
+    return truth + sigma * (np.concatenate(parts) - 0.5)
+
+
+def snapshot(paths, cached):
+    """IC Residual's sums as a snapshot holds them: rgb the sums of A - B, w the sample count."""
+    d = (cached[None] - paths).sum(0)
+    return np.concatenate([d, np.full(d.shape[:2] + (1,), paths.shape[0])], -1).astype(np.float32)
+
+
+def test_sequence_variance_of_independent_samples():
+    """ic_sequence_variance from snapshots at n_a and n_b: n_b Var(mean of n_b), summed over
+    rgb; for independent samples of variance sigma^2 per channel, 3 sigma^2 on average over
+    pixels, and negative (unknown) while a part has fewer than 4 samples."""
+    rng = np.random.default_rng(7)
+    truth = smooth_image(rng)
+    paths = truth + rng.normal(0.0, 0.5, (24,) + truth.shape)
+    measured = pc._native.ic_sequence_variance(snapshot(paths[:8], truth), snapshot(paths, truth))
+    assert measured.shape == truth.shape[:2]
+    assert abs(measured.mean() / (3 * 0.25) - 1) < 0.1, measured.mean()
+    early = pc._native.ic_sequence_variance(snapshot(paths[:3], truth), snapshot(paths[:8], truth))
+    assert (early < 0).all()
+
+
+def test_sequence_variance_lets_a_faster_sequence_leave_the_cache():
+    """With samples whose mean converges faster than 1/n, Var/n overestimates the paths' error,
+    and a cache 2 % off keeps its share of the image: worse than the paths alone. The measured
+    sequence variance (halves of the samples) sees the real error: the image is then no worse
+    than the paths, and a right cache still helps."""
+    rng = np.random.default_rng(8)
+    truth = smooth_image(rng)
+    n = 64
+    paths = stratified_paths(rng, truth, n, 2.0)
+    mse_paths = float(((paths.mean(0) - truth) ** 2).mean())
+    ratios = {}
+    for error in (0.0, 0.02):
+        cached = truth * (1.0 + error)
+        _, b = combined(paths, cached)
+        variance = pc._native.ic_sequence_variance(snapshot(paths[: n // 2], cached), snapshot(paths, cached))
+        rgba = np.concatenate([b, np.ones_like(b[..., :1])], -1).astype(np.float32)
+        d = cached[None] - paths
+        residual = np.concatenate([d.sum(0), (d ** 2).sum(-1).sum(0)[..., None]], -1).astype(np.float32)
+        samples = np.full(b.shape[:2], n, np.float32)
+        for label, extra in (("Var/n", None), ("halves", variance)):
+            out = combine(rgba, samples, residual, extra)[..., :3]
+            ratios[label, error] = float(((out - truth) ** 2).mean()) / mse_paths
+    print(f"MSE / the paths': {ratios}")
+    assert ratios["Var/n", 0.02] > 1.5, ratios  # the case this fixes
+    assert ratios["halves", 0.02] < 1.1, ratios
+    assert ratios["halves", 0.0] < 0.5, ratios
+
+
+def test_sequence_variance_must_match_the_image():
+    with pytest.raises(ValueError, match="differ in size"):
+        combine(np.zeros((4, 4, 4), np.float32), np.zeros((4, 4), np.float32), np.zeros((4, 4, 4), np.float32),
+                np.zeros((4, 5), np.float32))

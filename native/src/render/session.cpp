@@ -108,6 +108,12 @@ size_t Session::film_offset(uint32_t pass) const {
     return size_t(__builtin_popcount(below)) * width_ * height_ * sizeof(vec4);  // film_slot in common.glsl
 }
 
+std::vector<vec4> Session::film_sums(uint32_t pass) const {
+    std::vector<vec4> sums(allocated_passes_ >> pass & 1u ? size_t(width_) * height_ : 0);  // not held: none
+    if (!sums.empty()) film_.download(sums.data(), sums.size() * sizeof(vec4), film_offset(pass));
+    return sums;
+}
+
 void Session::allocate_film() {
     const uint32_t mask = film_passes();
     if (mask == allocated_passes_ && film_.size()) return;
@@ -705,12 +711,7 @@ std::vector<float> Session::read(const std::string& pass, uint32_t& channels) {
         for (size_t i = 0; i < pixels; ++i)
             if (counts[i].w == 0) out[i] = 1e10f;
     if (info->index == PASS_COMBINED) {
-        const auto download = [&](uint32_t slot) {
-            std::vector<vec4> slot_sums(allocated_passes_ >> slot & 1u ? pixels : 0);  // not held: none
-            if (slot_sums.empty()) return slot_sums;
-            film_.download(slot_sums.data(), pixels * sizeof(vec4), film_offset(slot));
-            return slot_sums;
-        };
+        const auto download = [&](uint32_t slot) { return film_sums(slot); };
         for (const auto& t : techniques_) t->resolve_combined(out, counts, width_, height_, download);
     }
     return out;

@@ -180,6 +180,7 @@ private:
     RayTracingPipeline& host_pipeline(uint32_t program) override { return pipeline(program, false); }
     void upload_technique_params() override;
     const Buffer& film() const override { return film_; }
+    std::vector<vec4> film_sums(uint32_t pass) const override;
     // The film's passes (FrameParams.film_passes): the listed ones whose technique is on.
     uint32_t film_passes() const;
     // Byte offset of `pass` in the film (it must be one of film_passes()).

@@ -23,9 +23,17 @@ const SettingTable& ic_table();
 // shrunk toward the cache's estimate A = B + mean(A - B) by a positive-part James-Stein factor
 // fitted on the IC_COMBINE_WINDOW-wide window around each pixel in a relative norm; A alone
 // until a pixel has IC_COMBINE_MIN_SAMPLES. `residual` holds the sums of A - B (rgb) and
-// |A - B|^2 (w) over `samples` samples per pixel.
+// |A - B|^2 (w) over `samples` samples per pixel. `sequence_variance` (per pixel, or empty):
+// n times the variance of the mean of n samples of A - B (summed over rgb) as the sample
+// sequence converges (ic_sequence_variance); negative or absent: the samples' variance.
 void ic_combine(std::vector<float>& rgba, const std::vector<float>& samples, const std::vector<vec4>& residual,
-                uint32_t width, uint32_t height);
+                uint32_t width, uint32_t height, const std::vector<float>& sequence_variance = {});
+
+// The variance of the mean of A - B from two snapshots of the IC Residual pass' sums (rgb; w:
+// the pixel's sample count) taken at n_a and n_b > n_a samples: the squared difference of the
+// means of samples [0, n_a) and [n_a, n_b), as n_b times that variance at n_b (summed over rgb).
+// Negative where a part has fewer than IC_COMBINE_MIN_HALF samples. See ic_combine.
+std::vector<float> ic_sequence_variance(const std::vector<vec4>& first, const std::vector<vec4>& both);
 
 struct IcStats {
     uint32_t entries = 0;   // used slots
@@ -69,6 +77,7 @@ public:
     void resolve_combined(std::vector<float>& rgba, const std::vector<vec4>& combined, uint32_t width,
                           uint32_t height, const std::function<std::vector<vec4>(uint32_t)>& sums) const override;
     void after_frame(TechniqueHost& host, const FrameEnd& frame) override;
+    void view_changed() override { clear_snapshots(); }  // per pixel: the film starts over
     void stats(StatList& out) const override;
 
     const IcParams& params() const { return params_; }  // with queue_capacity filled in
@@ -88,6 +97,10 @@ private:
     // or earlier once fewer than 2% of a prepare frame's paths found no entry.
     void make_entries(TechniqueHost& host, FrameParams frame, uint64_t paths, bool prepare);
     void allocate();
+    // Consistent mode: at each power of two of samples, the IC Residual pass' sums are kept
+    // and compared with those of the previous power (ic_sequence_variance).
+    void take_snapshot(TechniqueHost& host, uint64_t samples);
+    void clear_snapshots();
     void rebuild();    // entries in Morton order, new BLAS, new TLAS
     Context& ctx_;
     IcParams params_{};
@@ -104,6 +117,9 @@ private:
     uint64_t frame_counter_ = 0;   // frames processed since the last reset (refresh RNG)
     IcStats stats_;
     uint64_t pixels_ = 0;          // of the image (a prepare frame's paths)
+    std::vector<vec4> snapshot_;           // IC Residual's sums at the last power of two (w: samples)
+    std::vector<float> sequence_variance_; // from the last two snapshots (ic_combine)
+    uint64_t next_snapshot_ = 0;           // samples per pixel of the next snapshot
 };
 
 }  // namespace px

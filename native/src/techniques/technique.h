@@ -49,6 +49,8 @@ public:
     // After a technique's settings changed on the host (TechniqueParams, BINDING_TECH_PARAMS).
     virtual void upload_technique_params() = 0;
     virtual const Buffer& film() const = 0;
+    // A pass' per-pixel sums as the film holds them now (empty if the film does not hold it).
+    virtual std::vector<vec4> film_sums(uint32_t pass) const = 0;
 
 protected:
     ~TechniqueHost() = default;
