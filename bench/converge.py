@@ -676,7 +676,7 @@ def write_outputs(out, name, rows, reference):
                       f"({ic.get('ic_merged', 0)} requests merged, {ic.get('ic_dropped', 0)} dropped, "
                       f"{ic.get('ic_deferred', 0)} deferred), "
                       f"{ic.get('ic_jobs', 0)} hemisphere jobs in {ic.get('ic_job_milliseconds', 0) / 1e3:.2f} s, "
-                      f"BLAS/TLAS builds {ic.get('ic_build_milliseconds', 0) / 1e3:.2f} s; prepare phase "
+                      f"lookup-grid builds {ic.get('ic_build_milliseconds', 0) / 1e3:.2f} s; prepare phase "
                       + ("unfinished in the time" if ic.get("prepare_unfinished") else
                          f"done at {ic.get('prepare_done_at', 0):.1f} s") + ", "
                       f"{ic.get('samples_per_frame', 0)} spp per frame"]

@@ -10,7 +10,7 @@ per frame, default IC settings otherwise:
 
 - frame time (median of --frames render(1) calls) with the cache off, and with it on after
   its prepare frames (a frame with the cache includes its host step: the creation jobs of
-  the frame's requests, refreshes, and the BLAS refit or rebuild);
+  the frame's requests, refreshes, and the lookup grid's build);
 - the prepare phase: `ic_prepare_frames` calls of render_rows(height), each running one
   prepare frame (camera rays to the first diffuse hit, queued entries, hemisphere + finish
   dispatch, BLAS build), after the pipelines were compiled by a throw-away session;
@@ -266,7 +266,7 @@ def markdown(rows):
         "diffuse hits are covered). Frozen: the cache the prepare frames "
         "made, with capacity = its entries and no refreshes (no jobs, no builds: tracing + the host's queue step); "
         "covered pixels: share of pixels whose first diffuse hit found entries. Job = one hemisphere estimate "
-        "(200 rays) + its share of the finish dispatch. Build = BLAS refit/rebuild + TLAS. bytes/entry: growth "
+        "(200 rays) + its share of the finish dispatch. Build = the lookup grid (download, build, upload). bytes/entry: growth "
         "of the GPU's used memory (nvidia-smi) or the process RSS (lavapipe) between ic_capacity 65536 and the "
         "big capacity, "
         "per slot; sizeof(IcEntry) 80 B + AABB 24 B = 104 B before the BLAS (lavapipe's RSS counts only "

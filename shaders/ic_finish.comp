@@ -7,7 +7,6 @@
 layout(local_size_x = 64) in;
 layout(set = 0, binding = BINDING_IC_JOBS, scalar) readonly buffer IcJobBuffer { IcJob ic_jobs[]; };
 layout(set = 0, binding = BINDING_IC_SAMPLES, scalar) readonly buffer IcSampleBuffer { IcSample ic_samples[]; };
-layout(set = 0, binding = BINDING_IC_AABBS, scalar) writeonly buffer IcAabbBuffer { float ic_aabbs[]; };
 
 vec3 ic_radiance(uint job, uint j, uint k) { return ic_samples[job * IC_STRATA + j * IC_PHI + k].radiance; }
 float ic_distance(uint job, uint j, uint k) { return ic_samples[job * IC_STRATA + j * IC_PHI + k].distance; }
@@ -77,7 +76,7 @@ void main() {
     if (job.kind == IC_JOB_UPDATE) {
         // Refresh: the entry becomes the mean of all its estimates (weight n/(n+1) on the old
         // value), so refreshes converge it; the reference capped that weight at 0.95, which
-        // leaves a noise floor. The entry keeps its place and radius, so its AABB stays.
+        // leaves a noise floor. The entry keeps its place and radius, so its grid cells stay.
         IcEntry e = ic_entries[job.slot];
         float keep = float(e.updates) / float(e.updates + 1u);
         e.irradiance = mix(irradiance, e.irradiance, keep);
@@ -97,9 +96,4 @@ void main() {
     e.grad_r = grad_r;
     e.pad0 = e.pad1 = e.pad2 = 0.0;
     ic_entries[job.slot] = e;
-    float extent = tech.ic.accuracy * radius;
-    for (uint c = 0u; c < 3u; ++c) {
-        ic_aabbs[job.slot * 6u + c] = job.position[c] - extent;
-        ic_aabbs[job.slot * 6u + 3u + c] = job.position[c] + extent;
-    }
 }

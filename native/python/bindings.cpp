@@ -189,6 +189,27 @@ NB_MODULE(_native, m) {
           "n_b times the variance of the mean of n_b samples of the cache's residual, from IC Residual's "
           "sums (rgb; w: sample count) at n_a and n_b > n_a samples (irradiance_cache.h); H x W, "
           "negative where a part has fewer than 4 samples.");
+    m.def("ic_grid",
+          [](nb::ndarray<const float, nb::shape<-1, 3>, nb::c_contig, nb::device::cpu> positions,
+             nb::ndarray<const float, nb::shape<-1>, nb::c_contig, nb::device::cpu> radii, float accuracy,
+             float min_radius) {
+              if (positions.shape(0) != radii.shape(0))
+                  throw std::invalid_argument("ic_grid: positions and radii differ in length");
+              std::vector<px::IcEntry> entries(radii.shape(0));
+              for (size_t i = 0; i < entries.size(); ++i) {
+                  entries[i].position = {positions(i, 0), positions(i, 1), positions(i, 2)};
+                  entries[i].radius = radii(i);
+              }
+              const px::IcGrid grid = px::ic_grid(entries, accuracy, min_radius);
+              nb::dict out;
+              out["cell"] = grid.cell;
+              out["levels"] = grid.levels;
+              out["starts"] = grid.starts;
+              out["slots"] = grid.slots;
+              return out;
+          }, "positions"_a, "radii"_a, "accuracy"_a, "min_radius"_a,
+          "The irradiance cache's lookup grid over entries at `positions` (N x 3) with radii R (irradiance_cache.h "
+          "ic_grid): dict of cell, levels, starts (after the levels' header) and slots.");
     m.def("set_light_tree_min_lights", &px::set_light_tree_min_lights, "n"_a,
           "Sets light_tree_min_lights for scenes updated from now on (0 or 1: always the tree; "
           "2**32 - 1: never); a benchmark and test knob.");

@@ -9,9 +9,6 @@
 #include "adaptive.spv.h"
 #include "ic_finish.spv.h"
 #include "ic_hemisphere.spv.h"
-#include "ic_query_any_hit.spv.h"
-#include "ic_query_intersection.spv.h"
-#include "ic_query_miss.spv.h"
 #include "miss.spv.h"
 #include "preview.spv.h"
 #include "raygen.spv.h"
@@ -32,9 +29,6 @@ PX_SHADER(miss)
 PX_SHADER(shadow_miss)
 PX_SHADER(sampling_test)
 PX_SHADER(ic_hemisphere)
-PX_SHADER(ic_query_miss)
-PX_SHADER(ic_query_intersection)
-PX_SHADER(ic_query_any_hit)
 PX_SHADER(ic_finish)
 PX_SHADER(adaptive)
 PX_SHADER(guiding_query_miss)

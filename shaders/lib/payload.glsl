@@ -10,19 +10,6 @@ struct HitPayload {
     vec2 barycentrics;
 };
 
-// The irradiance cache query (shaders/techniques/irradiance_cache.glsl): where, and the
-// weighted sums its any-hit shader adds every usable entry to.
-struct IcQuery {
-    vec3 position;
-    vec3 normal;
-    vec3 weighted_irradiance;  // sum of w_i E_i(x)
-    float weight;              // sum of w_i
-    vec2 weighted_gradients;   // sum of w_i (|grad_t|, |grad_r|)
-    float nearest_distance;    // of the nearest usable entry (IC Radius)
-    float nearest_radius;      // its validity radius, accuracy * R_i
-    uint found;                // usable entries seen
-};
-
 // The guiding region query (shaders/techniques/guiding_field.glsl): the region found (NO_INDEX:
 // none) and, for the lobes pass' sphere rays, the hit distance.
 struct GuidingQuery {

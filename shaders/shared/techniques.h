@@ -39,7 +39,16 @@ PX_CONST uint IC_THETA = 10;
 PX_CONST uint IC_PHI = 20;
 PX_CONST uint IC_STRATA = IC_THETA * IC_PHI;
 PX_CONST float IC_MAX_RADIUS_FACTOR = 64.0;  // R <= 64 * min_radius (Krivanek et al. 2008 clamp)
-PX_CONST float IC_QUERY_T = 1e-3;            // t_max of the zero-length cache query ray
+// The lookup grid (ic_lookup; built by the host, ic_grid in irradiance_cache.cpp): level l
+// has cubic cells of side IcParams.grid_cell * 2^l, grid_cell = 2 a R_min. An entry is listed
+// in the cells that its influence sphere (radius a R) overlaps at the finest level whose side
+// is at least the sphere's diameter: at most 2 x 2 x 2 cells. A query reads the one cell
+// around it at each level in use. R spans [R_min, 64 R_min], hence 7 levels. Each level has a
+// hash table of its own, so a query never reads one entry twice. BINDING_IC_GRID begins with
+// IC_GRID_HEADER words, level l's first bucket and its bucket count - 1 (a power of two), then
+// every bucket's first place in BINDING_IC_GRID_ENTRIES, and one past the last.
+PX_CONST uint IC_GRID_LEVELS = 7;
+PX_CONST uint IC_GRID_HEADER = 2 * IC_GRID_LEVELS;
 // IcParams.mode (the setting ic_mode)
 PX_CONST uint IC_MODE_CONSISTENT = 0;  // paths go on past the cache; the image shrinks them toward it (ic_combine)
 PX_CONST uint IC_MODE_THESIS = 1;      // paths end at cached vertices (thesis 4.4): biased, smooth
@@ -57,13 +66,24 @@ struct IcParams {
     uint visibility_check;                  // Ward 1988: reject entries in front of the point
     uint prepare_frames;                    // most frames that only fill the cache (host)
     uint capacity;                          // entries
-    uint rebuild_interval;                  // frames between BLAS rebuilds (refits in between)
     uint highlight;                         // IC Irradiance pass: colour only (thesis fig. 4.13)
     uint mode;                              // ic_mode: IC_MODE_CONSISTENT or IC_MODE_THESIS
     uint queue_capacity PX_DEFAULT(0);      // derived by the host: requests one frame may queue
     uint shade PX_DEFAULT(0);               // derived by the host: paths are shaded from the cache
                                             // (ic on); ADRRS alone builds it for its adjoint only
+    float grid_cell PX_DEFAULT(0);          // derived by the host: the lookup grid's finest cell side
+    uint grid_levels PX_DEFAULT(0);         // ... bit l: level l lists entries
 };
+
+// The lookup grid's bucket of cell (x, y, z) in a level's table of bucket_mask + 1 buckets: a
+// hash (Teschner et al. 2003). Cells that share a bucket share its list; the query tests each
+// entry's sphere, so a collision costs time, never a wrong answer.
+#ifdef __cplusplus
+inline
+#endif
+uint ic_grid_bucket(int x, int y, int z, uint bucket_mask) {
+    return ((uint(x) * 73856093u) ^ (uint(y) * 19349663u) ^ (uint(z) * 83492791u)) & bucket_mask;
+}
 
 // ---- Russian roulette and splitting: ADRRS (thesis 3.2.4, 4.5; Vorba & Krivanek 2016) and
 // EARS (Rath et al. 2022) ------------------------------------------------------------------
@@ -182,8 +202,8 @@ struct TechniqueParams {
     GuidingParams guiding;
 };
 
-// One cache entry. The influence sphere (centre position, radius accuracy * radius) is also
-// an AABB in BINDING_IC_AABBS, the geometry of the cache's own acceleration structure.
+// One cache entry. Its influence sphere (centre position, radius accuracy * radius) decides
+// the lookup grid's cells that list it.
 struct IcEntry {
     vec3 position;
     float radius;       // R: harmonic mean of the hemisphere rays' hit distances, clamped

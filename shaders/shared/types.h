@@ -40,9 +40,9 @@ PX_CONST uint BINDING_ENV_CONDITIONAL = 17;// float[env_height * (env_width + 1)
 PX_CONST uint BINDING_SCENE = 18;          // SceneInfo (uniform-like, one element)
 PX_CONST uint BINDING_TEST_IO = 19;        // sampling test shader: vec4 in/out
 PX_CONST uint BINDING_TECH_PARAMS = 20;    // TechniqueParams (one element)
-PX_CONST uint BINDING_IC_TLAS = 21;        // irradiance cache: TLAS over the entries' AABBs
+PX_CONST uint BINDING_IC_GRID = 21;        // irradiance cache lookup grid: uint start per bucket, + 1 (ic_lookup)
 PX_CONST uint BINDING_IC_ENTRIES = 22;     // IcEntry[capacity]
-PX_CONST uint BINDING_IC_AABBS = 23;       // float[6] per entry (VkAabbPositionsKHR)
+PX_CONST uint BINDING_IC_GRID_ENTRIES = 23;  // uint entry slot per bucket place (BINDING_IC_GRID)
 PX_CONST uint BINDING_IC_QUEUE = 24;       // uint count, 3 pad, IcRequest[]
 PX_CONST uint BINDING_IC_JOBS = 25;        // IcJob[], written by the host
 PX_CONST uint BINDING_IC_SAMPLES = 26;     // IcSample[jobs * IC_STRATA]
@@ -80,13 +80,11 @@ PX_CONST uint BINDING_COUNT = 48;
 // ---- shader binding table: miss shaders and hit groups (RayTracingPipeline group order) -
 PX_CONST uint MISS_SCENE = 0;         // miss.rmiss: the world
 PX_CONST uint MISS_SHADOW = 1;        // shadow.rmiss: the light is visible
-PX_CONST uint MISS_IC_QUERY = 2;      // ic_query.rmiss: nothing to do
-PX_CONST uint MISS_GUIDING_QUERY = 3; // guiding_query.rmiss: no region
+PX_CONST uint MISS_GUIDING_QUERY = 2; // guiding_query.rmiss: no region
 PX_CONST uint HIT_GROUP_TRIANGLES = 0;  // the scene TLAS' instances (closesthit.rchit)
-PX_CONST uint HIT_GROUP_IC = 1;         // the cache TLAS' instance (ic_query.rint + .rahit)
-PX_CONST uint HIT_GROUP_GUIDING = 2;    // the region TLAS' instance (guiding_query.rint + .rchit)
-// A pipeline without the cache holds guiding's miss shader and hit group in the cache's slots
-// too (unused copies), so these indices hold in every pipeline.
+PX_CONST uint HIT_GROUP_GUIDING = 1;    // the region TLAS' instance (guiding_query.rint + .rchit)
+// A pipeline without guiding holds the next filled slot's group in guiding's slots (Session::
+// pipeline_shaders), so these indices hold in every pipeline.
 
 // ---- film passes ------------------------------------------------------------------------
 PX_CONST uint PASS_COMBINED = 0;   // rgb radiance, a = 1

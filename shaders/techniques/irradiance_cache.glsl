@@ -1,9 +1,11 @@
 // Irradiance cache (thesis 3.2.3, 4.4, 4.4.1; Ward, Rubinstein & Clear 1988; Ward & Heckbert
-// 1992). Entries hold the indirect irradiance E at a point. Entries are found by a zero-length
-// ray into their own AABB TLAS: ic_query.rint accepts the entries whose influence sphere holds
-// the origin and ic_query.rahit adds their weighted values (eq. 3.18). Uncovered vertices queue
-// creation requests, which the host turns into jobs for ic_hemisphere.rgen and ic_finish.comp
-// after the frame (creation never runs inline).
+// 1992). Entries hold the indirect irradiance E at a point. A query reads the entries listed in
+// the cells of the lookup grid around the point (IC_GRID_LEVELS in techniques.h) and adds the
+// usable ones' weighted values (eq. 3.18). The thesis found them with zero-length rays into an
+// AABB TLAS of the entries; on a GPU without RT cores that hit group made every ray of the
+// pipeline slower (bench/results/gpu_ic_consistent), so the lookup is plain shader code.
+// Uncovered vertices queue creation requests, which the host turns into jobs for
+// ic_hemisphere.rgen and ic_finish.comp after the frame (creation never runs inline).
 // - ic_mode thesis: a diffuse vertex that finds entries around it is shaded with emission + NEE
 //   + albedo/pi * E(x) (thesis eq. 3.17) and ends its path. Biased; the bias never goes away.
 // - ic_mode consistent: the path goes on. Its sample also yields the cache's estimate A (the
@@ -12,8 +14,8 @@
 //   James-Stein factors that tend to 1 as B's variance vanishes (ic_combine in
 //   native/src/techniques/irradiance_cache.cpp).
 //
-// Entry points that cannot trace rays (intersection, any-hit, compute) define PX_NO_TRACE
-// and get only the bindings and the weight maths.
+// Entry points that cannot trace rays (compute) define PX_NO_TRACE and get only the entries and
+// the weight maths.
 
 layout(set = 0, binding = BINDING_TECH_PARAMS, scalar) readonly buffer TechParamsBuffer { TechniqueParams tech; };
 layout(set = 0, binding = BINDING_IC_ENTRIES, scalar) buffer IcEntryBuffer { IcEntry ic_entries[]; };
@@ -37,36 +39,55 @@ vec3 ic_entry_irradiance(IcEntry e, vec3 p, vec3 n) {
     return e.irradiance * max(f, 0.0);
 }
 
+bool ic_consistent() { return tech.ic.mode == IC_MODE_CONSISTENT; }
+
 #ifndef PX_NO_TRACE
-layout(set = 0, binding = BINDING_IC_TLAS) uniform accelerationStructureEXT ic_tlas;
+layout(set = 0, binding = BINDING_IC_GRID, scalar) readonly buffer IcGridBuffer { uint ic_grid_starts[]; };  // after a header
+layout(set = 0, binding = BINDING_IC_GRID_ENTRIES, scalar) readonly buffer IcGridEntryBuffer { uint ic_grid_entries[]; };
 layout(set = 0, binding = BINDING_IC_QUEUE, scalar) buffer IcQueueBuffer {
     uint ic_queue_count;
     uint ic_queue_uncovered;  // prepare frames: paths whose first diffuse vertex had no entry
     uint ic_queue_pad0, ic_queue_pad1;
     IcRequest ic_requests[];
 };
-layout(location = 2) rayPayloadEXT IcQuery ic_query;
 
 // The weighted mean of the usable entries around (p, n) (eq. 3.18), their mean gradient
-// lengths and the nearest one's validity radius; false where there is none.
+// lengths and the nearest one's validity radius; false where there is none. Consistent mode
+// reads the first IC_QUERY_MAX_ENTRIES usable entries, not all: its image leans on them only
+// where they beat the paths.
 bool ic_lookup(vec3 p, vec3 n, out vec3 irradiance, out vec2 gradient_lengths, out float radius) {
     irradiance = vec3(0.0);
     gradient_lengths = vec2(0.0);
     radius = 0.0;
     if (!USES(TECH_IC)) return false;
-    ic_query.position = p;
-    ic_query.normal = n;
-    ic_query.weighted_irradiance = vec3(0.0);
-    ic_query.weight = 0.0;
-    ic_query.weighted_gradients = vec2(0.0);
-    ic_query.nearest_distance = INFINITY_F;
-    ic_query.nearest_radius = 0.0;
-    ic_query.found = 0u;
-    traceRayEXT(ic_tlas, gl_RayFlagsSkipClosestHitShaderEXT, 0xff, 0, 0, MISS_IC_QUERY, p, 0.0, n, IC_QUERY_T, 2);
-    if (!(ic_query.weight > 0.0)) return false;
-    irradiance = ic_query.weighted_irradiance / ic_query.weight;
-    gradient_lengths = ic_query.weighted_gradients / ic_query.weight;
-    radius = ic_query.nearest_radius;
+    float weight = 0.0, nearest = INFINITY_F;
+    uint found = 0u;
+    uint most = ic_consistent() ? IC_QUERY_MAX_ENTRIES : 0xffffffffu;
+    for (uint level = 0u; level < IC_GRID_LEVELS && found < most; ++level) {
+        if ((tech.ic.grid_levels >> level & 1u) == 0u) continue;
+        ivec3 c = ivec3(floor(p / (tech.ic.grid_cell * float(1u << level))));
+        uint bucket = IC_GRID_HEADER + ic_grid_starts[2u * level] +
+                      ic_grid_bucket(c.x, c.y, c.z, ic_grid_starts[2u * level + 1u]);
+        uint end = ic_grid_starts[bucket + 1u];
+        for (uint k = ic_grid_starts[bucket]; k < end && found < most; ++k) {
+            IcEntry e = ic_entries[ic_grid_entries[k]];
+            float d = length(p - e.position);
+            if (d >= tech.ic.accuracy * e.radius) continue;  // outside its influence sphere
+            float w = ic_weight(e, p, n);
+            if (!(w > 0.0)) continue;
+            irradiance += w * ic_entry_irradiance(e, p, n);
+            weight += w;
+            gradient_lengths += w * vec2(length(e.grad_t), length(e.grad_r));
+            if (d < nearest) {
+                nearest = d;
+                radius = tech.ic.accuracy * e.radius;
+            }
+            ++found;
+        }
+    }
+    if (!(weight > 0.0)) return false;
+    irradiance /= weight;
+    gradient_lengths /= weight;
     return true;
 }
 
@@ -92,8 +113,6 @@ struct IcOptions {
 };
 
 IcOptions ic_no_options() { return IcOptions(false, false, false, false, false, 0u); }
-
-bool ic_consistent() { return tech.ic.mode == IC_MODE_CONSISTENT; }
 
 // FRAME_IC_PREPARE: camera paths only queue cache entries.
 bool ic_prepare_frame() { return USES(TECH_IC) && params.mode == FRAME_IC_PREPARE; }

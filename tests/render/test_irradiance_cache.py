@@ -224,22 +224,21 @@ def test_passes():
     assert off.read("ic_irradiance").max() == 0.0 and off.stats()["ic_entries"] == 0
 
 
-def test_refits_between_rebuilds_find_new_entries():
-    """With ic_rebuild_interval > 1 the frames between rebuilds refit the kept BLAS (AabbAccel)
-    over the boxes of the slots the last frame filled: the next frame's queries find those
-    entries as after a rebuild (a BLAS left unrefitted found none: IC Irradiance was 0
-    everywhere, and the frame created 1167 entries where 690 were needed)."""
-    found = {}
-    for interval in (1, 8):
-        s = pc.Session(32, 32)
-        s.set_params(method="mis", ic=True, ic_rebuild_interval=interval, ic_prepare_frames=0, ic_create_prob=0.3,
-                     samples_per_frame=1, seed=1)
-        s.update(scenes.cornell_box(32, 32))
-        s.render(2)  # the first frame creates entries, the second queries them
-        found[interval] = (s.stats()["ic_entries"], float((s.read("ic_irradiance").max(axis=-1) > 0).mean()))
-    (entries, covered), (refit_entries, refit_covered) = found[1], found[8]
-    assert covered > 0.5 and refit_covered > 0.9 * covered, found
-    assert refit_entries < 1.1 * entries, found
+def test_next_frame_finds_new_entries():
+    """After a frame that makes entries the lookup grid is built again (ic_grid): the next
+    frame's queries find them, and its uncovered points ask for few new ones (a grid left
+    unbuilt found none: IC Irradiance 0 everywhere, and every point asked again)."""
+    s = pc.Session(32, 32)
+    s.set_params(method="mis", ic=True, ic_mode="thesis", ic_prepare_frames=0, ic_create_prob=0.3,
+                 samples_per_frame=1, seed=1)
+    s.update(scenes.cornell_box(32, 32))
+    s.render(1)
+    first = s.stats()["ic_entries"]
+    s.render(1)  # queries the first frame's entries
+    covered = float((s.read("ic_irradiance").max(axis=-1) > 0).mean())
+    print(f"entries after one frame {first}, after two {s.stats()['ic_entries']}; covered {covered:.2f}")
+    assert first > 0 and covered > 0.25, (first, covered)
+    assert s.stats()["ic_entries"] < 1.6 * first
 
 
 def test_prepare_frames_fill_before_accumulation():
@@ -282,7 +281,7 @@ def test_radius_and_residual_passes():
 
 @pytest.mark.parametrize("name,value", [("ic_mode", "bogus"), ("ic_accuracy", 0.0), ("ic_accuracy", 3.0),
                                         ("ic_min_radius", 0.0), ("ic_create_prob", 1.5), ("ic_capacity", 0), ("ic_nee_samples", 0),
-                                        ("ic_rebuild_interval", 0), ("ic_gradient_max", float("nan"))])
+                                        ("ic_gradient_max", float("nan"))])
 def test_bad_settings_are_rejected(name, value):
     s = pc.Session(4, 4)
     with pytest.raises(ValueError, match=name):

@@ -101,10 +101,6 @@ const SettingTable& ic_table() {
             int_setting("ic_capacity", PX_FIELD(IcParams, capacity), 65536, 1, 4000000, "Capacity",
                         "Maximum number of cache entries; creations beyond it are dropped (and counted in the "
                         "render stats)", "ic").in_group("Creation"),
-            int_setting("ic_rebuild_interval", PX_FIELD(IcParams, rebuild_interval), 1, 1, 100000, "Rebuild Interval",
-                        "Rebuild the cache's acceleration structure from scratch, in Morton order, every this many "
-                        "frames (in between, frames that add entries only refit it; on lavapipe a refit tree traces "
-                        "several times slower, hence 1)", "ic").in_group("Creation"),
             bool_setting("ic_highlight", PX_FIELD(IcParams, highlight), false, "Colour Highlight",
                          "The IC Irradiance pass shows only the colour (the thesis' colour-highlight mode, fig. "
                          "4.13)", "ic").in_group("Visualisation"),
@@ -232,18 +228,6 @@ const std::vector<uint32_t>* IrradianceCache::raygen(uint32_t program) const {
     return program == PROGRAM_IC_HEMISPHERE ? &shader_ic_hemisphere() : nullptr;
 }
 
-// The cache query (zero-length rays against the entries' spheres): a miss shader and a
-// procedural hit group (intersection + any-hit).
-void IrradianceCache::add_shaders(uint32_t bits, PipelineShaders& s) const {
-    if (!(bits & TECH_IC)) return;
-    const uint32_t miss = s.add(VK_SHADER_STAGE_MISS_BIT_KHR, shader_ic_query_miss());
-    const uint32_t intersection = s.add(VK_SHADER_STAGE_INTERSECTION_BIT_KHR, shader_ic_query_intersection());
-    const uint32_t any_hit = s.add(VK_SHADER_STAGE_ANY_HIT_BIT_KHR, shader_ic_query_any_hit());
-    s.misses[MISS_IC_QUERY] = {VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, miss};
-    s.hits[HIT_GROUP_IC] = {VK_RAY_TRACING_SHADER_GROUP_TYPE_PROCEDURAL_HIT_GROUP_KHR, VK_SHADER_UNUSED_KHR,
-                            VK_SHADER_UNUSED_KHR, any_hit, intersection};
-}
-
 // ic_finish.comp's pipeline: one per device, shared by every session, kept for the process
 // (like the ray-tracing pipelines, session.cpp).
 static ComputePipeline& finish_pipeline(TechniqueHost& host) {
@@ -349,15 +333,8 @@ void IrradianceCache::setup(const IcParams& params, const SceneInfo& scene, uint
 }
 
 void IrradianceCache::allocate() {
-    // Release first: at a large capacity old and new buffers need not fit side by side.
-    accel_.reset();
-    entries_ = Buffer();
-    aabbs_ = Buffer();
+    entries_ = Buffer();  // released first: at a large capacity old and new need not fit side by side
     entries_ = Buffer(ctx_, size_t(allocated_) * sizeof(IcEntry), kStorageUsage);
-    aabbs_ = Buffer(ctx_, size_t(allocated_) * sizeof(VkAabbPositionsKHR),
-                    kStorageUsage | VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR);
-    accel_ = std::make_unique<AabbAccel>(ctx_, HIT_GROUP_IC);
-    built_slots_ = 0;  // nothing built yet
 }
 
 void IrradianceCache::record_frame_start(VkCommandBuffer cmd, const Technique* host_frame) const {
@@ -366,62 +343,109 @@ void IrradianceCache::record_frame_start(VkCommandBuffer cmd, const Technique* h
 
 void IrradianceCache::reset() {
     clear_snapshots();
-    count_ = update_cursor_ = prepared_frames_ = frames_since_rebuild_ = 0;
+    count_ = update_cursor_ = prepared_frames_ = 0;
     frame_counter_ = 0;
     stats_ = {};
     stats_.capacity = enabled() ? params_.capacity : 0;
-    if (!enabled() && built_slots_) return;  // off: the empty placeholder never changes
+    if (!enabled() && grid_starts_.valid()) return;  // off: the empty placeholders never change
     entries_.fill_zero();
     queue_.fill_zero();
-    rebuild();
+    build_grid(nullptr, nullptr);  // empty (configure binds it)
 }
 
-// The BLAS holds the used slots and, when frames between rebuilds refit it, room for the
-// entries one frame may add: empty slots (radius 0) whose AABB is a point outside the scene,
-// so a refit only grows the boxes of the slots that were filled. Its build time grows with
-// the entries, not with the capacity.
-void IrradianceCache::rebuild() {
-    auto start = std::chrono::steady_clock::now();
-    // An entry's box: the sphere of its validity radius times ic_accuracy.
-    auto box_of = [&](const IcEntry& e) {
-        const float r = params_.accuracy * e.radius;
-        return VkAabbPositionsKHR{e.position.x - r, e.position.y - r, e.position.z - r,
-                                  e.position.x + r, e.position.y + r, e.position.z + r};
+// Every level's cells of side grid_cell 2^l; an entry goes to the finest level whose side holds
+// its sphere's diameter, so it overlaps at most 2 cells along each axis. An entry's cells that
+// hash to one bucket list it once (a query would count it twice). Each level's table: a power
+// of two of buckets, at least twice its listings, so most lists hold one cell's entries.
+IcGrid ic_grid(const std::vector<IcEntry>& entries, float accuracy, float min_radius) {
+    IcGrid grid;
+    grid.cell = 2.0f * accuracy * min_radius;
+    struct Listing {
+        uint32_t level = 0;
+        int lo[3] = {0, 0, 0}, hi[3] = {-1, -1, -1};  // inclusive cell ranges (empty: none)
     };
-    std::vector<IcEntry> entries(count_);
-    if (count_) {
-        entries_.download(entries.data(), entries.size() * sizeof(IcEntry));
-        std::vector<vec3> lo(count_), hi(count_);
-        for (uint32_t i = 0; i < count_; ++i) {
-            const VkAabbPositionsKHR b = box_of(entries[i]);
-            lo[i] = {b.minX, b.minY, b.minZ}, hi[i] = {b.maxX, b.maxY, b.maxZ};
+    std::vector<Listing> listings(entries.size());
+    size_t listed[IC_GRID_LEVELS] = {};
+    for (size_t i = 0; i < entries.size(); ++i) {
+        const IcEntry& e = entries[i];
+        const float r = accuracy * e.radius * 1.0001f;  // a hair wider: rounding never hides an entry
+        if (!(r > 0) || !(grid.cell > 0)) continue;
+        Listing& l = listings[i];
+        while (l.level + 1 < IC_GRID_LEVELS && grid.cell * float(1u << l.level) < 2.0f * r) ++l.level;
+        const float side = grid.cell * float(1u << l.level);  // as ic_lookup computes it
+        const float p[3] = {e.position.x, e.position.y, e.position.z};
+        size_t cells = 1;
+        for (int c = 0; c < 3; ++c) {
+            l.lo[c] = int(std::floor((p[c] - r) / side));
+            l.hi[c] = int(std::floor((p[c] + r) / side));
+            cells *= size_t(l.hi[c] - l.lo[c] + 1);
         }
-        std::vector<IcEntry> sorted(count_);
-        auto order = bvh_order(lo, hi);
-        for (uint32_t i = 0; i < count_; ++i) sorted[i] = entries[order[i]];
-        entries.swap(sorted);
-        entries_.upload(entries.data(), entries.size() * sizeof(IcEntry));
-        update_cursor_ = 0;
+        listed[l.level] += cells;
+        grid.levels |= 1u << l.level;
     }
-    const float far = 4.0f * scene_.scene_radius + 1.0f;
-    const vec3 c = scene_.scene_center;
-    const VkAabbPositionsKHR empty{c.x + far, c.y + far, c.z + far, c.x + far, c.y + far, c.z + far};
-    const uint32_t room = params_.rebuild_interval > 1 ? std::min(params_.queue_capacity, 4096u) : 0;
-    built_slots_ = std::max(1u, std::min(allocated_, count_ + room));
-    std::vector<VkAabbPositionsKHR> boxes(built_slots_, empty);
-    for (uint32_t i = 0; i < count_; ++i) boxes[i] = box_of(entries[i]);
-    aabbs_.upload(boxes.data(), boxes.size() * sizeof(VkAabbPositionsKHR));
-    accel_->reserve(built_slots_, allocated_);
-    ctx_.submit_and_wait([&](VkCommandBuffer cmd) { accel_->record_build(cmd, aabbs_, built_slots_); });
-    built_count_ = count_;
-    frames_since_rebuild_ = 0;
+    // The header: each level's first bucket and bucket count - 1.
+    grid.starts.assign(IC_GRID_HEADER, 0);
+    uint32_t buckets = 0;
+    for (uint32_t level = 0; level < IC_GRID_LEVELS; ++level) {
+        uint32_t size = 0;
+        if (listed[level]) for (size = 16; size < 2 * listed[level]; size *= 2) {}
+        grid.starts[2 * level] = buckets;
+        grid.starts[2 * level + 1] = size ? size - 1 : 0;
+        buckets += size;
+    }
+    // Each entry's distinct buckets, counted, then placed (a counting sort by bucket).
+    std::vector<uint32_t> own;
+    const auto entry_buckets = [&](const Listing& l) {
+        own.clear();
+        const uint32_t base = grid.starts[2 * l.level], mask = grid.starts[2 * l.level + 1];
+        for (int z = l.lo[2]; z <= l.hi[2]; ++z)
+            for (int y = l.lo[1]; y <= l.hi[1]; ++y)
+                for (int x = l.lo[0]; x <= l.hi[0]; ++x) own.push_back(base + ic_grid_bucket(x, y, z, mask));
+        std::sort(own.begin(), own.end());
+        own.erase(std::unique(own.begin(), own.end()), own.end());
+    };
+    std::vector<uint32_t> count(size_t(buckets) + 1, 0);
+    for (const Listing& l : listings) {
+        entry_buckets(l);
+        for (uint32_t b : own) ++count[b + 1];
+    }
+    for (uint32_t b = 0; b < buckets; ++b) count[b + 1] += count[b];
+    grid.starts.insert(grid.starts.end(), count.begin(), count.end());
+    grid.slots.resize(count[buckets]);
+    for (size_t i = 0; i < listings.size(); ++i) {
+        entry_buckets(listings[i]);
+        for (uint32_t b : own) grid.slots[count[b]++] = uint32_t(i);
+    }
+    return grid;
+}
+
+void IrradianceCache::build_grid(TechniqueHost* host, DescriptorSet* set) {
+    auto start = std::chrono::steady_clock::now();
+    const IcGrid grid = ic_grid(download_entries(), params_.accuracy, params_.min_radius);
+    params_.grid_cell = grid.cell;
+    params_.grid_levels = grid.levels;
+    // Buffers grow (by doubling) and are kept; a new one is bound again.
+    const auto store = [&](Buffer& buffer, const std::vector<uint32_t>& data, uint32_t binding) {
+        const size_t bytes = std::max<size_t>(16, data.size() * sizeof(uint32_t));
+        if (!buffer.valid() || buffer.size() < bytes) {
+            const size_t size = buffer.valid() ? std::max(bytes, 2 * buffer.size()) : bytes;
+            buffer = Buffer();
+            buffer = Buffer(ctx_, size, kStorageUsage);
+            if (set) set->bind_buffer(binding, buffer);
+        }
+        if (!data.empty()) buffer.upload(data.data(), data.size() * sizeof(uint32_t));
+    };
+    store(grid_starts_, grid.starts, BINDING_IC_GRID);
+    store(grid_slots_, grid.slots, BINDING_IC_GRID_ENTRIES);
+    if (host) host->upload_technique_params();
+    grid_count_ = count_;
     stats_.build_milliseconds += ms_since(start);
 }
 
 void IrradianceCache::bind(DescriptorSet& set) const {
-    set.bind_tlas(BINDING_IC_TLAS, accel_->tlas());
+    set.bind_buffer(BINDING_IC_GRID, grid_starts_);
     set.bind_buffer(BINDING_IC_ENTRIES, entries_);
-    set.bind_buffer(BINDING_IC_AABBS, aabbs_);
+    set.bind_buffer(BINDING_IC_GRID_ENTRIES, grid_slots_);
     set.bind_buffer(BINDING_IC_QUEUE, queue_);
     set.bind_buffer(BINDING_IC_JOBS, jobs_);
     set.bind_buffer(BINDING_IC_SAMPLES, samples_);
@@ -433,17 +457,12 @@ std::vector<IcEntry> IrradianceCache::download_entries() const {
     return entries;
 }
 
-size_t IrradianceCache::bytes_per_entry() const {
-    return sizeof(IcEntry) + sizeof(VkAabbPositionsKHR) + size_t(accel_->blas_bytes() / std::max(allocated_, 1u));
-}
-
 void IrradianceCache::make_entries(TechniqueHost& host, FrameParams frame, uint64_t paths, bool prepare) {
     assert(enabled());
     const RayTracingPipeline& hemisphere = host.host_pipeline(PROGRAM_IC_HEMISPHERE);
     const ComputePipeline& finish = finish_pipeline(host);
     DescriptorSet& set = host.descriptors();
     ++frame_counter_;
-    ++frames_since_rebuild_;
     if (prepare) ++prepared_frames_;
 
     // The frame's creation requests, in a fixed order (the queue's is the threads'). The
@@ -530,21 +549,7 @@ void IrradianceCache::make_entries(TechniqueHost& host, FrameParams frame, uint6
     }
     stats_.entries = count_;
 
-    // New entries reach the structure: a refit, or a rebuild in Morton order every
-    // rebuild_interval frames and when the prepare frames are done.
-    const bool prepared = prepare && prepared_frames_ == params_.prepare_frames;
-    if (count_ != built_count_ && (frames_since_rebuild_ >= params_.rebuild_interval || prepared)) {
-        rebuild();
-    } else if (created && count_ > built_slots_) {
-        rebuild();  // more new entries than the BLAS has room for
-    } else if (created) {
-        auto start = std::chrono::steady_clock::now();
-        ctx_.submit_and_wait([&](VkCommandBuffer cmd) { accel_->record_build(cmd, aabbs_, built_slots_, true); });
-        stats_.build_milliseconds += ms_since(start);
-    } else {
-        return;
-    }
-    set.bind_tlas(BINDING_IC_TLAS, accel_->tlas());
+    if (count_ != grid_count_) build_grid(&host, &set);  // new entries reach the lookup grid
 }
 
 }  // namespace px

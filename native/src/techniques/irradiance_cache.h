@@ -5,14 +5,14 @@
 // (after_frame, end_host_frame): the queued creation requests (sorted, so a seed gives the same
 // cache every run) and this frame's random refreshes become jobs for the hemisphere dispatch
 // (ic_hemisphere.rgen, IC_STRATA rays per job) and the finish dispatch (ic_finish.comp), which
-// write the entries; then the BLAS is refit, or every rebuild_interval frames rebuilt with the
-// entries in Morton order (lavapipe's builder splits in input order).
+// write the entries; then the lookup grid that queries read (ic_grid) is built again.
 #pragma once
 #include "scene/scene.h"
 #include "techniques/technique.h"
 #include "vk/pipeline.h"
 
 #include <memory>
+#include <vector>
 
 namespace px {
 
@@ -35,6 +35,17 @@ void ic_combine(std::vector<float>& rgba, const std::vector<float>& samples, con
 // Negative where a part has fewer than IC_COMBINE_MIN_HALF samples. See ic_combine.
 std::vector<float> ic_sequence_variance(const std::vector<vec4>& first, const std::vector<vec4>& both);
 
+// The cache's lookup grid over `entries` (IC_GRID_LEVELS, techniques.h): each entry listed in
+// the cells its influence sphere (radius accuracy * R) overlaps at its level. `starts`: the
+// levels' header (IC_GRID_HEADER), then each bucket's first place in `slots` and one past the
+// last bucket's.
+struct IcGrid {
+    float cell = 0;        // the finest level's cell side, 2 accuracy min_radius
+    uint32_t levels = 0;   // bit l: level l lists entries
+    std::vector<uint32_t> starts, slots;
+};
+IcGrid ic_grid(const std::vector<IcEntry>& entries, float accuracy, float min_radius);
+
 struct IcStats {
     uint32_t entries = 0;   // used slots
     uint32_t capacity = 0;
@@ -43,7 +54,7 @@ struct IcStats {
     uint64_t merged = 0;    // requests next to another of the same frame (one entry for both)
     uint64_t jobs = 0;      // hemisphere estimates computed (creations + refreshes)
     double job_milliseconds = 0;    // hemisphere + finish dispatches
-    double build_milliseconds = 0;  // BLAS refits and rebuilds, TLAS builds
+    double build_milliseconds = 0;  // lookup grid builds (entries' download, build, upload)
 };
 
 class IrradianceCache : public Technique {
@@ -54,7 +65,6 @@ public:
     const SettingTable& table() const override { return ic_table(); }
     void configure(const RenderParams& params, const TechniqueSetup& setup, bool needed) override;
     bool enabled() const override { return params_.enabled != 0; }
-    std::vector<uint32_t> tlas_bindings() const override { return {BINDING_IC_TLAS}; }
     void bind(DescriptorSet& set) const override;
     void write_params(TechniqueParams& params) const override { params.ic = params_; }
     // Render frames query the cache only where it shades (ic on); host frames wherever it exists.
@@ -62,7 +72,6 @@ public:
         return enabled() && (!render_frame || params_.shade) ? TECH_IC : 0u;
     }
     const std::vector<uint32_t>* raygen(uint32_t program) const override;
-    void add_shaders(uint32_t bits, PipelineShaders& shaders) const override;
     void compile(TechniqueHost& host) override;
     // Clears the request queue: at the start of a render frame or of its own prepare frame.
     void record_frame_start(VkCommandBuffer cmd, const Technique* host_frame) const override;
@@ -83,7 +92,6 @@ public:
     const IcParams& params() const { return params_; }  // with queue_capacity filled in
     uint32_t count() const { return count_; }  // used slots
     std::vector<IcEntry> download_entries() const;
-    size_t bytes_per_entry() const;
 
 private:
     // New settings or scene (bounds): every entry is dropped; buffers follow the capacity and
@@ -92,28 +100,26 @@ private:
     // Drops every entry; prepare frames run again.
     void reset();
     // After a frame of `paths` camera paths (a prepare frame when `prepare`): turns the queue
-    // and the frame's refreshes into entries, then refits or rebuilds the acceleration
-    // structures (and binds the new TLAS into `set`). Preparation ends after prepare_frames,
-    // or earlier once fewer than 2% of a prepare frame's paths found no entry.
+    // and the frame's refreshes into entries, then builds the lookup grid again if entries
+    // were added. Preparation ends after prepare_frames, or earlier once fewer than 2% of a
+    // prepare frame's paths found no entry.
     void make_entries(TechniqueHost& host, FrameParams frame, uint64_t paths, bool prepare);
     void allocate();
     // Consistent mode: at each power of two of samples, the IC Residual pass' sums are kept
     // and compared with those of the previous power (ic_sequence_variance).
     void take_snapshot(TechniqueHost& host, uint64_t samples);
     void clear_snapshots();
-    void rebuild();    // entries in Morton order, new BLAS, new TLAS
+    // The lookup grid over the used slots (ic_grid), uploaded and bound into `set`.
+    void build_grid(TechniqueHost* host, DescriptorSet* set);
     Context& ctx_;
     IcParams params_{};
     SceneInfo scene_{};
-    Buffer entries_, aabbs_, queue_, jobs_, samples_;
-    std::unique_ptr<AabbAccel> accel_;  // over the built slots' boxes
+    Buffer entries_, grid_starts_, grid_slots_, queue_, jobs_, samples_;
     uint32_t count_ = 0;           // used slots
     uint32_t allocated_ = 0;       // capacity the buffers were made for
     uint32_t update_cursor_ = 0;   // round-robin refresh position
     uint32_t prepared_frames_ = 0;
-    uint32_t frames_since_rebuild_ = 0;
-    uint32_t built_count_ = 0;     // used slots at the last rebuild
-    uint32_t built_slots_ = 0;     // primitives of the BLAS: the used slots and room for refits
+    uint32_t grid_count_ = 0;      // used slots the lookup grid lists
     uint64_t frame_counter_ = 0;   // frames processed since the last reset (refresh RNG)
     IcStats stats_;
     uint64_t pixels_ = 0;          // of the image (a prepare frame's paths)

@@ -42,7 +42,7 @@ struct TlasInstance {
     VkDeviceAddress blas;
 };
 
-// The irradiance cache's and the guiding regions' structures: a TLAS of one untransformed
+// The guiding regions' structures: a TLAS of one untransformed
 // instance (hit group `sbt_offset`) of a BLAS over boxes (VkAabbPositionsKHR), procedural and
 // not opaque (any-hit shaders run). Storage, scratch and the instance are kept across builds
 // and grow (doubling) only when more boxes come; builds and refits are recorded into the
