@@ -20,10 +20,11 @@ using namespace nb::literals;
 
 namespace {
 
-nb::ndarray<nb::numpy, float> to_numpy(std::vector<float>&& data, std::vector<size_t> shape) {
-    auto* owned = new std::vector<float>(std::move(data));
-    nb::capsule owner(owned, [](void* p) noexcept { delete static_cast<std::vector<float>*>(p); });
-    return nb::ndarray<nb::numpy, float>(owned->data(), shape.size(), shape.data(), owner);
+template <typename T>
+nb::ndarray<nb::numpy, T> to_numpy(std::vector<T>&& data, std::vector<size_t> shape) {
+    auto* owned = new std::vector<T>(std::move(data));
+    nb::capsule owner(owned, [](void* p) noexcept { delete static_cast<std::vector<T>*>(p); });
+    return nb::ndarray<nb::numpy, T>(owned->data(), shape.size(), shape.data(), owner);
 }
 
 // A Python value as the core's settings check it (Python's bool is an int: tested first).
@@ -157,25 +158,31 @@ NB_MODULE(_native, m) {
         if (!into.empty()) std::memcpy(into.data(), array.data(), into.size() * sizeof(into[0]));
     };
     m.def("ic_combine",
-          [copy](ImageRgba rgba, ImageScalar samples, ImageRgba residual, std::optional<ImageScalar> sequence_variance) {
+          [copy](ImageRgba rgba, ImageScalar samples, ImageRgba residual, std::optional<ImageScalar> sequence_variance,
+                 std::optional<nb::ndarray<const uint32_t, nb::shape<-1, -1>, nb::c_contig, nb::device::cpu>> paths_only) {
               const uint32_t h = uint32_t(rgba.shape(0)), w = uint32_t(rgba.shape(1));
               if (samples.shape(0) != h || samples.shape(1) != w || residual.shape(0) != h || residual.shape(1) != w ||
-                  (sequence_variance && (sequence_variance->shape(0) != h || sequence_variance->shape(1) != w)))
-                  throw std::invalid_argument("ic_combine: rgba, samples, residual and sequence_variance differ in size");
+                  (sequence_variance && (sequence_variance->shape(0) != h || sequence_variance->shape(1) != w)) ||
+                  (paths_only && (paths_only->shape(0) != h || paths_only->shape(1) != w)))
+                  throw std::invalid_argument("ic_combine: rgba, samples, residual, sequence_variance and paths_only "
+                                              "differ in size");
               const size_t n = size_t(w) * h;
               std::vector<float> image(n * 4), counts(n), variance(sequence_variance ? n : 0);
               std::vector<px::vec4> sums(n);
               copy(rgba, image);
               copy(samples, counts);
               copy(residual, sums);
+              std::vector<uint32_t> flags(paths_only ? n : 0);
               if (sequence_variance) copy(*sequence_variance, variance);
-              px::ic_combine(image, counts, sums, w, h, variance);
+              if (paths_only) copy(*paths_only, flags);
+              px::ic_combine(image, counts, sums, w, h, variance, flags);
               return to_numpy(std::move(image), {h, w, 4});
-          }, "rgba"_a, "samples"_a, "residual"_a, "sequence_variance"_a = nb::none(),
+          }, "rgba"_a, "samples"_a, "residual"_a, "sequence_variance"_a = nb::none(), "paths_only"_a = nb::none(),
           "Consistent cache mode's image (irradiance_cache.h ic_combine): rgba (H x W x 4) the paths' "
           "means, samples (H x W) their counts, residual (H x W x 4) the sums of cache estimate less "
           "path (rgb) and of its squared norm (a), sequence_variance (H x W, optional) from "
-          "ic_sequence_variance; returns the combined RGBA (H x W x 4).");
+          "ic_sequence_variance, paths_only (H x W uint32, optional) from ic_hand_over; returns the combined "
+          "RGBA (H x W x 4).");
     m.def("ic_sequence_variance",
           [copy](ImageRgba first, ImageRgba both) {
               const uint32_t h = uint32_t(both.shape(0)), w = uint32_t(both.shape(1));
@@ -189,6 +196,25 @@ NB_MODULE(_native, m) {
           "n_b times the variance of the mean of n_b samples of the cache's residual, from IC Residual's "
           "sums (rgb; w: sample count) at n_a and n_b > n_a samples (irradiance_cache.h); H x W, "
           "negative where a part has fewer than 4 samples.");
+    m.def("ic_hand_over",
+          [copy](nb::ndarray<const uint32_t, nb::shape<-1, -1>, nb::c_contig, nb::device::cpu> paths_only,
+                 ImageScalar residual_variance, ImageScalar path_variance, ImageScalar means) {
+              const uint32_t h = uint32_t(paths_only.shape(0)), w = uint32_t(paths_only.shape(1));
+              for (const auto* a : {&residual_variance, &path_variance, &means})
+                  if (a->shape(0) != h || a->shape(1) != w)
+                      throw std::invalid_argument("ic_hand_over: the per-pixel arrays differ in size");
+              const size_t n = size_t(w) * h;
+              std::vector<uint32_t> flags(n);
+              std::vector<float> residual(n), paths(n), mean(n);
+              copy(paths_only, flags);
+              copy(residual_variance, residual);
+              copy(path_variance, paths);
+              copy(means, mean);
+              px::ic_hand_over(flags, residual, paths, mean, w, h);
+              return to_numpy(std::move(flags), {h, w});
+          }, "paths_only"_a, "residual_variance"_a, "path_variance"_a, "means"_a,
+          "Consistent cache mode's pixel handover (irradiance_cache.h ic_hand_over): the flags (H x W uint32) "
+          "after one snapshot's residual and path variances (ic_sequence_variance) and the pixels' means.");
     m.def("ic_grid",
           [](nb::ndarray<const float, nb::shape<-1, 3>, nb::c_contig, nb::device::cpu> positions,
              nb::ndarray<const float, nb::shape<-1>, nb::c_contig, nb::device::cpu> radii, float accuracy,

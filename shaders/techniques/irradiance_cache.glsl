@@ -44,6 +44,9 @@ bool ic_consistent() { return tech.ic.mode == IC_MODE_CONSISTENT; }
 #ifndef PX_NO_TRACE
 layout(set = 0, binding = BINDING_IC_GRID, scalar) readonly buffer IcGridBuffer { uint ic_grid_starts[]; };  // after a header
 layout(set = 0, binding = BINDING_IC_GRID_ENTRIES, scalar) readonly buffer IcGridEntryBuffer { uint ic_grid_entries[]; };
+// Consistent mode: pixels handed back to the paths (IrradianceCache::hand_over): 1 where the
+// cache could no longer lower the error enough to pay for its queries.
+layout(set = 0, binding = BINDING_IC_PATHS_ONLY, scalar) readonly buffer IcPathsOnlyBuffer { uint ic_paths_only[]; };
 layout(set = 0, binding = BINDING_IC_QUEUE, scalar) buffer IcQueueBuffer {
     uint ic_queue_count;
     uint ic_queue_uncovered;  // prepare frames: paths whose first diffuse vertex had no entry
@@ -124,8 +127,10 @@ IcOptions ic_camera_options(uint pixel_index, bool estimate_frame) {
     bool shade = tech.ic.shade != 0u && !estimate_frame;
     o.use = (shade && !ic_consistent()) || estimate_frame;
     o.glossy = estimate_frame && tech.adrrs.ic_glossy != 0u;
-    o.combine = shade && ic_consistent();
-    o.create = USES(TECH_IC) && !estimate_frame &&
+    bool handed_over = USES(TECH_IC) && shade && ic_consistent() && params.mode == FRAME_RENDER &&
+                       ic_paths_only[pixel_index] != 0u;
+    o.combine = shade && ic_consistent() && !handed_over;
+    o.create = USES(TECH_IC) && !estimate_frame && !handed_over &&
                (tech.ic.shade != 0u || params.mode == FRAME_IC_PREPARE);
     o.prepare = ic_prepare_frame();
     o.pixel = pixel_index;

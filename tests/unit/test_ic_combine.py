@@ -162,3 +162,33 @@ def test_sequence_variance_must_match_the_image():
     with pytest.raises(ValueError, match="differ in size"):
         combine(np.zeros((4, 4, 4), np.float32), np.zeros((4, 4), np.float32), np.zeros((4, 4, 4), np.float32),
                 np.zeros((4, 5), np.float32))
+
+
+def test_pixels_the_cache_cannot_help_go_back_to_the_paths():
+    """ic_hand_over: where the residual's variance (what a perfect cache could take away) is a
+    small share of the paths' own over the window, the pixel stops asking the cache for good;
+    where it is most of it, or unknown, the pixel keeps the cache. ic_combine then shows B there
+    and leaves it out of its neighbours' factors."""
+    h, w = 24, 64
+    paths = np.full((h, w), 1.0, np.float32)
+    residual = np.full((h, w), 0.9, np.float32)
+    residual[:, :24] = 0.01  # direct light dominates: the cache cannot pay for itself
+    residual[:, 56:] = -1.0  # unknown yet (too few samples)
+    means = np.full((h, w), 0.5, np.float32)
+    flags = pc._native.ic_hand_over(np.zeros((h, w), np.uint32), residual, paths, means)
+    assert flags.dtype == np.uint32 and flags.shape == (h, w)
+    assert (flags[:, :16] == 1).all() and (flags[:, 32:] == 0).all()
+    # Flags stay set, whatever the next snapshot says.
+    again = pc._native.ic_hand_over(flags, np.full((h, w), 0.9, np.float32), paths, means)
+    np.testing.assert_array_equal(again, flags)
+    # Handed-over pixels show the paths' mean B, the others may lean on the cache.
+    rng = np.random.default_rng(9)
+    truth = smooth_image(rng, h, w)
+    samples = truth + rng.normal(0.0, 0.8, (8,) + truth.shape)
+    b = samples.mean(0)
+    d = truth[None] * 1.01 - samples
+    rgba = np.concatenate([b, np.ones_like(b[..., :1])], -1).astype(np.float32)
+    sums = np.concatenate([d.sum(0), (d ** 2).sum(-1).sum(0)[..., None]], -1).astype(np.float32)
+    out = combine(rgba, np.full((h, w), 8, np.float32), sums, None, flags)
+    np.testing.assert_array_equal(out[flags == 1], rgba[flags == 1])
+    assert np.abs(out[flags == 0] - rgba[flags == 0]).max() > 0.01

@@ -31,6 +31,10 @@ constexpr double IC_COMBINE_MIN_SAMPLES = 4;
 // samples' variance (the same heavy tails), and the first snapshot's count (a power of two).
 constexpr double IC_COMBINE_MIN_HALF = 4;
 constexpr uint64_t kFirstSnapshot = 4;
+// A pixel whose residual carries less than this share of its paths' variance is handed back to
+// the paths: a query cost lavapipe 20-50% of a path on the direct-lit scenes, so a cache that
+// removes less than 20-25% of the variance cannot win at equal time there.
+constexpr double IC_HANDOVER_SHARE = 0.25;
 
 // Jobs per hemisphere dispatch (IC_STRATA paths each); a frame's jobs go in several.
 constexpr uint32_t kJobsPerDispatch = 2048;
@@ -123,6 +127,32 @@ const SettingTable& ic_table() {
     return table;
 }
 
+// Sums of per-pixel values over the IC_COMBINE_WINDOW-wide window around each pixel (clipped
+// at the image's edges), from a summed-area table.
+class WindowSums {
+public:
+    WindowSums(const std::vector<double>& values, uint32_t width, uint32_t height)
+        : width_(width), height_(height), table_((size_t(height) + 1) * (width + 1), 0.0) {
+        const size_t stride = size_t(width) + 1;
+        for (uint32_t y = 0; y < height; ++y)
+            for (uint32_t x = 0; x < width; ++x) {
+                const size_t at = (y + 1) * stride + x + 1;
+                table_[at] = values[size_t(y) * width + x] + table_[at - 1] + table_[at - stride] - table_[at - stride - 1];
+            }
+    }
+    double operator()(uint32_t x, uint32_t y) const {
+        constexpr int kHalf = IC_COMBINE_WINDOW / 2;
+        const size_t stride = size_t(width_) + 1;
+        const size_t x0 = size_t(std::max(0, int(x) - kHalf)), x1 = size_t(std::min(int(width_), int(x) + kHalf + 1));
+        const size_t y0 = size_t(std::max(0, int(y) - kHalf)), y1 = size_t(std::min(int(height_), int(y) + kHalf + 1));
+        return table_[y1 * stride + x1] - table_[y0 * stride + x1] - table_[y1 * stride + x0] + table_[y0 * stride + x0];
+    }
+
+private:
+    uint32_t width_, height_;
+    std::vector<double> table_;
+};
+
 // James & Stein 1961, positive part (Baranchik 1964): for d coordinates of B with noise of
 // total variance V around unknown means, A + (1 - (d - 2)/d V / |B - A|^2)+ (B - A) has a lower
 // expected squared error than B itself, whatever A is. Here A is the cache's estimate, so the
@@ -140,50 +170,36 @@ const SettingTable& ic_table() {
 // the second), that is taken instead, carried to n as 1/n (never below the truth for a
 // sequence that converges faster).
 void ic_combine(std::vector<float>& rgba, const std::vector<float>& samples, const std::vector<vec4>& residual,
-                uint32_t width, uint32_t height, const std::vector<float>& sequence_variance) {
-    constexpr int kHalf = IC_COMBINE_WINDOW / 2;
+                uint32_t width, uint32_t height, const std::vector<float>& sequence_variance,
+                const std::vector<uint32_t>& paths_only) {
     const size_t pixels = size_t(width) * height;
     if (residual.size() != pixels || samples.size() != pixels || rgba.size() != pixels * 4 ||
-        (!sequence_variance.empty() && sequence_variance.size() != pixels))
+        (!sequence_variance.empty() && sequence_variance.size() != pixels) ||
+        (!paths_only.empty() && paths_only.size() != pixels))
         throw std::invalid_argument("ic_combine: the image, sample counts and residual sums differ in size");
-    // Summed-area tables of |mean(A - B)|^2, of its variance estimate and of the coordinates
-    // (channels of pixels with enough samples), each term weighted by the pixel's 1/|A|^2.
-    const size_t stride = size_t(width) + 1;
-    std::vector<double> sq((height + 1) * stride, 0.0), var(sq.size(), 0.0), dims(sq.size(), 0.0);
-    for (uint32_t y = 0; y < height; ++y)
-        for (uint32_t x = 0; x < width; ++x) {
-            const size_t i = size_t(y) * width + x;
-            const double n = samples[i];
-            double s = 0, v = 0, d = 0;
-            if (n >= IC_COMBINE_MIN_SAMPLES) {
-                const vec4& r = residual[i];
-                const double mx = r.x / n, my = r.y / n, mz = r.z / n;
-                const double a = (rgba[i * 4] + mx + rgba[i * 4 + 1] + my + rgba[i * 4 + 2] + mz) / 3.0;
-                const double w = 1.0 / (a * a + 1e-3);
-                s = w * (mx * mx + my * my + mz * mz);
-                const double measured = sequence_variance.empty() ? -1.0 : sequence_variance[i];
-                v = w * (measured >= 0 ? measured / n  // of the mean
-                                       : std::max(0.0, r.w / n - (mx * mx + my * my + mz * mz)) / (n - 1));
-                d = 3;
-            }
-            const size_t at = (y + 1) * stride + x + 1;
-            sq[at] = s + sq[at - 1] + sq[at - stride] - sq[at - stride - 1];
-            var[at] = v + var[at - 1] + var[at - stride] - var[at - stride - 1];
-            dims[at] = d + dims[at - 1] + dims[at - stride] - dims[at - stride - 1];
-        }
-    const auto window = [&](const std::vector<double>& t, int x0, int y0, int x1, int y1) {
-        return t[size_t(y1) * stride + x1] - t[size_t(y0) * stride + x1] - t[size_t(y1) * stride + x0] +
-               t[size_t(y0) * stride + x0];
-    };
+    // Window sums of |mean(A - B)|^2, of its variance estimate and of the coordinates (channels
+    // of pixels with enough samples), each term weighted by the pixel's 1/|A|^2.
+    std::vector<double> sq(pixels, 0.0), var(pixels, 0.0), dims(pixels, 0.0);
+    for (size_t i = 0; i < pixels; ++i) {
+        const double n = samples[i];
+        if (!(n >= IC_COMBINE_MIN_SAMPLES) || (!paths_only.empty() && paths_only[i])) continue;
+        const vec4& r = residual[i];
+        const double mx = r.x / n, my = r.y / n, mz = r.z / n;
+        const double a = (rgba[i * 4] + mx + rgba[i * 4 + 1] + my + rgba[i * 4 + 2] + mz) / 3.0;
+        const double w = 1.0 / (a * a + 1e-3);
+        sq[i] = w * (mx * mx + my * my + mz * mz);
+        const double measured = sequence_variance.empty() ? -1.0 : sequence_variance[i];
+        var[i] = w * (measured >= 0 ? measured / n  // of the mean
+                                    : std::max(0.0, r.w / n - (mx * mx + my * my + mz * mz)) / (n - 1));
+        dims[i] = 3;
+    }
+    const WindowSums sq_sums(sq, width, height), var_sums(var, width, height), dims_sums(dims, width, height);
     for (uint32_t y = 0; y < height; ++y)
         for (uint32_t x = 0; x < width; ++x) {
             const size_t i = size_t(y) * width + x;
             const float n = samples[i];
-            if (!(n > 0)) continue;
-            const int x0 = std::max(0, int(x) - kHalf), x1 = std::min(int(width), int(x) + kHalf + 1);
-            const int y0 = std::max(0, int(y) - kHalf), y1 = std::min(int(height), int(y) + kHalf + 1);
-            const double s = window(sq, x0, y0, x1, y1), v = window(var, x0, y0, x1, y1);
-            const double d = window(dims, x0, y0, x1, y1);
+            if (!(n > 0) || (!paths_only.empty() && paths_only[i])) continue;  // B
+            const double s = sq_sums(x, y), v = var_sums(x, y), d = dims_sums(x, y);
             // Weight of B: 0 (the cache's A) until this pixel has enough samples.
             double keep = 0;
             if (n >= IC_COMBINE_MIN_SAMPLES && d > 2) keep = s > 0 ? std::clamp(1.0 - (d - 2) / d * v / s, 0.0, 1.0) : 1.0;
@@ -212,7 +228,31 @@ std::vector<float> ic_sequence_variance(const std::vector<vec4>& first, const st
     return out;
 }
 
-IrradianceCache::IrradianceCache(Context& ctx) : ctx_(ctx) {
+void ic_hand_over(std::vector<uint32_t>& paths_only, const std::vector<float>& residual_variance,
+                  const std::vector<float>& path_variance, const std::vector<float>& means, uint32_t width,
+                  uint32_t height) {
+    const size_t pixels = size_t(width) * height;
+    if (paths_only.size() != pixels || residual_variance.size() != pixels || path_variance.size() != pixels ||
+        means.size() != pixels)
+        throw std::invalid_argument("ic_hand_over: the per-pixel arrays differ in size");
+    std::vector<double> residual(pixels, 0.0), paths(pixels, 0.0);
+    for (size_t i = 0; i < pixels; ++i) {
+        if (paths_only[i] || !(residual_variance[i] >= 0) || !(path_variance[i] >= 0)) continue;
+        const double w = 1.0 / (double(means[i]) * means[i] + 1e-3);
+        residual[i] = w * residual_variance[i];
+        paths[i] = w * path_variance[i];
+    }
+    const WindowSums residual_sums(residual, width, height), path_sums(paths, width, height);
+    for (uint32_t y = 0; y < height; ++y)
+        for (uint32_t x = 0; x < width; ++x) {
+            const size_t i = size_t(y) * width + x;
+            const double p = path_sums(x, y);
+            if (!(residual_variance[i] >= 0) || !(p > 0)) continue;  // unknown: not yet
+            if (residual_sums(x, y) < IC_HANDOVER_SHARE * p) paths_only[i] = 1;
+        }
+}
+
+IrradianceCache::IrradianceCache(Context& ctx) : ctx_(ctx), paths_only_buffer_(ctx, 16, kStorageUsage) {
     setup(IcParams{}, SceneInfo{}, 0);
 }
 
@@ -220,7 +260,15 @@ void IrradianceCache::configure(const RenderParams& params, const TechniqueSetup
     IcParams cache = params.ic;
     cache.enabled = params.ic.enabled || needed;
     cache.shade = params.ic.enabled;
+    width_ = config.width;
     pixels_ = uint64_t(config.width) * config.height;
+    // Consistent mode's handover flags, per pixel (a placeholder while the cache is off).
+    paths_only_.assign(cache.enabled ? pixels_ : 0, 0u);
+    const size_t flag_bytes = std::max<size_t>(16, paths_only_.size() * sizeof(uint32_t));
+    if (paths_only_buffer_.size() != flag_bytes) {
+        paths_only_buffer_ = Buffer();
+        paths_only_buffer_ = Buffer(ctx_, flag_bytes, kStorageUsage);
+    }
     setup(cache, config.scene.info, pixels_ * params.samples_per_frame);
 }
 
@@ -267,18 +315,34 @@ void IrradianceCache::after_frame(TechniqueHost& host, const FrameEnd& frame) {
 
 void IrradianceCache::take_snapshot(TechniqueHost& host, uint64_t samples) {
     std::vector<vec4> sums = host.film_sums(PASS_IC_RESIDUAL);
-    const std::vector<vec4> combined = host.film_sums(PASS_COMBINED);  // w: the pixels' sample counts
-    if (sums.empty() || combined.size() != sums.size()) return;
-    for (size_t i = 0; i < sums.size(); ++i) sums[i].w = combined[i].w;
-    if (snapshot_.size() == sums.size()) sequence_variance_ = ic_sequence_variance(snapshot_, sums);
+    std::vector<vec4> paths = host.film_sums(PASS_COMBINED);  // w: the pixels' sample counts
+    if (sums.empty() || paths.size() != sums.size() || paths_only_.size() != sums.size()) return;
+    for (size_t i = 0; i < sums.size(); ++i) sums[i].w = paths[i].w;
+    if (snapshot_.size() == sums.size()) {
+        sequence_variance_ = ic_sequence_variance(snapshot_, sums);
+        std::vector<float> means(paths.size());
+        for (size_t i = 0; i < paths.size(); ++i)
+            means[i] = paths[i].w > 0 ? (paths[i].x + paths[i].y + paths[i].z) / (3.0f * paths[i].w) : 0.0f;
+        const size_t before = std::count(paths_only_.begin(), paths_only_.end(), 1u);
+        ic_hand_over(paths_only_, sequence_variance_, ic_sequence_variance(snapshot_paths_, paths), means,
+                     width_, uint32_t(paths.size() / width_));
+        stats_.paths_only = std::count(paths_only_.begin(), paths_only_.end(), 1u);
+        if (stats_.paths_only != before)
+            paths_only_buffer_.upload(paths_only_.data(), paths_only_.size() * sizeof(uint32_t));
+    }
     snapshot_ = std::move(sums);
+    snapshot_paths_ = std::move(paths);
     while (next_snapshot_ <= samples) next_snapshot_ *= 2;
 }
 
 void IrradianceCache::clear_snapshots() {
     snapshot_.clear();
+    snapshot_paths_.clear();
     sequence_variance_.clear();
     next_snapshot_ = kFirstSnapshot;
+    std::fill(paths_only_.begin(), paths_only_.end(), 0u);
+    stats_.paths_only = 0;
+    if (paths_only_buffer_.valid()) paths_only_buffer_.fill_zero();
 }
 
 uint32_t IrradianceCache::film_passes(const RenderParams& params) const {
@@ -294,7 +358,8 @@ void IrradianceCache::resolve_combined(std::vector<float>& rgba, const std::vect
     std::vector<float> samples(combined.size());
     for (size_t i = 0; i < combined.size(); ++i) samples[i] = combined[i].w;
     ic_combine(rgba, samples, residual, width, height,
-               sequence_variance_.size() == samples.size() ? sequence_variance_ : std::vector<float>{});
+               sequence_variance_.size() == samples.size() ? sequence_variance_ : std::vector<float>{},
+               paths_only_.size() == samples.size() ? paths_only_ : std::vector<uint32_t>{});
 }
 
 void IrradianceCache::stats(StatList& out) const {
@@ -303,6 +368,7 @@ void IrradianceCache::stats(StatList& out) const {
                            {"ic_dropped", stats_.dropped},
                            {"ic_deferred", stats_.deferred},
                            {"ic_merged", stats_.merged},
+                           {"ic_paths_only", stats_.paths_only},
                            {"ic_jobs", stats_.jobs},
                            {"ic_job_milliseconds", stats_.job_milliseconds},
                            {"ic_build_milliseconds", stats_.build_milliseconds}});
@@ -449,6 +515,7 @@ void IrradianceCache::bind(DescriptorSet& set) const {
     set.bind_buffer(BINDING_IC_QUEUE, queue_);
     set.bind_buffer(BINDING_IC_JOBS, jobs_);
     set.bind_buffer(BINDING_IC_SAMPLES, samples_);
+    set.bind_buffer(BINDING_IC_PATHS_ONLY, paths_only_buffer_);
 }
 
 std::vector<IcEntry> IrradianceCache::download_entries() const {

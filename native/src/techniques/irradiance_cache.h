@@ -26,8 +26,10 @@ const SettingTable& ic_table();
 // |A - B|^2 (w) over `samples` samples per pixel. `sequence_variance` (per pixel, or empty):
 // n times the variance of the mean of n samples of A - B (summed over rgb) as the sample
 // sequence converges (ic_sequence_variance); negative or absent: the samples' variance.
+// Pixels flagged in `paths_only` (or none, empty) show B and stay out of their neighbours' factors.
 void ic_combine(std::vector<float>& rgba, const std::vector<float>& samples, const std::vector<vec4>& residual,
-                uint32_t width, uint32_t height, const std::vector<float>& sequence_variance = {});
+                uint32_t width, uint32_t height, const std::vector<float>& sequence_variance = {},
+                const std::vector<uint32_t>& paths_only = {});
 
 // The variance of the mean of A - B from two snapshots of the IC Residual pass' sums (rgb; w:
 // the pixel's sample count) taken at n_a and n_b > n_a samples: the squared difference of the
@@ -39,6 +41,16 @@ std::vector<float> ic_sequence_variance(const std::vector<vec4>& first, const st
 // the cells its influence sphere (radius accuracy * R) overlaps at its level. `starts`: the
 // levels' header (IC_GRID_HEADER), then each bucket's first place in `slots` and one past the
 // last bucket's.
+// Consistent mode's pixel handover: which pixels to hand back to the paths for good (1). With
+// a perfect cache the image's variance would be the paths' less the residual's, so where, over
+// the window around a pixel, the residual's variance is below IC_HANDOVER_SHARE of the paths'
+// (both per sample from ic_sequence_variance, negative: unknown; each pixel's weighted by
+// 1/(its mean^2 + 1e-3) as relMSE) the cache cannot buy back its queries' cost there.
+// Pixels set in `paths_only` stay set.
+void ic_hand_over(std::vector<uint32_t>& paths_only, const std::vector<float>& residual_variance,
+                  const std::vector<float>& path_variance, const std::vector<float>& means, uint32_t width,
+                  uint32_t height);
+
 struct IcGrid {
     float cell = 0;        // the finest level's cell side, 2 accuracy min_radius
     uint32_t levels = 0;   // bit l: level l lists entries
@@ -52,6 +64,7 @@ struct IcStats {
     uint64_t dropped = 0;   // creations refused because the cache was full
     uint64_t deferred = 0;  // requests past one frame's queue (uncovered points ask again)
     uint64_t merged = 0;    // requests next to another of the same frame (one entry for both)
+    uint64_t paths_only = 0;  // consistent mode: pixels handed back to the paths (ic_hand_over)
     uint64_t jobs = 0;      // hemisphere estimates computed (creations + refreshes)
     double job_milliseconds = 0;    // hemisphere + finish dispatches
     double build_milliseconds = 0;  // lookup grid builds (entries' download, build, upload)
@@ -123,8 +136,12 @@ private:
     uint64_t frame_counter_ = 0;   // frames processed since the last reset (refresh RNG)
     IcStats stats_;
     uint64_t pixels_ = 0;          // of the image (a prepare frame's paths)
+    uint32_t width_ = 0;           // of the image
     std::vector<vec4> snapshot_;           // IC Residual's sums at the last power of two (w: samples)
+    std::vector<vec4> snapshot_paths_;     // Combined's, the same frame
     std::vector<float> sequence_variance_; // from the last two snapshots (ic_combine)
+    std::vector<uint32_t> paths_only_;     // per pixel: handed back to the paths (ic_hand_over)
+    Buffer paths_only_buffer_;             // its copy for the shaders (BINDING_IC_PATHS_ONLY)
     uint64_t next_snapshot_ = 0;           // samples per pixel of the next snapshot
 };
 
