@@ -44,7 +44,7 @@ bool ic_consistent() { return tech.ic.mode == IC_MODE_CONSISTENT; }
 #ifndef PX_NO_TRACE
 layout(set = 0, binding = BINDING_IC_GRID, scalar) readonly buffer IcGridBuffer { uint ic_grid_starts[]; };  // after a header
 layout(set = 0, binding = BINDING_IC_GRID_ENTRIES, scalar) readonly buffer IcGridEntryBuffer { uint ic_grid_entries[]; };
-// Consistent mode: pixels handed back to the paths (IrradianceCache::hand_over): 1 where the
+// Consistent mode: pixels handed back to the paths (ic_hand_over, irradiance_cache.cpp): 1 where the
 // cache could no longer lower the error enough to pay for its queries.
 layout(set = 0, binding = BINDING_IC_PATHS_ONLY, scalar) readonly buffer IcPathsOnlyBuffer { uint ic_paths_only[]; };
 layout(set = 0, binding = BINDING_IC_QUEUE, scalar) buffer IcQueueBuffer {
