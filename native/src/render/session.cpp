@@ -711,8 +711,8 @@ std::vector<float> Session::read(const std::string& pass, uint32_t& channels) {
         for (size_t i = 0; i < pixels; ++i)
             if (counts[i].w == 0) out[i] = 1e10f;
     if (info->index == PASS_COMBINED) {
-        const auto download = [&](uint32_t slot) { return film_sums(slot); };
-        for (const auto& t : techniques_) t->resolve_combined(out, counts, width_, height_, download);
+        const auto sums = [this](uint32_t slot) { return film_sums(slot); };
+        for (const auto& t : techniques_) t->resolve_combined(out, counts, width_, height_, sums);
     }
     return out;
 }

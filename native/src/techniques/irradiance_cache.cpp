@@ -10,12 +10,14 @@
 #include <cstdio>
 #include <cstring>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <random>
 #include <stdexcept>
 #include <string>
 #include <tuple>
 #include <unordered_map>
+#include <utility>
 
 namespace px {
 
@@ -465,9 +467,12 @@ IcGrid ic_grid(const std::vector<IcEntry>& entries, float accuracy, float min_ra
         grid.starts[2 * level + 1] = size ? size - 1 : 0;
         buckets += size;
     }
-    // Each entry's distinct buckets, counted, then placed (a counting sort by bucket).
+    // Each entry's distinct buckets as (bucket, slot) pairs in slot order, then a counting sort
+    // by bucket.
+    std::vector<std::pair<uint32_t, uint32_t>> listed_in;
     std::vector<uint32_t> own;
-    const auto entry_buckets = [&](const Listing& l) {
+    for (size_t i = 0; i < listings.size(); ++i) {
+        const Listing& l = listings[i];
         own.clear();
         const uint32_t base = grid.starts[2 * l.level], mask = grid.starts[2 * l.level + 1];
         for (int z = l.lo[2]; z <= l.hi[2]; ++z)
@@ -475,19 +480,14 @@ IcGrid ic_grid(const std::vector<IcEntry>& entries, float accuracy, float min_ra
                 for (int x = l.lo[0]; x <= l.hi[0]; ++x) own.push_back(base + ic_grid_bucket(x, y, z, mask));
         std::sort(own.begin(), own.end());
         own.erase(std::unique(own.begin(), own.end()), own.end());
-    };
+        for (uint32_t bucket : own) listed_in.push_back({bucket, uint32_t(i)});
+    }
     std::vector<uint32_t> count(size_t(buckets) + 1, 0);
-    for (const Listing& l : listings) {
-        entry_buckets(l);
-        for (uint32_t b : own) ++count[b + 1];
-    }
-    for (uint32_t b = 0; b < buckets; ++b) count[b + 1] += count[b];
+    for (const auto& [bucket, slot] : listed_in) ++count[bucket + 1];
+    for (uint32_t bucket = 0; bucket < buckets; ++bucket) count[bucket + 1] += count[bucket];
     grid.starts.insert(grid.starts.end(), count.begin(), count.end());
-    grid.slots.resize(count[buckets]);
-    for (size_t i = 0; i < listings.size(); ++i) {
-        entry_buckets(listings[i]);
-        for (uint32_t b : own) grid.slots[count[b]++] = uint32_t(i);
-    }
+    grid.slots.resize(listed_in.size());
+    for (const auto& [bucket, slot] : listed_in) grid.slots[count[bucket]++] = slot;
     return grid;
 }
 

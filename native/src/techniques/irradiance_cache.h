@@ -11,7 +11,6 @@
 #include "techniques/technique.h"
 #include "vk/pipeline.h"
 
-#include <memory>
 #include <vector>
 
 namespace px {
@@ -37,10 +36,6 @@ void ic_combine(std::vector<float>& rgba, const std::vector<float>& samples, con
 // Negative where a part has fewer than IC_COMBINE_MIN_HALF samples. See ic_combine.
 std::vector<float> ic_sequence_variance(const std::vector<vec4>& first, const std::vector<vec4>& both);
 
-// The cache's lookup grid over `entries` (IC_GRID_LEVELS, techniques.h): each entry listed in
-// the cells its influence sphere (radius accuracy * R) overlaps at its level. `starts`: the
-// levels' header (IC_GRID_HEADER), then each bucket's first place in `slots` and one past the
-// last bucket's.
 // Consistent mode's pixel handover: which pixels to hand back to the paths for good (1). With
 // a perfect cache the image's variance would be the paths' less the residual's, so where, over
 // the window around a pixel, the residual's variance is below IC_HANDOVER_SHARE of the paths'
@@ -51,6 +46,10 @@ void ic_hand_over(std::vector<uint32_t>& paths_only, const std::vector<float>& r
                   const std::vector<float>& path_variance, const std::vector<float>& means, uint32_t width,
                   uint32_t height);
 
+// The cache's lookup grid over `entries` (IC_GRID_LEVELS, techniques.h): each entry listed in
+// the cells its influence sphere (radius accuracy * R) overlaps at its level. `starts`: the
+// levels' header (IC_GRID_HEADER), then each bucket's first place in `slots` and one past the
+// last bucket's.
 struct IcGrid {
     float cell = 0;        // the finest level's cell side, 2 accuracy min_radius
     uint32_t levels = 0;   // bit l: level l lists entries
