@@ -287,3 +287,26 @@ def test_bad_settings_are_rejected(name, value):
     with pytest.raises(ValueError, match=name):
         s.set_params(ic=True, **{name: value})
     assert s.params.ic is False  # nothing changed
+
+
+def test_consistent_mode_steps_less_often_once_the_cache_stops_growing():
+    """Consistent mode: a host step (creation, refreshes, the lookup grid) follows every frame
+    while the cache grows, then waits up to 16 frames; the requests of the frames in between
+    stay queued for it, so the cache and the image are those of a fixed seed (two sessions
+    agree), however the frames are split into render() calls."""
+    sc = scenes.cornell_box(24, 24)
+    params = dict(**{**CONSISTENT_IC, "ic_create_prob": 0.2}, samples_per_frame=1, seed=2)
+    runs = []
+    for calls in ((96,), (1,) * 40 + (56,)):
+        s = pc.Session(24, 24)
+        s.set_params(**params)
+        s.update(sc)
+        for frames in calls:
+            s.render(frames)
+        runs.append((s.read("combined"), s.stats()))
+    (a, st), (b, st_b) = runs
+    print({k: st[k] for k in ("ic_host_steps", "ic_entries", "ic_jobs", "ic_deferred")})
+    assert st["ic_host_steps"] < 96 / 4, st["ic_host_steps"]
+    assert st["ic_entries"] == st_b["ic_entries"] > 0 and st["ic_deferred"] == 0
+    assert st["ic_host_steps"] == st_b["ic_host_steps"]
+    assert same_render(a, b, "cpu")

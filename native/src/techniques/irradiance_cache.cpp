@@ -41,12 +41,17 @@ constexpr double IC_HANDOVER_SHARE = 0.25;
 // Jobs per hemisphere dispatch (IC_STRATA paths each); a frame's jobs go in several.
 constexpr uint32_t kJobsPerDispatch = 2048;
 constexpr uint32_t kMaxRefreshes = 4096;       // per frame
-constexpr uint32_t kMaxQueue = 1u << 20;       // requests one frame may queue
+constexpr uint32_t kMaxQueue = 1u << 20;       // requests the queue may hold
+// Consistent mode: most render frames per host step. A step ends the frames' submission,
+// reads the queue back and dispatches the jobs in a submission of its own; once the cache
+// covers the view, steps mostly refresh entries, which can wait.
+constexpr uint32_t kMaxStepFrames = 16;
 
-// Room for a frame's creation requests: the binomial count of `paths` trials with the creation
-// probability, plus six standard deviations, so the queue practically never overflows (which
-// requests an overflow keeps depends on the threads' order, and the cache would lose its
-// determinism). Requests past it are left for a later frame and counted as deferred.
+// Room for the creation requests between host steps: the binomial count of `paths` trials
+// with the creation probability, plus six standard deviations, so the queue practically never
+// overflows (which requests an overflow keeps depends on the threads' order, and the cache
+// would lose its determinism). Requests past it are left for a later step and counted as
+// deferred.
 uint32_t queue_capacity(double create_prob, uint64_t paths) {
     const double mean = create_prob * double(paths);
     return uint32_t(std::min<double>(kMaxQueue, std::max(1024.0, std::ceil(mean + 6.0 * std::sqrt(mean) + 64.0))));
@@ -277,7 +282,9 @@ void IrradianceCache::configure(const RenderParams& params, const TechniqueSetup
         paths_only_buffer_ = Buffer();
         paths_only_buffer_ = Buffer(ctx_, flag_bytes, kStorageUsage);
     }
-    setup(cache, config.scene.info, pixels_ * params.samples_per_frame);
+    samples_per_frame_ = std::max(1u, params.samples_per_frame);
+    const bool batched = cache.shade && cache.mode == IC_MODE_CONSISTENT;
+    setup(cache, config.scene.info, pixels_ * samples_per_frame_ * (batched ? kMaxStepFrames : 1));
 }
 
 const std::vector<uint32_t>* IrradianceCache::raygen(uint32_t program) const {
@@ -312,13 +319,26 @@ void IrradianceCache::begin_host_frame(FrameParams& frame) const {
 }
 
 void IrradianceCache::end_host_frame(TechniqueHost& host, const FrameParams& frame, double) {
-    make_entries(host, frame, pixels_, true);
+    make_entries(host, frame, pixels_, 1, true);
+}
+
+bool IrradianceCache::steps_after_frame(uint64_t samples) const {
+    if (!enabled()) return false;
+    if (!params_.shade || params_.mode != IC_MODE_CONSISTENT) return true;
+    return samples >= next_snapshot_ || samples >= stepped_samples_ + uint64_t(step_frames_) * samples_per_frame_;
 }
 
 void IrradianceCache::after_frame(TechniqueHost& host, const FrameEnd& frame) {
-    make_entries(host, frame.frame, frame.paths, false);
-    if (params_.shade && params_.mode == IC_MODE_CONSISTENT && frame.samples >= next_snapshot_)
-        take_snapshot(host, frame.samples);
+    const uint64_t since = frame.samples > stepped_samples_ ? frame.samples - stepped_samples_ : 0;
+    const uint32_t frames = uint32_t(std::max<uint64_t>(1, since / samples_per_frame_));
+    make_entries(host, frame.frame, frame.paths, frames, false);
+    stepped_samples_ = frame.samples;
+    ++stats_.host_steps;
+    if (!params_.shade || params_.mode != IC_MODE_CONSISTENT) return;
+    // Each step doubles the wait for the next: the prepare frames left the cache covering
+    // the view, and a new view starts over from one frame (clear_snapshots).
+    step_frames_ = std::min(kMaxStepFrames, 2 * step_frames_);
+    if (frame.samples >= next_snapshot_) take_snapshot(host, frame.samples);
 }
 
 void IrradianceCache::take_snapshot(TechniqueHost& host, uint64_t samples) {
@@ -348,6 +368,8 @@ void IrradianceCache::clear_snapshots() {
     snapshot_paths_.clear();
     sequence_variance_.clear();
     next_snapshot_ = kFirstSnapshot;
+    stepped_samples_ = 0;  // the film starts over: so do the host steps' waits
+    step_frames_ = 1;
     std::fill(paths_only_.begin(), paths_only_.end(), 0u);
     stats_.paths_only = 0;
     if (paths_only_buffer_.valid()) paths_only_buffer_.fill_zero();
@@ -377,14 +399,15 @@ void IrradianceCache::stats(StatList& out) const {
                            {"ic_deferred", stats_.deferred},
                            {"ic_merged", stats_.merged},
                            {"ic_paths_only", stats_.paths_only},
+                           {"ic_host_steps", stats_.host_steps},
                            {"ic_jobs", stats_.jobs},
                            {"ic_job_milliseconds", stats_.job_milliseconds},
                            {"ic_build_milliseconds", stats_.build_milliseconds}});
 }
 
-void IrradianceCache::setup(const IcParams& params, const SceneInfo& scene, uint64_t paths_per_frame) {
+void IrradianceCache::setup(const IcParams& params, const SceneInfo& scene, uint64_t paths_per_step) {
     params_ = params;
-    params_.queue_capacity = enabled() ? queue_capacity(params.create_prob, paths_per_frame) : 1;
+    params_.queue_capacity = enabled() ? queue_capacity(params.create_prob, paths_per_step) : 1;
     if (queue_.size() < 16 + size_t(params_.queue_capacity) * sizeof(IcRequest))
         queue_ = Buffer(ctx_, 16 + size_t(params_.queue_capacity) * sizeof(IcRequest), kStorageUsage);
     scene_ = scene;
@@ -412,13 +435,16 @@ void IrradianceCache::allocate() {
 }
 
 void IrradianceCache::record_frame_start(VkCommandBuffer cmd, const Technique* host_frame) const {
-    if (enabled() && (!host_frame || host_frame == this)) queue_.record_fill_zero(cmd, 16);
+    if (!enabled() || (host_frame && host_frame != this) || (!host_frame && !queue_read_)) return;
+    queue_.record_fill_zero(cmd, 16);
+    queue_read_ = false;
 }
 
 void IrradianceCache::reset() {
     clear_snapshots();
     count_ = update_cursor_ = prepared_frames_ = 0;
     frame_counter_ = 0;
+    queue_read_ = true;
     stats_ = {};
     stats_.capacity = enabled() ? params_.capacity : 0;
     if (!enabled() && grid_starts_.valid()) return;  // off: the empty placeholders never change
@@ -530,7 +556,8 @@ std::vector<IcEntry> IrradianceCache::download_entries() const {
     return entries;
 }
 
-void IrradianceCache::make_entries(TechniqueHost& host, FrameParams frame, uint64_t paths, bool prepare) {
+void IrradianceCache::make_entries(TechniqueHost& host, FrameParams frame, uint64_t paths, uint32_t frames,
+                                   bool prepare) {
     assert(enabled());
     const RayTracingPipeline& hemisphere = host.host_pipeline(PROGRAM_IC_HEMISPHERE);
     const ComputePipeline& finish = finish_pipeline(host);
@@ -547,6 +574,7 @@ void IrradianceCache::make_entries(TechniqueHost& host, FrameParams frame, uint6
     stats_.deferred += queued - n;
     std::vector<IcRequest> requests(n);
     if (n) queue_.download(requests.data(), n * sizeof(IcRequest), 16);
+    queue_read_ = true;
     if (prepare && uint64_t(uncovered) * 50 < paths) prepared_frames_ = params_.prepare_frames;  // 98% covered
     std::sort(requests.begin(), requests.end(), [](const IcRequest& a, const IcRequest& b) {
         return std::tie(a.pixel, a.sample_index, a.position.x, a.position.y, a.position.z) <
@@ -592,8 +620,8 @@ void IrradianceCache::make_entries(TechniqueHost& host, FrameParams frame, uint6
     // entries take turns. Binomially many, from a generator seeded by the seed and frame.
     if (!prepare && existing && params_.update_prob > 0) {
         std::mt19937_64 rng((uint64_t(frame.seed) << 32) ^ (frame_counter_ * 0x9e3779b97f4a7c15ull));
-        std::binomial_distribution<uint64_t> refreshes(paths, params_.update_prob);
-        const uint64_t k = std::min<uint64_t>(refreshes(rng), kMaxRefreshes);
+        std::binomial_distribution<uint64_t> refreshes(paths * frames, params_.update_prob);
+        const uint64_t k = std::min<uint64_t>(refreshes(rng), uint64_t(kMaxRefreshes) * frames);
         for (uint64_t i = 0; i < k; ++i)
             jobs.push_back({vec3{0, 0, 0}, update_cursor_++ % existing, vec3{0, 0, 1}, IC_JOB_UPDATE});
     }

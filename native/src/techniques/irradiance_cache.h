@@ -61,9 +61,10 @@ struct IcStats {
     uint32_t entries = 0;   // used slots
     uint32_t capacity = 0;
     uint64_t dropped = 0;   // creations refused because the cache was full
-    uint64_t deferred = 0;  // requests past one frame's queue (uncovered points ask again)
+    uint64_t deferred = 0;  // requests past the queue (uncovered points ask again)
     uint64_t merged = 0;    // requests next to another of the same frame (one entry for both)
     uint64_t paths_only = 0;  // consistent mode: pixels handed back to the paths (ic_hand_over)
+    uint64_t host_steps = 0;  // after render frames (consistent mode: several frames each)
     uint64_t jobs = 0;      // hemisphere estimates computed (creations + refreshes)
     double job_milliseconds = 0;    // hemisphere + finish dispatches
     double build_milliseconds = 0;  // lookup grid builds (entries' download, build, upload)
@@ -85,14 +86,20 @@ public:
     }
     const std::vector<uint32_t>* raygen(uint32_t program) const override;
     void compile(TechniqueHost& host) override;
-    // Clears the request queue: at the start of a render frame or of its own prepare frame.
+    // Clears the request queue at the start of its own prepare frame, and of the first render
+    // frame after the host read it (make_entries): between host steps the queue gathers the
+    // requests of several frames.
     void record_frame_start(VkCommandBuffer cmd, const Technique* host_frame) const override;
     // Prepare frames (thesis 4.4): camera paths to their first diffuse vertex only queue
     // entries, made after the frame; until prepare_frames ran or 98% of paths found an entry.
     bool needs_host_frame() const override { return enabled() && prepared_frames_ < params_.prepare_frames; }
     void begin_host_frame(FrameParams& frame) const override;
     void end_host_frame(TechniqueHost& host, const FrameParams& frame, double milliseconds) override;
-    bool steps_after_frame(uint64_t) const override { return enabled(); }
+    // After every frame in thesis mode and where it is built for ADRRS alone. In consistent mode
+    // the host step (creation, refreshes, the grid) waits twice as many frames each time, up
+    // to kMaxStepFrames, from one frame after preparation and after each camera move; the
+    // snapshots (take_snapshot) come at their powers of two.
+    bool steps_after_frame(uint64_t samples) const override;
     // Consistent mode: the residual pass, and Combined shrunk toward the cache (ic_combine).
     uint32_t film_passes(const RenderParams& params) const override;
     void resolve_combined(std::vector<float>& rgba, const std::vector<vec4>& combined, uint32_t width,
@@ -107,15 +114,15 @@ public:
 
 private:
     // New settings or scene (bounds): every entry is dropped; buffers follow the capacity and
-    // the request queue the camera paths of one frame.
-    void setup(const IcParams& params, const SceneInfo& scene, uint64_t paths_per_frame);
+    // the request queue the camera paths between host steps.
+    void setup(const IcParams& params, const SceneInfo& scene, uint64_t paths_per_step);
     // Drops every entry; prepare frames run again.
     void reset();
-    // After a frame of `paths` camera paths (a prepare frame when `prepare`): turns the queue
-    // and the frame's refreshes into entries, then builds the lookup grid again if entries
+    // After `frames` frames of `paths` camera paths each (a prepare frame when `prepare`):
+    // turns the queue and the frames' refreshes into entries, then builds the lookup grid again if entries
     // were added. Preparation ends after prepare_frames, or earlier once fewer than 2% of a
     // prepare frame's paths found no entry.
-    void make_entries(TechniqueHost& host, FrameParams frame, uint64_t paths, bool prepare);
+    void make_entries(TechniqueHost& host, FrameParams frame, uint64_t paths, uint32_t frames, bool prepare);
     void allocate();
     // Consistent mode: at each power of two of samples, the IC Residual pass' sums are kept
     // and compared with those of the previous power (ic_sequence_variance).
@@ -142,6 +149,10 @@ private:
     std::vector<uint32_t> paths_only_;     // per pixel: handed back to the paths (ic_hand_over)
     Buffer paths_only_buffer_;             // its copy for the shaders (BINDING_IC_PATHS_ONLY)
     uint64_t next_snapshot_ = 0;           // samples per pixel of the next snapshot
+    uint32_t samples_per_frame_ = 1;
+    uint32_t step_frames_ = 1;             // consistent mode: render frames per host step now
+    uint64_t stepped_samples_ = 0;         // samples per pixel at the last host step
+    mutable bool queue_read_ = true;       // the host took the queue's requests: clear it
 };
 
 }  // namespace px
