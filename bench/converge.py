@@ -37,7 +37,7 @@ largest 0.1% of pixels dropped, the rest averaged.
   committed) with a JSON note of how it was made, and reused.
 - Besides relMSE every row has the mean HDR-FLIP (Andersson et al. 2021, the flip-evaluator
   package) of its final image: relMSE punishes a denoiser's blur less than the eye does.
-- Output in --out: NAME.md (table), NAME_convergence.png, NAME_images.png (final images and
+- Output in --out: NAME.md (table), NAME_convergence.png, NAME_images.jpg (final images and
   the reference), results.json (raw numbers), raw/ (final images; the clean rows' at every
   checkpoint).
 """
@@ -719,7 +719,7 @@ def write_outputs(out, name, rows, reference):
         ax.imshow(srgb_encode(image))
         ax.set_title(label, fontsize=9)
     fig.tight_layout()
-    fig.savefig(os.path.join(out, f"{name}_images.png"), dpi=110)
+    fig.savefig(os.path.join(out, f"{name}_images.jpg"), dpi=110, pil_kwargs={"quality": 90})  # JPEG: a fifth of the PNG
     plt.close(fig)
 
 

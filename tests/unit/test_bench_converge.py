@@ -30,7 +30,7 @@ def test_converge_smoke(tmp_path):
     assert [r["renderer"] for r in rows] == ["Parallax pt", "Parallax mis", "Parallax ic", "Cycles"]
     for row in rows:  # the cache may still be preparing when its time is up: spp may be 0
         assert (row["spp"] > 0 or row["renderer"] == "Parallax ic") and np.isfinite(row["rel_mse"]) and row["curve"]
-    for name in ("cornell_box.md", "cornell_box_convergence.png", "cornell_box_images.png", "results.json"):
+    for name in ("cornell_box.md", "cornell_box_convergence.png", "cornell_box_images.jpg", "results.json"):
         assert (tmp_path / name).stat().st_size > 0
     assert json.loads((tmp_path / "results.json").read_text())["scenes"]["cornell_box"]
     assert (tmp_path / "references" / "cornell_box_24x24.json").exists()
