@@ -231,11 +231,16 @@ NB_MODULE(_native, m) {
               out["cell"] = grid.cell;
               out["levels"] = grid.levels;
               out["starts"] = grid.starts;
-              out["slots"] = grid.slots;
+              std::vector<uint32_t> slots;
+              for (const px::IcCandidate& c : grid.candidates) slots.push_back(c.slot);
+              out["slots"] = slots;
+              std::vector<float> reach;
+              for (const px::IcCandidate& c : grid.candidates) reach.push_back(c.reach);
+              out["reach"] = reach;
               return out;
           }, "positions"_a, "radii"_a, "accuracy"_a, "min_radius"_a,
           "The irradiance cache's lookup grid over entries at `positions` (N x 3) with radii R (irradiance_cache.h "
-          "ic_grid): dict of cell, levels, starts (after the levels' header) and slots.");
+          "ic_grid): dict of cell, levels, starts (after the levels' header), and slots and reach (accuracy R) per place.");
     m.def("set_light_tree_min_lights", &px::set_light_tree_min_lights, "n"_a,
           "Sets light_tree_min_lights for scenes updated from now on (0 or 1: always the tree; "
           "2**32 - 1: never); a benchmark and test knob.");

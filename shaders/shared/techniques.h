@@ -46,7 +46,9 @@ PX_CONST float IC_MAX_RADIUS_FACTOR = 64.0;  // R <= 64 * min_radius (Krivanek e
 // around it at each level in use. R spans [R_min, 64 R_min], hence 7 levels. Each level has a
 // hash table of its own, so a query never reads one entry twice. BINDING_IC_GRID begins with
 // IC_GRID_HEADER words, level l's first bucket and its bucket count - 1 (a power of two), then
-// every bucket's first place in BINDING_IC_GRID_ENTRIES, and one past the last.
+// every bucket's first place in BINDING_IC_GRID_ENTRIES, and one past the last. Each place is
+// an IcCandidate: the entry's sphere travels with the list, so the query rejects the entries
+// whose sphere misses it without reading them.
 PX_CONST uint IC_GRID_LEVELS = 7;
 PX_CONST uint IC_GRID_HEADER = 2 * IC_GRID_LEVELS;
 // IcParams.mode (the setting ic_mode)
@@ -200,6 +202,14 @@ struct TechniqueParams {
     IcParams ic;
     AdrrsParams adrrs;
     GuidingParams guiding;
+};
+
+// A place in a lookup grid bucket's list (BINDING_IC_GRID_ENTRIES): an entry's influence
+// sphere and its slot.
+struct IcCandidate {
+    vec3 position;
+    float reach;  // accuracy * R, the sphere's radius
+    uint slot;    // in BINDING_IC_ENTRIES
 };
 
 // One cache entry. Its influence sphere (centre position, radius accuracy * radius) decides

@@ -43,7 +43,7 @@ bool ic_consistent() { return tech.ic.mode == IC_MODE_CONSISTENT; }
 
 #ifndef PX_NO_TRACE
 layout(set = 0, binding = BINDING_IC_GRID, scalar) readonly buffer IcGridBuffer { uint ic_grid_starts[]; };  // after a header
-layout(set = 0, binding = BINDING_IC_GRID_ENTRIES, scalar) readonly buffer IcGridEntryBuffer { uint ic_grid_entries[]; };
+layout(set = 0, binding = BINDING_IC_GRID_ENTRIES, scalar) readonly buffer IcGridEntryBuffer { IcCandidate ic_grid_candidates[]; };
 // Consistent mode: pixels handed back to the paths (ic_hand_over, irradiance_cache.cpp): 1 where the
 // cache could no longer lower the error enough to pay for its queries.
 layout(set = 0, binding = BINDING_IC_PATHS_ONLY, scalar) readonly buffer IcPathsOnlyBuffer { uint ic_paths_only[]; };
@@ -73,9 +73,10 @@ bool ic_lookup(vec3 p, vec3 n, out vec3 irradiance, out vec2 gradient_lengths, o
                       ic_grid_bucket(c.x, c.y, c.z, ic_grid_starts[2u * level + 1u]);
         uint end = ic_grid_starts[bucket + 1u];
         for (uint k = ic_grid_starts[bucket]; k < end && found < most; ++k) {
-            IcEntry e = ic_entries[ic_grid_entries[k]];
-            float d = length(p - e.position);
-            if (d >= tech.ic.accuracy * e.radius) continue;  // outside its influence sphere
+            IcCandidate c = ic_grid_candidates[k];
+            float d = length(p - c.position);
+            if (d >= c.reach) continue;  // outside its influence sphere
+            IcEntry e = ic_entries[c.slot];
             float w = ic_weight(e, p, n);
             if (!(w > 0.0)) continue;
             irradiance += w * ic_entry_irradiance(e, p, n);
@@ -83,7 +84,7 @@ bool ic_lookup(vec3 p, vec3 n, out vec3 irradiance, out vec2 gradient_lengths, o
             gradient_lengths += w * vec2(length(e.grad_t), length(e.grad_r));
             if (d < nearest) {
                 nearest = d;
-                radius = tech.ic.accuracy * e.radius;
+                radius = c.reach;
             }
             ++found;
         }

@@ -43,6 +43,8 @@ def test_every_covering_entry_is_found_once():
     grid = pc._native.ic_grid(positions, radii, accuracy, min_radius)
     grid["starts"], grid["slots"] = np.asarray(grid["starts"]), np.asarray(grid["slots"])
     assert abs(grid["cell"] / (2 * accuracy * min_radius) - 1) < 1e-6
+    # Each place carries its entry's sphere (IcCandidate), as the query tests it.
+    assert np.array_equal(np.asarray(grid["reach"], np.float32), np.float32(accuracy) * radii[grid["slots"]])
     # Points near entries (inside, on and just outside their spheres) and anywhere.
     near = positions[rng.integers(0, n, 2000)] + rng.normal(0, 1, (2000, 3)) * (accuracy * radii.max() / 2)
     points = np.concatenate([near, rng.uniform(-2.5, 2.5, (1000, 3))]).astype(np.float32)

@@ -512,8 +512,11 @@ IcGrid ic_grid(const std::vector<IcEntry>& entries, float accuracy, float min_ra
     for (const auto& [bucket, slot] : listed_in) ++count[bucket + 1];
     for (uint32_t bucket = 0; bucket < buckets; ++bucket) count[bucket + 1] += count[bucket];
     grid.starts.insert(grid.starts.end(), count.begin(), count.end());
-    grid.slots.resize(listed_in.size());
-    for (const auto& [bucket, slot] : listed_in) grid.slots[count[bucket]++] = slot;
+    grid.candidates.resize(listed_in.size());
+    for (const auto& [bucket, slot] : listed_in) {
+        const IcEntry& e = entries[slot];
+        grid.candidates[count[bucket]++] = {e.position, accuracy * e.radius, slot};  // reach as ic_lookup tests it
+    }
     return grid;
 }
 
@@ -523,18 +526,18 @@ void IrradianceCache::build_grid(TechniqueHost* host, DescriptorSet* set) {
     params_.grid_cell = grid.cell;
     params_.grid_levels = grid.levels;
     // Buffers grow (by doubling) and are kept; a new one is bound again.
-    const auto store = [&](Buffer& buffer, const std::vector<uint32_t>& data, uint32_t binding) {
-        const size_t bytes = std::max<size_t>(16, data.size() * sizeof(uint32_t));
+    const auto store = [&](Buffer& buffer, const auto& data, uint32_t binding) {
+        const size_t bytes = std::max<size_t>(16, data.size() * sizeof(data[0]));
         if (!buffer.valid() || buffer.size() < bytes) {
             const size_t size = buffer.valid() ? std::max(bytes, 2 * buffer.size()) : bytes;
             buffer = Buffer();
             buffer = Buffer(ctx_, size, kStorageUsage);
             if (set) set->bind_buffer(binding, buffer);
         }
-        if (!data.empty()) buffer.upload(data.data(), data.size() * sizeof(uint32_t));
+        if (!data.empty()) buffer.upload(data.data(), bytes);
     };
     store(grid_starts_, grid.starts, BINDING_IC_GRID);
-    store(grid_slots_, grid.slots, BINDING_IC_GRID_ENTRIES);
+    store(grid_candidates_, grid.candidates, BINDING_IC_GRID_ENTRIES);
     if (host) host->upload_technique_params();
     grid_count_ = count_;
     stats_.build_milliseconds += ms_since(start);
@@ -543,7 +546,7 @@ void IrradianceCache::build_grid(TechniqueHost* host, DescriptorSet* set) {
 void IrradianceCache::bind(DescriptorSet& set) const {
     set.bind_buffer(BINDING_IC_GRID, grid_starts_);
     set.bind_buffer(BINDING_IC_ENTRIES, entries_);
-    set.bind_buffer(BINDING_IC_GRID_ENTRIES, grid_slots_);
+    set.bind_buffer(BINDING_IC_GRID_ENTRIES, grid_candidates_);
     set.bind_buffer(BINDING_IC_QUEUE, queue_);
     set.bind_buffer(BINDING_IC_JOBS, jobs_);
     set.bind_buffer(BINDING_IC_SAMPLES, samples_);

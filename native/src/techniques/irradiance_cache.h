@@ -53,7 +53,8 @@ void ic_hand_over(std::vector<uint32_t>& paths_only, const std::vector<float>& r
 struct IcGrid {
     float cell = 0;        // the finest level's cell side, 2 accuracy min_radius
     uint32_t levels = 0;   // bit l: level l lists entries
-    std::vector<uint32_t> starts, slots;
+    std::vector<uint32_t> starts;
+    std::vector<IcCandidate> candidates;  // per bucket place
 };
 IcGrid ic_grid(const std::vector<IcEntry>& entries, float accuracy, float min_radius);
 
@@ -133,7 +134,7 @@ private:
     Context& ctx_;
     IcParams params_{};
     SceneInfo scene_{};
-    Buffer entries_, grid_starts_, grid_slots_, queue_, jobs_, samples_;
+    Buffer entries_, grid_starts_, grid_candidates_, queue_, jobs_, samples_;
     uint32_t count_ = 0;           // used slots
     uint32_t allocated_ = 0;       // capacity the buffers were made for
     uint32_t update_cursor_ = 0;   // round-robin refresh position
