@@ -75,6 +75,7 @@ struct IcParams {
                                             // (ic on); ADRRS alone builds it for its adjoint only
     float grid_cell PX_DEFAULT(0);          // derived by the host: the lookup grid's finest cell side
     uint grid_levels PX_DEFAULT(0);         // ... bit l: level l lists entries
+    float prepare_create_prob PX_DEFAULT(0);  // derived by the host: create_prob in prepare frames
 };
 
 // The lookup grid's bucket of cell (x, y, z) in a level's table of bucket_mask + 1 buckets: a

@@ -198,7 +198,7 @@ IcVertex ic_vertex(inout IcPath path, IcOptions o, Surface surf, bool delta, vec
     } else if (v.found && o.use && (surf.type == MATERIAL_DIFFUSE || o.glossy)) {
         radiance += throughput * surf.albedo * INV_PI * v.irradiance;
         v.shaded = true;
-    } else if (!v.found && o.create && rnd(rng) < tech.ic.create_prob) {
+    } else if (!v.found && o.create && rnd(rng) < (o.prepare ? tech.ic.prepare_create_prob : tech.ic.create_prob)) {
         ic_request(p, n, o.pixel, segments);
     }
     if (o.prepare) {

@@ -92,7 +92,8 @@ public:
     // requests of several frames.
     void record_frame_start(VkCommandBuffer cmd, const Technique* host_frame) const override;
     // Prepare frames (thesis 4.4): camera paths to their first diffuse vertex only queue
-    // entries, made after the frame; until prepare_frames ran or 98% of paths found an entry.
+    // entries, made after the frame; until prepare_frames ran or 98% of paths found an entry
+    // (consistent mode: 90%).
     bool needs_host_frame() const override { return enabled() && prepared_frames_ < params_.prepare_frames; }
     void begin_host_frame(FrameParams& frame) const override;
     void end_host_frame(TechniqueHost& host, const FrameParams& frame, double milliseconds) override;
