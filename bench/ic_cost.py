@@ -1,4 +1,4 @@
-"""What the irradiance cache costs: frame time, prepare phase, creation, BLAS builds, memory.
+"""What the irradiance cache costs: frame time, prepare phase, creation, lookup grid builds, memory.
 
     .venv/bin/python -m bench.ic_cost [--scenes cornell_box,sun_room] [--width 320]
         [--device auto] [--frames 8] [--npz DIR | --procedural] [--big-capacity 4000000]
@@ -9,22 +9,22 @@ reads DIR/NAME.npz; --procedural uses parallax_core.scenes' twins), MIS, 8 bounc
 per frame, default IC settings otherwise:
 
 - frame time (median of --frames render(1) calls) with the cache off, and with it on after
-  its prepare frames (a frame with the cache includes its host step: the creation jobs of
-  the frame's requests, refreshes, and the lookup grid's build);
+  its prepare frames (a frame with the cache includes its share of the host steps: the
+  creation jobs of the requests, refreshes, and the lookup grid's build; in consistent mode a
+  step follows several frames);
 - the prepare phase: `ic_prepare_frames` calls of render_rows(height), each running one
   prepare frame (camera rays to the first diffuse hit, queued entries, hemisphere + finish
-  dispatch, BLAS build), after the pipelines were compiled by a throw-away session;
+  dispatch, lookup grid build), after the pipelines were compiled by a throw-away session;
 - the creation dispatch per job: stats' ic_job_milliseconds / ic_jobs (200 rays per job),
   during the prepare phase and during the later frames;
-- BLAS/TLAS build time per frame: stats' ic_build_milliseconds, per prepare frame and per
-  later frame; and the later frames again with ic_capacity = --big-capacity (the BLAS is
-  built over every slot, used or not);
+- lookup grid build time per frame: stats' ic_build_milliseconds, per prepare frame and per
+  later frame; and the later frames again with ic_capacity = --big-capacity (the grid lists
+  the used slots only, so that should change nothing);
 - memory per entry: no binding reports the cache's buffers, so it is measured as the growth
   of the process (CPU devices: lavapipe keeps every buffer in host memory, VmRSS) or of the
   GPU's used memory (nvidia-smi) when a session with a scene switches the cache on, for
   ic_capacity 65536 and --big-capacity, in fresh processes; per entry = the difference over
-  the difference of capacities. Compare sizeof(IcEntry) 80 B + VkAabbPositionsKHR 24 B +
-  the AABB BLAS per slot.
+  the difference of capacities. Compare sizeof(IcEntry), 80 B per slot.
 
 Rows are kept in --json by (device kind, scene) (so CPU and GPU runs add up, the GPU's run on
 the device machine) and the Markdown table of all rows is written to --md.
@@ -197,7 +197,7 @@ def memory_probe(scene, device, capacity):
     time.sleep(0.5)
     rss0, gpu0 = _rss_bytes(), _gpu_used_mib()
     session.set_params(method="mis", max_depth=MAX_DEPTH, ic=True, ic_capacity=capacity, ic_prepare_frames=0)
-    session.render(1)  # buffers are allocated and the BLAS built at set_params; one frame touches them
+    session.render(1)  # buffers are allocated at set_params; one frame touches them
     time.sleep(0.5)
     rss1, gpu1 = _rss_bytes(), _gpu_used_mib()
     return {"capacity": capacity, "rss_growth": rss1 - rss0,
@@ -263,13 +263,13 @@ def markdown(rows):
         "MIS, 8 bounces, 1 spp per frame, default IC settings (accuracy 0.2, up to 50 prepare frames, capacity "
         "65536, rebuild interval 1). Frame times: median of the timed frames, the cache's host step included. "
         "Prepare: the prepare frames after the pipelines were compiled (the phase ends early once 98% of first "
-        "diffuse hits are covered). Frozen: the cache the prepare frames "
+        "diffuse hits are covered, 90% in consistent mode). Frozen: the cache the prepare frames "
         "made, with capacity = its entries and no refreshes (no jobs, no builds: tracing + the host's queue step); "
         "covered pixels: share of pixels whose first diffuse hit found entries. Job = one hemisphere estimate "
         "(200 rays) + its share of the finish dispatch. Build = the lookup grid (download, build, upload). bytes/entry: growth "
         "of the GPU's used memory (nvidia-smi) or the process RSS (lavapipe) between ic_capacity 65536 and the "
         "big capacity, "
-        "per slot; sizeof(IcEntry) 80 B + AABB 24 B = 104 B before the BLAS (lavapipe's RSS counts only "
+        "per slot; sizeof(IcEntry) 80 B (lavapipe's RSS counts only "
         "touched pages: a lower bound). `bench/ic_cost.py`; core builds in ic_cost.json.",
     ]
     return "\n".join(lines) + "\n"
