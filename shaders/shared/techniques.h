@@ -70,7 +70,7 @@ struct IcParams {
     uint capacity;                          // entries
     uint highlight;                         // IC Irradiance pass: colour only (thesis fig. 4.13)
     uint mode;                              // ic_mode: IC_MODE_CONSISTENT or IC_MODE_THESIS
-    uint queue_capacity PX_DEFAULT(0);      // derived by the host: requests the queue holds between host steps
+    uint queue_capacity PX_DEFAULT(0);      // derived by the host: requests between host steps
     uint shade PX_DEFAULT(0);               // derived by the host: paths are shaded from the cache
                                             // (ic on); ADRRS alone builds it for its adjoint only
     float grid_cell PX_DEFAULT(0);          // derived by the host: the lookup grid's finest cell side

@@ -96,7 +96,7 @@ bool ic_lookup(vec3 p, vec3 n, out vec3 irradiance, out vec2 gradient_lengths, o
 }
 
 // Queues a creation request at (p, n); the host makes the entry after this frame (thesis 4.4).
-// Requests past the queue's capacity are left for a later frame (the host counts them).
+// Requests past the queue's capacity are left for a later host step (the host counts them).
 void ic_request(vec3 p, vec3 n, uint pixel, uint sample_index) {
     uint i = atomicAdd(ic_queue_count, 1u);
     if (i >= tech.ic.queue_capacity) return;

@@ -49,7 +49,7 @@ constexpr uint32_t kMaxStepFrames = 16;
 // Prepare frames: uncovered points ask for entries with at least the probability that makes
 // about this many requests per frame. The entries a view needs do not grow with its pixels, so
 // small images would otherwise take many more prepare frames (320 x 180 px at the default
-// 0.01: 44 frames, 1.8 s on lavapipe; at this floor 11 frames, 0.7 s).
+// 0.01: 44 frames, 1.8 s on lavapipe; at this floor 13 frames, 0.8 s).
 constexpr double kPrepareRequests = 2048;
 
 // Room for the creation requests between host steps: the binomial count of `paths` trials

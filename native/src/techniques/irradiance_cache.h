@@ -121,9 +121,9 @@ private:
     // Drops every entry; prepare frames run again.
     void reset();
     // After `frames` frames of `paths` camera paths each (a prepare frame when `prepare`):
-    // turns the queue and the frames' refreshes into entries, then builds the lookup grid again if entries
-    // were added. Preparation ends after prepare_frames, or earlier once fewer than 2% of a
-    // prepare frame's paths found no entry.
+    // turns the queue and the frames' refreshes into entries, then builds the lookup grid
+    // again if entries were added. Preparation ends after prepare_frames, or earlier once
+    // fewer than 2% of a prepare frame's paths found no entry (consistent mode: 10%).
     void make_entries(TechniqueHost& host, FrameParams frame, uint64_t paths, uint32_t frames, bool prepare);
     void allocate();
     // Consistent mode: at each power of two of samples, the IC Residual pass' sums are kept
