@@ -632,7 +632,6 @@ void IrradianceCache::make_entries(TechniqueHost& host, FrameParams frame, uint6
         grid[cell(r.position, 0, 0, 0)].push_back(uint32_t(jobs.size()));
         jobs.push_back({r.position, count_++, r.normal, IC_JOB_CREATE});
     }
-    const uint32_t created = uint32_t(jobs.size());
     // Refreshes (thesis 4.4): each path refreshes an entry with probability update_prob; the
     // entries take turns. Binomially many, from a generator seeded by the seed and frame.
     if (!prepare && existing && params_.update_prob > 0) {
