@@ -289,11 +289,11 @@ def test_bad_settings_are_rejected(name, value):
     assert s.params.ic is False  # nothing changed
 
 
-def test_consistent_mode_steps_less_often_once_the_cache_stops_growing():
-    """Consistent mode: a host step (creation, refreshes, the lookup grid) follows every frame
-    while the cache grows, then waits up to 16 frames; the requests of the frames in between
-    stay queued for it, so the cache and the image are those of a fixed seed (two sessions
-    agree), however the frames are split into render() calls."""
+def test_consistent_mode_host_steps_wait_longer_each_time():
+    """Consistent mode: the host step (creation, refreshes, the lookup grid) waits 1, 2, 4, ...
+    up to 16 frames; the requests of the frames in between stay queued for it, so the cache
+    and the image are those of a fixed seed (two sessions agree), however the frames are split
+    into render() calls."""
     sc = scenes.cornell_box(24, 24)
     params = dict(**{**CONSISTENT_IC, "ic_create_prob": 0.2}, samples_per_frame=1, seed=2)
     runs = []
