@@ -279,6 +279,7 @@ void IrradianceCache::configure(const RenderParams& params, const TechniqueSetup
     IcParams cache = params.ic;
     cache.enabled = params.ic.enabled || needed;
     cache.shade = params.ic.enabled;
+    needed_ = needed;
     width_ = config.width;
     pixels_ = uint64_t(config.width) * config.height;
     // Consistent mode's handover flags, per pixel (a placeholder while the cache is off).
@@ -329,7 +330,7 @@ void IrradianceCache::end_host_frame(TechniqueHost& host, const FrameParams& fra
 }
 
 bool IrradianceCache::steps_after_frame(uint64_t samples) const {
-    if (!enabled()) return false;
+    if (!enabled() || left_) return false;
     if (!params_.shade || params_.mode != IC_MODE_CONSISTENT) return true;
     return samples >= next_snapshot_ || samples >= stepped_samples_ + uint64_t(step_frames_) * samples_per_frame_;
 }
@@ -363,6 +364,8 @@ void IrradianceCache::take_snapshot(TechniqueHost& host, uint64_t samples) {
         stats_.paths_only = std::count(paths_only_.begin(), paths_only_.end(), 1u);
         if (stats_.paths_only != before)
             paths_only_buffer_.upload(paths_only_.data(), paths_only_.size() * sizeof(uint32_t));
+        left_ = !needed_ && 4 * stats_.paths_only >= 3 * paths_only_.size();
+        stats_.left = left_;
     }
     snapshot_ = std::move(sums);
     snapshot_paths_ = std::move(paths);
@@ -376,6 +379,8 @@ void IrradianceCache::clear_snapshots() {
     next_snapshot_ = kFirstSnapshot;
     stepped_samples_ = 0;  // the film starts over: so do the host steps' waits
     step_frames_ = 1;
+    left_ = false;
+    stats_.left = 0;
     std::fill(paths_only_.begin(), paths_only_.end(), 0u);
     stats_.paths_only = 0;
     if (paths_only_buffer_.valid()) paths_only_buffer_.fill_zero();
@@ -406,6 +411,7 @@ void IrradianceCache::stats(StatList& out) const {
                            {"ic_merged", stats_.merged},
                            {"ic_paths_only", stats_.paths_only},
                            {"ic_host_steps", stats_.host_steps},
+                           {"ic_left", stats_.left},
                            {"ic_jobs", stats_.jobs},
                            {"ic_job_milliseconds", stats_.job_milliseconds},
                            {"ic_build_milliseconds", stats_.build_milliseconds}});

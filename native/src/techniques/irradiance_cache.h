@@ -66,6 +66,7 @@ struct IcStats {
     uint64_t merged = 0;    // requests next to another of the same frame (one entry for both)
     uint64_t paths_only = 0;  // consistent mode: pixels handed back to the paths (ic_hand_over)
     uint64_t host_steps = 0;  // after render frames (consistent mode: several frames each)
+    uint64_t left = 0;        // 1: the render frames left the cache's pipeline (consistent mode)
     uint64_t jobs = 0;      // hemisphere estimates computed (creations + refreshes)
     double job_milliseconds = 0;    // hemisphere + finish dispatches
     double build_milliseconds = 0;  // lookup grid builds (entries' download, build, upload)
@@ -81,9 +82,10 @@ public:
     bool enabled() const override { return params_.enabled != 0; }
     void bind(DescriptorSet& set) const override;
     void write_params(TechniqueParams& params) const override { params.ic = params_; }
-    // Render frames query the cache only where it shades (ic on); host frames wherever it exists.
+    // Render frames query the cache only where it shades (ic on) and has not left their
+    // pipeline (consistent mode, `left_`); host frames wherever it exists.
     uint32_t spec_bit(bool render_frame) const override {
-        return enabled() && (!render_frame || params_.shade) ? TECH_IC : 0u;
+        return enabled() && (!render_frame || (params_.shade && !left_)) ? TECH_IC : 0u;
     }
     const std::vector<uint32_t>* raygen(uint32_t program) const override;
     void compile(TechniqueHost& host) override;
@@ -155,6 +157,11 @@ private:
     uint32_t step_frames_ = 1;             // consistent mode: render frames per host step now
     uint64_t stepped_samples_ = 0;         // samples per pixel at the last host step
     mutable bool queue_read_ = true;       // the host took the queue's requests: clear it
+    bool needed_ = false;                  // another technique reads the cache (ADRRS' adjoint)
+    // Consistent mode: three quarters of the pixels went back to the paths, so the render
+    // frames trace without the cache (its pipeline costs every pixel, not only those that ask);
+    // the other pixels' residual then fades as 1/n. Until the view or the settings change.
+    bool left_ = false;
 };
 
 }  // namespace px
