@@ -102,7 +102,7 @@ public:
     // After every frame in thesis mode and where it is built for ADRRS alone. In consistent mode
     // the host step (creation, refreshes, the grid) waits twice as many frames each time, up
     // to kMaxStepFrames, from one frame after preparation and after each camera move; the
-    // snapshots (take_snapshot) come at their powers of two.
+    // snapshots (take_snapshot) come at their powers of two. None once `left_`.
     bool steps_after_frame(uint64_t samples) const override;
     // Consistent mode: the residual pass, and Combined shrunk toward the cache (ic_combine).
     uint32_t film_passes(const RenderParams& params) const override;
