@@ -232,10 +232,12 @@ NB_MODULE(_native, m) {
               out["levels"] = grid.levels;
               out["starts"] = grid.starts;
               std::vector<uint32_t> slots;
-              for (const px::IcCandidate& c : grid.candidates) slots.push_back(c.slot);
-              out["slots"] = slots;
               std::vector<float> reach;
-              for (const px::IcCandidate& c : grid.candidates) reach.push_back(c.reach);
+              for (const px::IcCandidate& c : grid.candidates) {
+                  slots.push_back(c.slot);
+                  reach.push_back(c.reach);
+              }
+              out["slots"] = slots;
               out["reach"] = reach;
               return out;
           }, "positions"_a, "radii"_a, "accuracy"_a, "min_radius"_a,

@@ -597,8 +597,8 @@ void IrradianceCache::make_entries(TechniqueHost& host, FrameParams frame, uint6
     // Covered enough: the thesis mode's paths end at entries, so it waits for 98% of them; the
     // consistent mode's image is right without entries and its render frames keep asking, so
     // it starts at 90%.
-    const uint64_t uncovered_share = params_.mode == IC_MODE_CONSISTENT && params_.shade ? 10 : 50;
-    if (prepare && uint64_t(uncovered) * uncovered_share < paths) prepared_frames_ = params_.prepare_frames;
+    const uint64_t paths_per_uncovered = params_.mode == IC_MODE_CONSISTENT && params_.shade ? 10 : 50;
+    if (prepare && uint64_t(uncovered) * paths_per_uncovered < paths) prepared_frames_ = params_.prepare_frames;
     std::sort(requests.begin(), requests.end(), [](const IcRequest& a, const IcRequest& b) {
         return std::tie(a.pixel, a.sample_index, a.position.x, a.position.y, a.position.z) <
                std::tie(b.pixel, b.sample_index, b.position.x, b.position.y, b.position.z);
