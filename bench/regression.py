@@ -7,7 +7,9 @@
         [--json OUT.json] [--work-dir /tmp] [--debs DIR] [--export DIR]
 
 Each REV is a commit (anything `git rev-parse` takes), or a folder holding a source tree (`.`
-is the working tree, uncommitted changes included); `NAME=REV` names its column. A commit is
+is the working tree, uncommitted changes included); `NAME=REV` names its column, and
+`@VAR=VALUE` after it sets an environment variable for its benches (one build serves every
+column of a tree: `off=.@PARALLAX_HOST_SPECIALIZATION=off fold=.@PARALLAX_HOST_SPECIALIZATION=fold`). A commit is
 checked out in a git worktree, WORK_DIR/pxsrc-HASH (kept and reused), and every tree is built
 by the working tree's scripts/device_build.sh, tagged as that script tags builds (PX_TAG=HASH
 or NAME: /tmp/pxbuild-TAG, /tmp/pxsite-TAG; incremental when built before). With .deb files in
@@ -66,6 +68,10 @@ class Rev:
     """One column: a label, its source tree and its build tag."""
 
     def __init__(self, spec: str, work_dir: str):
+        spec, *env = spec.split("@")
+        self.env = dict(e.split("=", 1) for e in env if "=" in e)  # the bench processes' environment
+        if len(self.env) != len(env):
+            raise SystemExit(f"regression: {'@'.join(env)!r}: give the environment as @VAR=VALUE")
         name, _, rev = spec.rpartition("=")
         self.spec = rev
         if os.path.isdir(rev):
@@ -120,15 +126,15 @@ class Rev:
         log(f"{self.label}: built {self.site} in {time.perf_counter() - t0:.0f} s")
 
 
-def bench_env(site: str) -> dict:
+def bench_env(site: str, extra: dict | None = None) -> dict:
     path = [site, ROOT] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]
-    return dict(os.environ, PYTHONPATH=os.pathsep.join(path), PYTHONUNBUFFERED="1")
+    return dict(os.environ, **(extra or {}), PYTHONPATH=os.pathsep.join(path), PYTHONUNBUFFERED="1")
 
 
 def run_json(rev: Rev, argv: list[str], out: str, timeout: float) -> dict | None:
     """Runs one bench process against rev's build; its JSON output, or None (logged)."""
     try:
-        p = subprocess.run([sys.executable] + argv, env=bench_env(rev.site), cwd=ROOT, capture_output=True,
+        p = subprocess.run([sys.executable] + argv, env=bench_env(rev.site, rev.env), cwd=ROOT, capture_output=True,
                            text=True, timeout=timeout)
     except subprocess.TimeoutExpired:
         log(f"  {rev.label}: {' '.join(argv[:1])} ran past {timeout:.0f} s")
@@ -241,7 +247,7 @@ def export(revs: list[Rev], out_dir: str) -> None:
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], epilog=__doc__.split("\n\n", 1)[1],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("revs", nargs="+", metavar="REV", help="commit, source folder, or NAME=REV; the first is the base")
+    p.add_argument("revs", nargs="+", metavar="REV", help="commit, source folder, or NAME=REV, then @VAR=VALUE for its benches; the first is the base")
     p.add_argument("--benches", default="throughput", help="throughput, frame_cost or both (default throughput)")
     p.add_argument("--rounds", type=int, default=3, help="rounds of A B C ... (default 3); the table gives medians")
     p.add_argument("--sizes", default="1k,100k,1M", help="throughput: triangle counts (default 1k,100k,1M)")
@@ -275,7 +281,11 @@ def main(argv=None) -> int:
     jobs = jobs_of(args)
 
     t_start = time.perf_counter()
-    for r in revs:
+    for i, r in enumerate(revs):
+        same_tree = next((o for o in revs[:i] if o.src == r.src and o.site), None)
+        if same_tree:  # another environment for a tree built already
+            r.site = same_tree.site
+            continue
         try:
             r.checkout()
         except subprocess.CalledProcessError as e:
@@ -322,7 +332,7 @@ def main(argv=None) -> int:
     header = [f"rounds: {args.rounds}, interleaved ({' '.join(r.label for r in built)} per round); "
               f"medians; ×{revs[0].label}: ratio to {revs[0].label}'s median"]
     for r in revs:
-        header.append(f"- {r.label}: {r.commit or r.src}" + (f" — {r.error.splitlines()[0]}" if r.error else ""))
+        header.append(f"- {r.label}: {r.commit or r.src}" + "".join(f" {k}={v}" for k, v in r.env.items()) + (f" — {r.error.splitlines()[0]}" if r.error else ""))
     print("\n".join(header) + "\n\n" + md)
     log(f"total {time.perf_counter() - t_start:.0f} s")
     if args.json:
