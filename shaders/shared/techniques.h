@@ -34,9 +34,15 @@ PX_CONST uint FRAME_ADRRS_SPLITS = 3;    // the split queue's entries, spread ov
 PX_CONST uint FRAME_ADRRS_SPLIT_SUMS = 4;  // one invocation per pixel with splits adds its entries' sums to the film
 
 // ---- irradiance cache (thesis 3.2.3, 4.4; Ward et al. 1988; Ward & Heckbert 1992) ----------
-// Stratified hemisphere of one entry: IC_THETA x IC_PHI cosine-weighted rays (thesis eq. 3.20).
+// Stratified hemisphere of one entry: theta x phi cosine-weighted rays (thesis eq. 3.20). The
+// thesis' mode uses its 10 x 20; consistent mode starts entries from 6 x 12 and refines them by
+// refreshes (each one averages another hemisphere in): its paths correct what the cache misses,
+// so cheap early entries pay, and the refreshes make the cache sharper as the render goes on
+// (bench/results/cpu_ic_refine). IC_STRATA, the larger, sizes the sample buffer.
 PX_CONST uint IC_THETA = 10;
 PX_CONST uint IC_PHI = 20;
+PX_CONST uint IC_THETA_CONSISTENT = 6;
+PX_CONST uint IC_PHI_CONSISTENT = 12;
 PX_CONST uint IC_STRATA = IC_THETA * IC_PHI;
 PX_CONST float IC_MAX_RADIUS_FACTOR = 64.0;  // R <= 64 * min_radius (Krivanek et al. 2008 clamp)
 // The lookup grid (ic_lookup; built by the host, ic_grid in irradiance_cache.cpp): level l
@@ -76,6 +82,8 @@ struct IcParams {
     float grid_cell PX_DEFAULT(0);          // derived by the host: the lookup grid's finest cell side
     uint grid_levels PX_DEFAULT(0);         // ... bit l: level l lists entries
     float prepare_create_prob PX_DEFAULT(0);  // derived by the host: create_prob in prepare frames
+    uint theta PX_DEFAULT(IC_THETA);        // derived by the host: the entries' hemisphere strata
+    uint phi PX_DEFAULT(IC_PHI);            // ... in theta and phi (IC_THETA_CONSISTENT ...)
 };
 
 // The lookup grid's bucket of cell (x, y, z) in a level's table of bucket_mask + 1 buckets: a

@@ -120,9 +120,9 @@ void main() {
         io[2u * i + 1u] = vec4(0.0);
         return;
     }
-    if (routine == TEST_IC_HEMISPHERE) {  // sample i uses stratum i mod IC_STRATA
-        uint stratum = i % IC_STRATA;
-        vec3 wi = stratified_cosine_hemisphere(stratum / IC_PHI, stratum % IC_PHI, IC_THETA, IC_PHI, rnd2(rng));
+    if (routine == TEST_IC_HEMISPHERE) {  // test_params.xy = (theta, phi) strata; sample i uses stratum i mod theta phi
+        uint theta = uint(params.test_params.x), phi = uint(params.test_params.y), stratum = i % (theta * phi);
+        vec3 wi = stratified_cosine_hemisphere(stratum / phi, stratum % phi, theta, phi, rnd2(rng));
         io[2u * i] = vec4(wi, wi.z * INV_PI);
         io[2u * i + 1u] = vec4(1.0, wi.z * INV_PI, wi.z * INV_PI, 1.0);
         return;

@@ -56,6 +56,7 @@ def test_thesis_suite_quick(tmp_path):
     if not shared_scenes.available(shared_scenes.VEACH_MIS):
         pytest.skip(f"the shared scene {shared_scenes.VEACH_MIS} is not in {shared_scenes.SHARED_SCENES}")
     assert converge.method_params("ic_noupdate")["ic_update_prob"] == 0.0
+    assert converge.method_params("ic_thesis")["ic_update_prob"] == 1e-5  # the thesis' rate (TECHNIQUES.md)
     assert converge.method_params("ic_noupdate")["ic_mode"] == converge.method_params("ic_thesis")["ic_mode"] == "thesis"
     assert "ic_update_prob" not in converge.method_params("ic") and "ic_mode" not in converge.method_params("ic")
     source = shared_scenes.thesis_veach_mis(width=converge.QUICK["width"])

@@ -35,7 +35,8 @@ from parallax_core.scene import (Light, Material, Mesh, SceneData, World,
                                  direction_to_equirectangular, equirectangular_to_direction)
 
 TEST_DIFFUSE, TEST_CONDUCTOR, TEST_DIELECTRIC, TEST_LIGHT, TEST_IC_HEMISPHERE = 0, 1, 2, 3, 4
-IC_THETA, IC_PHI = 10, 20  # shaders/shared/techniques.h
+IC_THETA, IC_PHI = 10, 20  # shaders/shared/techniques.h: the thesis' strata
+IC_THETA_CONSISTENT, IC_PHI_CONSISTENT = 6, 12  # ... consistent mode's
 EVAL = 16                 # routine + EVAL: evaluate at given directions
 N = 300_000               # samples per chi-square test
 DISTANT = 1e29            # sample distance at or above this: a light at infinity
@@ -499,22 +500,23 @@ def test_principled_white_furnace(session, roughness):
 P0 = np.zeros(3)  # shading point of the single-light scenes
 
 
-def test_ic_stratified_hemisphere(session):
-    """The irradiance cache's hemisphere (ic_hemisphere.rgen, thesis eq. 3.20): sample i lies in
-    stratum i mod 200 (theta index j = s // IC_PHI, phi index k = s % IC_PHI, with
-    sin^2(theta) in [j, j+1) / IC_THETA and phi in 2 pi [k, k+1) / IC_PHI), and together the
-    samples follow cos(theta) / pi."""
-    n = N // (IC_THETA * IC_PHI) * (IC_THETA * IC_PHI)
-    r = session.test_sampling(TEST_IC_HEMISPHERE, [0.0, 0.0, 1.0, 0.0, 0.0], n, seed=SEED + 900)
+@pytest.mark.parametrize("theta,phi", [(IC_THETA, IC_PHI), (IC_THETA_CONSISTENT, IC_PHI_CONSISTENT)])
+def test_ic_stratified_hemisphere(session, theta, phi):
+    """The irradiance cache's hemisphere (ic_hemisphere.rgen, thesis eq. 3.20), with the thesis'
+    strata and consistent mode's: sample i lies in stratum s = i mod theta phi (theta index
+    j = s // phi, phi index k = s % phi, with sin^2(theta) in [j, j+1) / theta and phi in
+    2 pi [k, k+1) / phi), and together the samples follow cos(theta) / pi."""
+    n = N // (theta * phi) * (theta * phi)
+    r = session.test_sampling(TEST_IC_HEMISPHERE, [float(theta), float(phi), 0.0, 0.0, 0.0], n, seed=SEED + 900)
     d = r[:, 0, :3].astype(np.float64)
     np.testing.assert_allclose(r[:, 0, 3], np.maximum(d[:, 2], 0.0) / math.pi, rtol=1e-5, atol=1e-7)
-    stratum = np.arange(n) % (IC_THETA * IC_PHI)
-    j, k = stratum // IC_PHI, stratum % IC_PHI
+    stratum = np.arange(n) % (theta * phi)
+    j, k = stratum // phi, stratum % phi
     sin2 = 1.0 - d[:, 2] ** 2
-    assert np.all(sin2 >= j / IC_THETA - 1e-5) and np.all(sin2 <= (j + 1) / IC_THETA + 1e-5)
-    phi = np.mod(np.arctan2(d[:, 1], d[:, 0]), 2 * math.pi) / (2 * math.pi) * IC_PHI
-    assert np.all((phi >= k - 1e-3) & (phi <= k + 1 + 1e-3) | (k == IC_PHI - 1) & (phi < 1e-3))
-    check_fit("ic stratified cosine hemisphere", SphereGrid.sphere(16, 32), d, n,
+    assert np.all(sin2 >= j / theta - 1e-5) and np.all(sin2 <= (j + 1) / theta + 1e-5)
+    azimuth = np.mod(np.arctan2(d[:, 1], d[:, 0]), 2 * math.pi) / (2 * math.pi) * phi
+    assert np.all((azimuth >= k - 1e-3) & (azimuth <= k + 1 + 1e-3) | (k == phi - 1) & (azimuth < 1e-3))
+    check_fit(f"ic stratified cosine hemisphere {theta}x{phi}", SphereGrid.sphere(16, 32), d, n,
               lambda dirs: np.maximum(np.asarray(dirs)[:, 2], 0.0) / math.pi)
 
 

@@ -38,7 +38,7 @@ constexpr uint64_t kFirstSnapshot = 4;
 // removes less than 20-25% of the variance cannot win at equal time there.
 constexpr double IC_HANDOVER_SHARE = 0.25;
 
-// Jobs per hemisphere dispatch (IC_STRATA paths each); a frame's jobs go in several.
+// Jobs per hemisphere dispatch (theta x phi paths each); a frame's jobs go in several.
 constexpr uint32_t kJobsPerDispatch = 2048;
 constexpr uint32_t kMaxRefreshes = 4096;       // per frame
 constexpr uint32_t kMaxQueue = 1u << 20;       // requests the queue may hold
@@ -97,9 +97,10 @@ const SettingTable& ic_table() {
                           "Probability that a path vertex without a valid cache entry queues the creation of one "
                           "(thesis, sec. 4.4); prepare frames ask with at least the probability that makes about 2048 "
                           "requests per frame", "ic").in_group("Creation"),
-            float_setting("ic_update_prob", PX_FIELD(IcParams, update_prob), 1e-5, 0.0, 1.0, "Update Probability",
+            float_setting("ic_update_prob", PX_FIELD(IcParams, update_prob), 0.003, 0.0, 1.0, "Update Probability",
                           "Probability per pixel and frame of refreshing a cache entry with new hemisphere paths, so "
-                          "early noisy entries improve over time", "ic").in_group("Creation"),
+                          "early noisy entries improve over time (consistent mode refines its cheap entries so; the "
+                          "thesis used 1e-5)", "ic").in_group("Creation"),
             int_setting("ic_nee_samples", PX_FIELD(IcParams, nee_samples), 1, 1, 64, "Entry Light Samples",
                         "Light samples per vertex of the hemisphere paths that compute a cache entry", "ic")
                 .in_group("Creation"),
@@ -421,6 +422,11 @@ void IrradianceCache::setup(const IcParams& params, const SceneInfo& scene, uint
     params_ = params;
     params_.prepare_create_prob =
         float(std::min(1.0, std::max<double>(params.create_prob, kPrepareRequests / double(std::max<uint64_t>(pixels_, 1)))));
+    // Consistent mode's entries start cheap and refreshes refine them (IC_THETA_CONSISTENT);
+    // the thesis' mode, and the cache ADRRS builds alone for its adjoint, keep the thesis' strata.
+    const bool refined = params.mode == IC_MODE_CONSISTENT && params.shade;
+    params_.theta = refined ? IC_THETA_CONSISTENT : IC_THETA;
+    params_.phi = refined ? IC_PHI_CONSISTENT : IC_PHI;
     params_.queue_capacity = enabled() ? std::max(queue_capacity(params.create_prob, paths_per_step),
                                                   queue_capacity(params_.prepare_create_prob, pixels_))
                                        : 1;
@@ -658,7 +664,7 @@ void IrradianceCache::make_entries(TechniqueHost& host, FrameParams frame, uint6
             b.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
             vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, 0, 1, &b,
                                  0, nullptr, 0, nullptr);
-            hemisphere.trace(cmd, set.set(), &frame, sizeof(frame), IC_STRATA, frame.ic_job_count);
+            hemisphere.trace(cmd, set.set(), &frame, sizeof(frame), params_.theta * params_.phi, frame.ic_job_count);
             vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, 0, 1, &b,
                                  0, nullptr, 0, nullptr);
             finish.dispatch(cmd, set.set(), &frame, sizeof(frame), (frame.ic_job_count + 63) / 64);
