@@ -61,7 +61,7 @@ EXTRA_SCENES = ("sun_room", "clocks")  # sun_room: indirect light through a wind
 # pairs them with its tables); thesis_* are converted from ../shared/scenes on first use.
 THESIS_SUITE = ("atrium", "thesis_veach_mis", "cornell_dielectric", "clocks", "thesis_irradiance_cache")
 # ic: MIS + the irradiance cache (its default mode, consistent); ic_thesis: the thesis' mode
-# (paths end at the cache) with its refresh rate; ic_noupdate: the thesis' mode, entries never refreshed;
+# (paths end at the cache) at its refresh rate; ic_noupdate: the thesis' mode, no refreshes;
 # adrrs: MIS + ADRRS; guiding: MIS + path guiding (defaults);
 # guiding_pt: guiding without NEE; guiding_noparallax: guiding with parallax off; guiding_device:
 # guiding fitted by compute passes on the device (guiding_fit = device); guiding_pt_device: both;
@@ -284,7 +284,8 @@ def _method_params(method):
     if method == "ic":
         return dict(off, method="mis", ic=True)
     if method in ("ic_thesis", "ic_noupdate"):  # the thesis' refresh rate (TECHNIQUES.md), or none
-        return dict(off, method="mis", ic=True, ic_mode="thesis", ic_update_prob=0.0 if method == "ic_noupdate" else 1e-5)
+        return dict(off, method="mis", ic=True, ic_mode="thesis",
+                    ic_update_prob=0.0 if method == "ic_noupdate" else 1e-5)
     return dict(off, method=method)
 
 

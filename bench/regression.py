@@ -9,9 +9,9 @@
 Each REV is a commit (anything `git rev-parse` takes), or a folder holding a source tree (`.`
 is the working tree, uncommitted changes included); `NAME=REV` names its column, and
 `@VAR=VALUE` after it sets an environment variable for its benches (one build serves every
-column of a tree: `off=.@PARALLAX_HOST_SPECIALIZATION=off fold=.@PARALLAX_HOST_SPECIALIZATION=fold`). A commit is
-checked out in a git worktree, WORK_DIR/pxsrc-HASH (kept and reused), and every tree is built
-by the working tree's scripts/device_build.sh, tagged as that script tags builds (PX_TAG=HASH
+column of a tree: `w128=.@LP_NATIVE_VECTOR_WIDTH=128 w256=.@LP_NATIVE_VECTOR_WIDTH=256`). A
+commit is checked out in a git worktree, WORK_DIR/pxsrc-HASH (kept and reused), and every tree
+is built by the working tree's scripts/device_build.sh, tagged as that script tags builds (PX_TAG=HASH
 or NAME: /tmp/pxbuild-TAG, /tmp/pxsite-TAG; incremental when built before). With .deb files in
 --debs (default: the working tree's .gl/, as on the NVIDIA machines) the build uses them;
 without (here, lavapipe) it uses the system's Vulkan and glslang.
@@ -247,7 +247,8 @@ def export(revs: list[Rev], out_dir: str) -> None:
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], epilog=__doc__.split("\n\n", 1)[1],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("revs", nargs="+", metavar="REV", help="commit, source folder, or NAME=REV, then @VAR=VALUE for its benches; the first is the base")
+    p.add_argument("revs", nargs="+", metavar="REV",
+                   help="commit, source folder, or NAME=REV, then @VAR=VALUE for its benches; the first is the base")
     p.add_argument("--benches", default="throughput", help="throughput, frame_cost or both (default throughput)")
     p.add_argument("--rounds", type=int, default=3, help="rounds of A B C ... (default 3); the table gives medians")
     p.add_argument("--sizes", default="1k,100k,1M", help="throughput: triangle counts (default 1k,100k,1M)")
@@ -332,7 +333,8 @@ def main(argv=None) -> int:
     header = [f"rounds: {args.rounds}, interleaved ({' '.join(r.label for r in built)} per round); "
               f"medians; ×{revs[0].label}: ratio to {revs[0].label}'s median"]
     for r in revs:
-        header.append(f"- {r.label}: {r.commit or r.src}" + "".join(f" {k}={v}" for k, v in r.env.items()) + (f" — {r.error.splitlines()[0]}" if r.error else ""))
+        env = "".join(f" {k}={v}" for k, v in r.env.items())
+        header.append(f"- {r.label}: {r.commit or r.src}{env}" + (f" — {r.error.splitlines()[0]}" if r.error else ""))
     print("\n".join(header) + "\n\n" + md)
     log(f"total {time.perf_counter() - t_start:.0f} s")
     if args.json:

@@ -11,7 +11,8 @@ layout(set = 0, binding = BINDING_IC_SAMPLES, scalar) readonly buffer IcSampleBu
 vec3 ic_radiance(uint job, uint j, uint k) { return ic_samples[job * IC_STRATA + j * tech.ic.phi + k].radiance; }
 float ic_distance(uint job, uint j, uint k) { return ic_samples[job * IC_STRATA + j * tech.ic.phi + k].distance; }
 
-// Turns one job's M x N hemisphere samples (M = tech.ic.theta, N = tech.ic.phi) into an entry (or refreshes one):
+// Turns one job's M x N hemisphere samples (M = tech.ic.theta, N = tech.ic.phi strata) into an
+// entry (or refreshes one):
 //   E = pi / (M N) sum L_jk                                   (thesis eq. 3.20)
 //   R = M N / sum 1/r_jk, clamped to [R_min, 64 R_min]       (Ward et al. 1988; escaped: 1/r = 0)
 // and the gradients of Ward & Heckbert 1992 from how the strata's boundaries move:
@@ -26,17 +27,17 @@ void main() {
     if (job_index >= params.ic_job_count) return;
     IcJob job = ic_jobs[job_index];
     if (job.kind == IC_JOB_UPDATE) job.normal = ic_entries[job.slot].normal;  // the host sends none
-    const uint theta = tech.ic.theta, phi = tech.ic.phi;
-    const float M = float(theta), N = float(phi);
+    const uint theta_strata = tech.ic.theta, phi_strata = tech.ic.phi;
+    const float M = float(theta_strata), N = float(phi_strata);
 
     vec3 sum = vec3(0.0);
     float inverse_distances = 0.0;
     vec2 rot = vec2(0.0), trans = vec2(0.0);
-    for (uint j = 0u; j < theta; ++j) {
+    for (uint j = 0u; j < theta_strata; ++j) {
         float sin_lo = sqrt(float(j) / M), sin_hi = sqrt(float(j + 1u) / M);
         float sin_c = sqrt((float(j) + 0.5) / M), cos_c = sqrt(max(0.0, 1.0 - sin_c * sin_c));
         float cos_lo = sqrt(max(0.0, 1.0 - sin_lo * sin_lo));
-        for (uint k = 0u; k < phi; ++k) {
+        for (uint k = 0u; k < phi_strata; ++k) {
             vec3 l = ic_radiance(job_index, j, k);
             float r = ic_distance(job_index, j, k);
             sum += l;
@@ -46,7 +47,7 @@ void main() {
             vec2 u_k = vec2(cos(phi_c), sin(phi_c));
             vec2 v_k = vec2(-sin(phi_lo), cos(phi_lo));
             rot += (PI / (M * N)) * lum * (sin_c / cos_c) * u_k;
-            uint k_prev = (k + phi - 1u) % phi;
+            uint k_prev = (k + phi_strata - 1u) % phi_strata;
             float r_phi = min(r, ic_distance(job_index, j, k_prev));
             trans += v_k * (sin_hi - sin_lo) * (lum - luminance(ic_radiance(job_index, j, k_prev))) / max(r_phi, 1e-6);
             if (j > 0u) {

@@ -120,7 +120,7 @@ void main() {
         io[2u * i + 1u] = vec4(0.0);
         return;
     }
-    if (routine == TEST_IC_HEMISPHERE) {  // test_params.xy = (theta, phi) strata; sample i uses stratum i mod theta phi
+    if (routine == TEST_IC_HEMISPHERE) {  // test_params.xy: theta x phi strata; sample i in stratum i mod theta phi
         uint theta = uint(params.test_params.x), phi = uint(params.test_params.y), stratum = i % (theta * phi);
         vec3 wi = stratified_cosine_hemisphere(stratum / phi, stratum % phi, theta, phi, rnd2(rng));
         io[2u * i] = vec4(wi, wi.z * INV_PI);

@@ -312,6 +312,21 @@ def test_consistent_mode_host_steps_wait_longer_each_time():
     assert same_render(a, b, "cpu")
 
 
+def test_entries_hemisphere_by_mode():
+    """Consistent mode's entries rest on 6 x 12 hemisphere rays and refreshes refine them (the
+    default update probability); the thesis' mode keeps its 10 x 20 (thesis eq. 3.20)."""
+    sc = scenes.cornell_box(24, 24)
+    for params, strata in ((CONSISTENT_IC, 6 * 12), (FAST_IC, 10 * 20)):
+        s = pc.Session(24, 24)
+        s.set_params(**params, samples_per_frame=1, seed=2)
+        s.update(sc)
+        s.render(32)
+        st = s.stats()
+        refreshes = st["ic_jobs"] - st["ic_entries"]  # every other job created an entry
+        assert st["ic_entries"] > 0 and refreshes > 0, st
+        assert st["ic_job_rays"] == strata * st["ic_jobs"], (params["ic_mode"], st)
+
+
 def test_consistent_mode_leaves_the_pipeline_where_the_paths_need_no_cache():
     """On Veach's direct-lit scene the pixels go back to the paths at the first handover (8
     spp); once three quarters have, the render frames trace without the cache's pipeline and

@@ -28,6 +28,17 @@ def test_revs_are_commits_folders_or_named(tmp_path):
         regression.Rev(f"bad name={tmp_path}", str(tmp_path))
 
 
+def test_revs_carry_an_environment_for_their_benches(tmp_path):
+    """NAME=REV@VAR=VALUE: the same tree with another environment (one build for both)."""
+    wide = regression.Rev(f"w256={tmp_path}@LP_NATIVE_VECTOR_WIDTH=256@X=a=b", "/unused")
+    assert (wide.label, wide.src, wide.env) == ("w256", str(tmp_path), {"LP_NATIVE_VECTOR_WIDTH": "256", "X": "a=b"})
+    env = regression.bench_env("/site", wide.env)
+    assert env["LP_NATIVE_VECTOR_WIDTH"] == "256" and env["PYTHONPATH"].split(os.pathsep)[0] == "/site"
+    assert regression.Rev(str(tmp_path), "/unused").env == {}
+    with pytest.raises(SystemExit, match="@VAR=VALUE"):
+        regression.Rev(f"w={tmp_path}@NOVALUE", "/unused")
+
+
 def test_table_gives_medians_and_ratios_to_the_first():
     class R:
         def __init__(self, label):

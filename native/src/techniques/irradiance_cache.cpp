@@ -414,6 +414,7 @@ void IrradianceCache::stats(StatList& out) const {
                            {"ic_host_steps", stats_.host_steps},
                            {"ic_left", stats_.left},
                            {"ic_jobs", stats_.jobs},
+                           {"ic_job_rays", stats_.job_rays},
                            {"ic_job_milliseconds", stats_.job_milliseconds},
                            {"ic_build_milliseconds", stats_.build_milliseconds}});
 }
@@ -675,6 +676,7 @@ void IrradianceCache::make_entries(TechniqueHost& host, FrameParams frame, uint6
     if (!jobs.empty()) {
         stats_.job_milliseconds += ms_since(start);
         stats_.jobs += jobs.size();
+        stats_.job_rays += jobs.size() * params_.theta * params_.phi;
     }
     stats_.entries = count_;
 

@@ -68,6 +68,7 @@ struct IcStats {
     uint64_t host_steps = 0;  // after render frames (consistent mode: several frames each)
     uint64_t left = 0;        // 1: the render frames left the cache's pipeline (consistent mode)
     uint64_t jobs = 0;      // hemisphere estimates computed (creations + refreshes)
+    uint64_t job_rays = 0;  // their hemisphere rays (theta x phi each)
     double job_milliseconds = 0;    // hemisphere + finish dispatches
     double build_milliseconds = 0;  // lookup grid builds (entries' download, build, upload)
 };
