@@ -13,6 +13,14 @@
 layout(set = 0, binding = BINDING_TLAS) uniform accelerationStructureEXT tlas;
 layout(location = 0) rayPayloadEXT HitPayload hit;
 layout(location = 1) rayPayloadEXT HitPayload shadow_hit;
+// Declared, never traced. NVIDIA's ray-tracing compiler (on GPUs without RT cores traversal
+// runs inside the pipeline) makes faster or slower code by the size of the payloads the raygen
+// declares, used or not, and differently per pipeline, with no order: on an H100 the
+// technique-free NEE soup ran at 1.71 G rays/s with 1, 5 or 15 unused words and at 1.84-1.88
+// with 10, 14, 16 or 32. PAYLOAD_RESERVE (vec4s) is chosen per method where that was measured
+// (Session::pipeline_key); lavapipe drops it. bench/results/gpu_payload_reserve.
+struct PayloadReserve { vec4 words[PAYLOAD_RESERVE]; };
+layout(location = 2) rayPayloadEXT PayloadReserve payload_reserve;
 
 #include "camera.glsl"
 #include "nodes.glsl"

@@ -21,6 +21,9 @@
 //   ADAPTIVE_SAMPLING   0: adaptive sampling is off and its raygen state folds away (GPUs); 1:
 //                       FrameParams.adaptive decides (lavapipe always: a variant more costs it
 //                       a cold compile of 1-29 s, bench/results/compile_lavapipe)
+//   PAYLOAD_RESERVE     vec4s of the payload the raygen declares and never traces (integrator.glsl,
+//                       payload_reserve): NVIDIA's compiler makes different code by it; 1 on
+//                       lavapipe and where no other size measured faster
 #define PX_SPEC_CONSTANTS(X)                              \
     X(0, METHOD, method, METHOD_MIS)                      \
     X(1, MIS_HEURISTIC, heuristic, HEURISTIC_POWER)       \
@@ -29,7 +32,8 @@
     X(4, EMPTY_SHADOW_CALLS, empty_shadow_calls, 1u)      \
     X(5, LIGHT_PATH_LIMITS, light_path_limits, LIMIT_ALL) \
     X(6, FILTER_FROM_TABLE, filter_from_table, 1u)        \
-    X(7, ADAPTIVE_SAMPLING, adaptive_sampling, 1u)
+    X(7, ADAPTIVE_SAMPLING, adaptive_sampling, 1u)      \
+    X(8, PAYLOAD_RESERVE, payload_reserve, 1u)
 
 #ifdef __cplusplus
 #include <array>

@@ -12,6 +12,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <thread>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <stdexcept>
@@ -260,6 +261,20 @@ void wait_for_background_compiles() {
     compiles_done.wait(lock, [] { return compiles_in_flight == 0; });
 }
 
+// PAYLOAD_RESERVE on GPUs (integrator.glsl, payload_reserve): NVIDIA's ray-tracing compiler makes
+// faster or slower code by the size of a payload the raygen declares and never traces, per
+// pipeline and with no order. Measured on an H100 against no reserve, per method, on the 8 scenes
+// of bench.converge's suites (bench/results/gpu_payload_reserve): NEE frames 0.83-1.05x (geometric
+// mean 0.97) and the NEE soup 1.10x with 16 vec4s; PT and MIS frames went both ways (0.84-1.11x),
+// so they keep 1, which measured as none. PARALLAX_PAYLOAD_RESERVE (1-64) overrides it, to measure.
+static uint32_t gpu_payload_reserve(uint32_t method) {
+    if (const char* env = std::getenv("PARALLAX_PAYLOAD_RESERVE")) {
+        const long v = std::strtol(env, nullptr, 10);
+        if (v >= 1 && v <= 64) return uint32_t(v);
+    }
+    return method == METHOD_NEE ? 16u : 1u;
+}
+
 // The program and its specialisation constants (shaders/shared/specialization.h); the preview
 // program uses the scene features only. A technique's bit may differ between render frames and
 // host frames (Technique::spec_bit). GPUs make empty shadow calls, lavapipe does not
@@ -275,6 +290,7 @@ PipelineKey Session::pipeline_key(uint32_t program, bool render_frame) const {
         return {program, c};
     }
     c.method = params_.method;
+    if (!ctx_->is_cpu()) c.payload_reserve = gpu_payload_reserve(params_.method);
     c.heuristic = params_.mis_heuristic;
     c.light_path_limits = light_path_limits(params_);
     c.filter_from_table = params_.pixel_filter_type == FILTER_BOX && params_.filter_width == 1.0f ? 0u : 1u;
