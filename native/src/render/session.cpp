@@ -265,14 +265,16 @@ void wait_for_background_compiles() {
 // faster or slower code by the size of a payload the raygen declares and never traces, per
 // pipeline and with no order. Measured on an H100 against no reserve, per method, on the 8 scenes
 // of bench.converge's suites (bench/results/gpu_payload_reserve): NEE frames 0.83-1.05x (geometric
-// mean 0.97) and the NEE soup 1.10x with 16 vec4s; PT and MIS frames went both ways (0.84-1.11x),
-// so they keep 1, which measured as none. PARALLAX_PAYLOAD_RESERVE (1-64) overrides it, to measure.
+// mean 0.97) and the NEE soup 1.10x with 16 vec4s. PT frames with 2 vec4s: 0.84-0.99x on 7
+// scenes, 1.08x on thesis_irradiance_cache (bench/results/gpu_pt_reserve; no feature of the
+// scenes' told that one apart). MIS frames went both ways (0.84-1.11x) with every size, so MIS
+// keeps 1, which measured as none. PARALLAX_PAYLOAD_RESERVE (1-64) overrides it, to measure.
 static uint32_t gpu_payload_reserve(uint32_t method) {
     if (const char* env = std::getenv("PARALLAX_PAYLOAD_RESERVE")) {
         const long v = std::strtol(env, nullptr, 10);
         if (v >= 1 && v <= 64) return uint32_t(v);
     }
-    return method == METHOD_NEE ? 16u : 1u;
+    return method == METHOD_NEE ? 16u : method == METHOD_PT ? 2u : 1u;
 }
 
 // The program and its specialisation constants (shaders/shared/specialization.h); the preview
