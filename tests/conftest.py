@@ -14,15 +14,6 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # it). PARALLAX_VALIDATION=0 turns it off (a machine without vulkan-validationlayers).
 os.environ.setdefault("PARALLAX_VALIDATION", "1")
 
-# llvmpipe without LLVM's optimisation passes (Mesa's GALLIVM_PERF=nopt), for this process
-# and its subprocesses. The suite renders tiny images with dozens of pipeline variants, so on a
-# cold shader cache (CI's) compiling is most of its time: a cold run of test_filter_glossy.py
-# took 81 s instead of 122, ADRRS' two heaviest unbiasedness tests 74 s instead of 125
-# (2 cores). The SPIR-V and NIR are the same; Mesa keys its shader cache by the flag, so the
-# unoptimised code never reaches optimised runs. `GALLIVM_PERF= make test` tests the
-# optimised code.
-os.environ.setdefault("GALLIVM_PERF", "nopt")
-
 
 @pytest.fixture(autouse=True)
 def no_validation_messages():
