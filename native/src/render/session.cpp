@@ -263,18 +263,24 @@ void wait_for_background_compiles() {
 
 // PAYLOAD_RESERVE on GPUs (integrator.glsl, payload_reserve): NVIDIA's ray-tracing compiler makes
 // faster or slower code by the size of a payload the raygen declares and never traces, per
-// pipeline and with no order. Measured on an H100 against no reserve, per method, on the 8 scenes
-// of bench.converge's suites (bench/results/gpu_payload_reserve): NEE frames 0.83-1.05x (geometric
-// mean 0.97) and the NEE soup 1.10x with 16 vec4s. PT frames with 2 vec4s: 0.84-0.99x on 7
-// scenes, 1.08x on thesis_irradiance_cache (bench/results/gpu_pt_reserve; no feature of the
-// scenes' told that one apart). MIS frames went both ways (0.84-1.11x) with every size, so MIS
-// keeps 1, which measured as none. PARALLAX_PAYLOAD_RESERVE (1-64) overrides it, to measure.
-static uint32_t gpu_payload_reserve(uint32_t method) {
+// pipeline and with no order, so each size here is what measured fastest for its pipelines on an
+// H100, on the 9 scenes of bench.converge's suites (geometric means against 1 vec4, which
+// measured as none; bench/results/gpu_pt_reserve):
+// - PT, 2 vec4s: 0.94 with unbiased light paths and a box pixel (frame_cost's pins; within 2% of
+//   67a4504 on every scene), 0.97 at Cycles' light paths and filter, 0.98 with adaptive
+//   sampling too.
+// - NEE with unbiased light paths and a box pixel, 16 vec4s: frames 0.97, the soup 1.10x.
+//   With Cycles' light paths or filter 16 cost 1.03 (0.99 with adaptive sampling), 2 measured
+//   1.01 (0.98).
+// - MIS keeps 1: every size went both ways.
+// PARALLAX_PAYLOAD_RESERVE (1-64) overrides it, to measure.
+static uint32_t gpu_payload_reserve(const SpecConstants& c) {
     if (const char* env = std::getenv("PARALLAX_PAYLOAD_RESERVE")) {
         const long v = std::strtol(env, nullptr, 10);
         if (v >= 1 && v <= 64) return uint32_t(v);
     }
-    return method == METHOD_NEE ? 16u : method == METHOD_PT ? 2u : 1u;
+    if (c.method == METHOD_NEE) return c.light_path_limits == 0u && c.filter_from_table == 0u ? 16u : 2u;
+    return c.method == METHOD_PT ? 2u : 1u;
 }
 
 // The program and its specialisation constants (shaders/shared/specialization.h); the preview
@@ -292,11 +298,11 @@ PipelineKey Session::pipeline_key(uint32_t program, bool render_frame) const {
         return {program, c};
     }
     c.method = params_.method;
-    if (!ctx_->is_cpu()) c.payload_reserve = gpu_payload_reserve(params_.method);
     c.heuristic = params_.mis_heuristic;
     c.light_path_limits = light_path_limits(params_);
     c.filter_from_table = params_.pixel_filter_type == FILTER_BOX && params_.filter_width == 1.0f ? 0u : 1u;
     c.adaptive_sampling = ctx_->is_cpu() || adaptive_->on() ? 1u : 0u;
+    if (!ctx_->is_cpu()) c.payload_reserve = gpu_payload_reserve(c);
     c.techniques = 0u;
     for (const auto& t : techniques_) c.techniques |= t->spec_bit(render_frame);
     return {program, c};
