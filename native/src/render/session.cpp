@@ -266,9 +266,9 @@ void wait_for_background_compiles() {
 // pipeline and with no order, so each size here is what measured fastest for its pipelines on an
 // H100, on the 9 scenes of bench.converge's suites (geometric means against 1 vec4, which
 // measured as none; bench/results/gpu_pt_reserve):
-// - PT, 2 vec4s: 0.94 with unbiased light paths and a box pixel (frame_cost's pins; within 2% of
-//   67a4504 on every scene), 0.97 at Cycles' light paths and filter, 0.98 with adaptive
-//   sampling too.
+// - PT, 2 vec4s: 0.97-0.98 with unbiased light paths and a box pixel (frame_cost's pins; within
+//   2% of 67a4504 on every scene, where 1 was 19% slower on one), 0.97 at Cycles' light paths
+//   and filter, 0.98 with adaptive sampling too.
 // - NEE with unbiased light paths and a box pixel, 16 vec4s: frames 0.97, the soup 1.10x.
 //   With Cycles' light paths or filter 16 cost 1.03 (0.99 with adaptive sampling), 2 measured
 //   1.01 (0.98).
