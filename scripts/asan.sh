@@ -13,8 +13,9 @@ shift || true
 # The render tests of --ci: each method (pt, nee, mis), the irradiance cache, ADRRS (which
 # needs the cache), guiding with the CPU and the device fit, a partial update of each scene part
 # and concurrent sessions (the host code the sanitizers watch). Small images, seconds each
-# without ASan. Left out for CI's time (each its technique's host code run again, 25-63 s under
-# ASan): ADRRS' same-seed test, the mirror furnace, 14 of the 20 partial-update edits.
+# without ASan. Left out as repeats of host code the list already runs: ADRRS' same-seed test
+# (its toggle test renders ADRRS, the cache and a scene edit, and now pays the cold compile), the
+# mirror furnace, 14 of the 20 partial-update edits.
 PARTIAL=tests/render/test_partial_update.py::test_partial_update_matches_a_full_one
 CI_RENDER=(
   "tests/render/test_integrator.py::test_white_furnace_specular[glass]"
