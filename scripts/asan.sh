@@ -37,8 +37,9 @@ fi
 [ ${#TESTS[@]} -gt 0 ] || TESTS=(tests/unit tests/render)
 BUILD=build-asan
 start=$(date +%s)
+# -g1: line tables only, which is all the sanitizers' reports use (112 s -> 81 s to build here).
 cmake -S . -B $BUILD -DPython_EXECUTABLE="$(cd "$(dirname "$PY")" && pwd)/$(basename "$PY")" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-      -DPARALLAX_SANITIZE=address,undefined >/dev/null
+      "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O2 -g1 -DNDEBUG" -DPARALLAX_SANITIZE=address,undefined >/dev/null
 cmake --build $BUILD -j"$(nproc)"
 # A site directory that shadows the installed packages: the package's .py files, the
 # instrumented module, and the add-on.
