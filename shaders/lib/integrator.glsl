@@ -549,10 +549,6 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
     PathState ps = path_state(origin, dir, t_min, t_max, opt);
     tp = technique_path(topt);
     EarsPath ears = ears_path();  // EARS' records of the path's decisions
-    // A path that ends goes round once more for its last vertex's shadow ray (done): the loop
-    // holds the path's one shadow-ray call. lavapipe inlines the BVH traversal at every trace
-    // call, and a second call after the loop made every pipeline's cold compile longer.
-    bool done = false;
     for (;;) {
         // No vertex precedes the first ray, so no shadow ray can be pending: every path of a
         // warp skips this call alike (an empty call there cost the H200 a quarter of its rays,
@@ -561,7 +557,6 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
             trace_pending_shadow(ps, res, tp);
             techniques_light_resolved(tp, res.radiance);
         }
-        if (done) break;
         ears_continuation_start(ears, res.radiance, res.rays);
         hit.instance = ps.self_instance;
         hit.primitive = ps.self_primitive;
@@ -570,10 +565,10 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         res.segments++;
         SurfaceHit sh;
         Material mat;
-        if (!emission_stage(ps, res, tp, opt, sh, mat)) { done = true; continue; }
-        if (ps.bounces > opt.max_depth || kind_budget_spent(ps)) { done = true; continue; }
+        if (!emission_stage(ps, res, tp, opt, sh, mat)) break;
+        if (ps.bounces > opt.max_depth || kind_budget_spent(ps)) break;
         Vertex v;
-        if (!vertex_stage(sh, mat, ps.dir, ps.min_ray_pdf, rng, v)) { done = true; continue; }
+        if (!vertex_stage(sh, mat, ps.dir, ps.min_ray_pdf, rng, v)) break;
         if (!ps.albedo_done && !v.delta) {
             res.albedo = ps.albedo_throughput * v.surf.albedo;
             ps.albedo_done = true;
@@ -583,19 +578,21 @@ PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptio
         // The techniques at the vertex: guiding's mixture, the cache (which may shade the
         // vertex and end the path after its NEE, or end it now), ADRRS' adjoint.
         TechniqueVertex tv = techniques_vertex(tp, topt, v, hit.t, resumed, ps.throughput, res.segments, res.radiance, rng);
-        if (tv.ic.stop) { done = true; continue; }
+        if (tv.ic.stop) break;
         if ((METHOD != METHOD_PT || tv.last) && !v.delta && !resumed) direct_light_stage(ps, res, tp, opt, v, tv, tv.last, rng);
-        if (tv.last) { done = true; continue; }
+        if (tv.last) break;
         // ADRRS may roulette or split the continuation in place of the throughput roulette.
         bool killed;
         uint ears_slot;
         bool adrrs_decided = adrrs_continuation(topt.adrrs, tv.ic, v, resumed, ps, res.segments,
                                                 opt.from_camera && res.segments == 1u, rng, killed, ears_slot, tp.ears);
-        if (killed) { done = true; continue; }
+        if (killed) break;
         ears_open(ears, ears_slot, ps.throughput);
-        if (!continuation_stage(ps, res, tp, opt, topt, v, tv, rng)) { done = true; continue; }
-        if (!adrrs_decided && !roulette_stage(ps, opt, rng)) { done = true; continue; }
+        if (!continuation_stage(ps, res, tp, opt, topt, v, tv, rng)) break;
+        if (!adrrs_decided && !roulette_stage(ps, opt, rng)) break;
     }
+    trace_pending_shadow(ps, res, tp);
+    techniques_light_resolved(tp, res.radiance);
     guiding_path_end(tp.guiding, res.radiance);
     ears_path_end(ears, res.radiance, res.rays, rng);
     return res;
