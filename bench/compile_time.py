@@ -38,6 +38,8 @@ if scene_arg.endswith(".npz"):
 else:
     scene = getattr(scenes, scene_arg)(16, 16)
 s = pc.Session(16, 16, device)
+if hasattr(s, "passes"):
+    s.passes = ["combined"]  # as an F12 without extra passes (the Guiding Lobes pass has a pipeline of its own)
 s.update(scene)
 s.set_params(method=method, **params)
 start = time.perf_counter()

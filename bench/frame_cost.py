@@ -47,7 +47,7 @@ def supported(params, known):
     return {k: v for k, v in params.items() if k in known}
 
 
-def frame_ms(scene, device, spp, params, seconds=1.0):
+def frame_ms(scene, device, spp, params, seconds=1.0, passes=None):
     import parallax_core as pc
 
     # Like for like across builds: unbiased light paths (pc.UNBIASED_LIGHT_PATHS) where a build has them.
@@ -55,6 +55,8 @@ def frame_ms(scene, device, spp, params, seconds=1.0):
     pins = {k: v for k, v in getattr(pc, "UNBIASED_LIGHT_PATHS", {}).items() if k in known}
     params = {**pins, **supported(params, known)}
     session = pc.Session(scene.width, scene.height, device)
+    if passes is not None and hasattr(session, "passes"):  # a build older than Session.passes: every pass
+        session.passes = list(passes)
     session.set_params(samples_per_frame=spp, max_depth=MAX_DEPTH, depth_leeway=0, seed=0, **params)
     session.update(scene)
     session.render(2)
@@ -73,6 +75,8 @@ def main(argv=None):
     ap.add_argument("--spp", type=int, default=64, help="samples per pixel per frame")
     ap.add_argument("--seconds", type=float, default=1.0, help="time per method after the warm-up (default 1)")
     ap.add_argument("--device", default="gpu")
+    ap.add_argument("--passes", help="the film's passes, e.g. combined (as F12 without extra passes; "
+                                     "default: every pass, a Session's default)")
     ap.add_argument("--out", help="write the table as JSON here")
     ap.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE",
                     help="render settings for every method (Session.set_params, as the CLI's --set), "
@@ -95,7 +99,7 @@ def main(argv=None):
         pt = None
         for method in methods:
             ms, frames = frame_ms(scene, args.device, args.spp, {**method_params(method), **overrides},
-                                 args.seconds)
+                                 args.seconds, args.passes.split(",") if args.passes else None)
             pt = ms if method == "pt" else pt
             table[f"{name}/{method}"] = dict(ms=round(ms, 2), frames=frames)
             ratio = f"{ms / pt:.1f}" if pt else ""

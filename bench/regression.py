@@ -195,6 +195,8 @@ def jobs_of(args) -> list[tuple[str, list[str], callable]]:
         argv = [os.path.join(ROOT, "bench", "frame_cost.py"), "--npz", os.path.abspath(args.npz),
                 "--scenes", args.scenes, "--methods", args.methods or "pt,nee,mis", "--spp", str(args.spp),
                 "--seconds", str(args.seconds), "--device", args.device]
+        if args.passes:
+            argv += ["--passes", args.passes]
         jobs.append(("frame_cost", argv + ["--out"], frame_cost_figures))
     return jobs
 
@@ -257,7 +259,8 @@ def main(argv=None) -> int:
     p.add_argument("--methods", help="throughput: default nee; frame_cost: default pt,nee,mis")
     p.add_argument("--seconds", type=float, default=2.0, help="render time per row or method (default 2)")
     p.add_argument("--resolution", type=int, help="throughput: square image size (default 512 CPU, 1024 GPU)")
-    p.add_argument("--passes", help="throughput: the film's passes where a build has Session.passes (default: every pass)")
+    p.add_argument("--passes", help="throughput and frame_cost: the film's passes where a build has Session.passes "
+                        "(default: every pass)")
     p.add_argument("--npz", help="frame_cost: folder of exported scenes")
     p.add_argument("--scenes", default="clocks,light_behind_glass", help="frame_cost: scenes of --npz")
     p.add_argument("--spp", type=int, default=64, help="frame_cost: samples per frame (default 64)")
