@@ -19,6 +19,11 @@ PX_CONST uint TECH_GUIDING = 1u << 2;  // path guiding (region tree, VMM samplin
 // Efficiency-aware RR and splitting (EARS): with TECH_ADRRS, whose pixel estimate and split
 // queue it shares, the factors come from EARS' learnt statistics instead of the adjoint window.
 PX_CONST uint TECH_EARS = 1u << 3;
+// With TECH_GUIDING: the Guiding Lobes pass is in the film. Only then does the pipeline hold
+// the region TLAS' procedural hit group and trace into it (guiding_lobes_pass): on lavapipe
+// each traceRayEXT is a traversal inlined at compile, on GPUs without RT cores a procedural
+// hit group in a pipeline slowed its every ray (bench/results/gpu_ic_consistent).
+PX_CONST uint TECH_GUIDING_LOBES = 1u << 4;
 
 // Programs: which ray-generation shader a ray-tracing pipeline starts (part of its key).
 PX_CONST uint PROGRAM_CAMERA = 0;         // raygen.rgen: camera paths into the film

@@ -345,7 +345,8 @@ GuidingPixel guiding_pixel() { return GuidingPixel(vec3(0.0), vec3(0.0), 0.0); }
 
 // The passes at the first hit, of the frame's first sample only (weighted by the frame's
 // samples): the lobes pass traces a ray through the region TLAS, which for every sample would
-// cost about as much as the path itself.
+// cost about as much as the path itself. It is in the pipelines that show it only
+// (TECH_GUIDING_LOBES).
 void guiding_add_sample(inout GuidingPixel px, GuidingOptions o, uint s, uvec2 pixel, vec3 origin, vec3 dir,
                         float first_t) {
     if (!(USES(TECH_GUIDING) && o.on && s == 0u)) return;
@@ -354,7 +355,7 @@ void guiding_add_sample(inout GuidingPixel px, GuidingOptions o, uint s, uvec2 p
     px.regions = n * guiding_region_colour(region);
     if (region != NO_INDEX)
         px.components = n * float(guiding_regions[region].lobe_count) / float(max(tech.guiding.max_components, 1u));
-    px.lobes = n * guiding_lobes_pass(pixel, origin, dir, first_t);
+    if (USES(TECH_GUIDING_LOBES)) px.lobes = n * guiding_lobes_pass(pixel, origin, dir, first_t);
 }
 
 void guiding_write_passes(GuidingPixel px, uint pixel_index) {

@@ -241,6 +241,22 @@ def test_passes():
         assert not off.read(name).any(), name
 
 
+def test_lobes_pass_is_only_a_view():
+    """The Guiding Lobes pass is traced by the pipelines that show it only (TECH_GUIDING_LOBES:
+    its region TLAS query and procedural hit group): with it or without it in the film, the
+    guided render is the same bit for bit, training included."""
+    scene = scenes.cornell_box(SIZE, SIZE)
+    images = []
+    for passes in (["combined", "guiding_lobes", "guiding_regions"], ["combined", "guiding_regions"]):
+        s = pc.Session(SIZE, SIZE)
+        s.passes = passes
+        s.update(scene)
+        image, s = render(scene, spp=GUIDING["guiding_training_spp"] + 16, spp_per_frame=1, session=s, **GUIDING)
+        assert s.stats()["guiding_pipeline"] == 1
+        images.append(image)
+    assert np.array_equal(images[0], images[1])
+
+
 @pytest.mark.parametrize("fit", ["cpu", "device"])
 def test_refined_regions_reach_the_shaders(fit):
     """Refinement grows the regions from 16 to over 200: the layout (node buffer, box order)

@@ -128,14 +128,15 @@ void Guiding::build_placeholder() {
 void Guiding::configure(const RenderParams& params, const TechniqueSetup& config, bool) {
     shows_passes_ = false;
     for (const PassInfo& p : guiding_table().passes) shows_passes_ = shows_passes_ || (config.passes >> p.index & 1u);
+    shows_lobes_ = config.passes >> PASS_GUIDING_LOBES & 1u;
     setup(params.guiding, config.scene, config.scene_version, params.seed, config.width, config.height,
           params.samples_per_frame);
 }
 
 // The region query of the Guiding Lobes pass' spheres: a miss shader and a procedural hit
-// group (intersection + closest-hit).
+// group (intersection + closest-hit), in the pipelines that show that pass only.
 void Guiding::add_shaders(uint32_t bits, PipelineShaders& s) const {
-    if (!(bits & TECH_GUIDING)) return;
+    if (!(bits & TECH_GUIDING_LOBES)) return;
     const uint32_t miss = s.add(VK_SHADER_STAGE_MISS_BIT_KHR, shader_guiding_query_miss());
     const uint32_t intersection = s.add(VK_SHADER_STAGE_INTERSECTION_BIT_KHR, shader_guiding_query_intersection());
     const uint32_t closest_hit = s.add(VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR, shader_guiding_query_closest_hit());

@@ -71,8 +71,10 @@ public:
     // Off once training is over where the field does not guide (mixture_sampled_) and no
     // guiding pass is shown: the frames then trace the plain pipeline, at its cost. (The device
     // fit's probabilities stay on the device: its tally tells, DeviceFit::mixture_sampled.)
+    // The Guiding Lobes pass adds TECH_GUIDING_LOBES: its region query and hit group.
     uint32_t spec_bit(bool) const override {
-        return enabled() && (records_render_frames() || mixture_sampled_ || shows_passes_) ? TECH_GUIDING : 0u;
+        if (!enabled() || !(records_render_frames() || mixture_sampled_ || shows_passes_)) return 0u;
+        return TECH_GUIDING | (shows_lobes_ ? TECH_GUIDING_LOBES : 0u);
     }
     void add_shaders(uint32_t bits, PipelineShaders& shaders) const override;
     std::vector<uint32_t> tlas_bindings() const override { return {BINDING_GUIDING_TLAS}; }
@@ -135,6 +137,7 @@ private:
     // fit's) or thins NEE where most vertices are (GuidingField::guides).
     bool mixture_sampled_ = false;
     bool shows_passes_ = false;    // a guiding pass is in the film
+    bool shows_lobes_ = false;     // ... the Guiding Lobes pass
     mutable std::future<void> fit_;      // the fit in flight (worker thread), if any
     mutable bool fitted_ = false;        // a finished fit whose mixtures are not uploaded yet
     mutable GuidingStats stats_;
