@@ -71,6 +71,16 @@ def band_rows(rows, seconds, height):
     return max(1, min(height, int(rows * scale)))
 
 
+def film_passes(core_passes, denoise=None):
+    """The passes an F12 keeps in its film: the core passes of the enabled Blender passes
+    (Noisy Image is the film's Combined) and the denoiser's inputs. They decide some
+    pipelines too (the Guiding Lobes pass has its own), so the warm-up asks for the same."""
+    film = set(core_passes) - {"noisy_image"}
+    if denoise:
+        film |= set(core.load().denoise.film_passes(denoise))
+    return film
+
+
 class _Worker(threading.Thread):
     """Renders frames until the sample count, the time limit or ``stop()``; keeps snapshots.
     With ``denoise`` (the denoising settings {name: value}, use_denoising on) the last
@@ -84,9 +94,8 @@ class _Worker(threading.Thread):
         self.samples = samples  # the target (frames rendered while a technique compiled do not count)
         self.time_limit = time_limit
         self.denoise = denoise
-        self.core_passes = self.wanted_passes = set(core_passes) - {"noisy_image"}
-        if denoise:
-            self.core_passes |= set(core.load().denoise.film_passes(denoise))
+        self.wanted_passes = set(core_passes) - {"noisy_image"}
+        self.core_passes = film_passes(core_passes, denoise)
         self.denoising = False  # the denoiser runs now (the status line says so)
         self.denoised = False   # the last snapshot's Combined is denoised
         self.denoise_message = None  # why it is not (no OIDN, an OIDN error), or the denoiser used

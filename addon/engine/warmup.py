@@ -12,17 +12,19 @@ import threading
 
 import bpy
 
-from .. import core, sync
+from .. import core, passes, sync
+from .final import film_passes
 
 WARM_PIXELS = 8
 _thread = None  # the last warm-up's worker: one at a time
 _owner = object()  # msgbus subscription owner
 
 
-def _warm(data, params, device):
+def _warm(data, params, device, film):
     try:
         parallax_core = core.load()
         session = parallax_core.Session(WARM_PIXELS, WARM_PIXELS, device)
+        session.passes = sorted(film)  # F12's film: some passes have pipelines of their own
         session.set_params(**params)
         session.update(data)
         session.warm()
@@ -41,11 +43,14 @@ def warm_scene(scene=None):
         depsgraph = bpy.context.evaluated_depsgraph_get()
         data, _ = sync.export_scene(depsgraph, WARM_PIXELS, WARM_PIXELS)
         params = scene.parallax.render_params()
+        settings = scene.parallax
+        film = film_passes({p.core for p in passes.enabled(scene, bpy.context.view_layer)},
+                           settings.engine_values() if settings.use_denoising else None)
     except Exception:  # noqa: BLE001 - an export error is reported by the render itself
         return None
     # Not a daemon: the interpreter's exit waits for its upload rather than unwinding it
     # inside a native call.
-    _thread = threading.Thread(target=_warm, args=(data, params, scene.parallax.device), name="parallax-warm")
+    _thread = threading.Thread(target=_warm, args=(data, params, scene.parallax.device, film), name="parallax-warm")
     _thread.start()
     return _thread
 

@@ -243,3 +243,23 @@ def test_scene_past_the_memory_budget_is_an_error_report(fresh, bpy, tmp_path):
     image.scale(64, 64)
     render(bpy, tmp_path / "fits.exr")
     assert not final.last_report.errors and final.last_report.samples == fresh.parallax.samples
+
+
+def test_warm_up_asks_for_the_film_of_f12(fresh, bpy, monkeypatch):
+    """The warm-up compiles the pipelines of the film an F12 of the view layer keeps: some
+    passes have pipelines of their own (Guiding Lobes), so warming another film would leave
+    F12's guided pipeline cold."""
+    from addon.engine import warmup
+
+    films = []
+    monkeypatch.setattr(warmup, "_warm", lambda data, params, device, film: films.append(film))
+    scene = bpy.context.scene
+    scene.parallax.guiding = True
+    scene.parallax.use_denoising = False
+    for lobes in (False, True):
+        bpy.context.view_layer.parallax.use_pass_guiding_lobes = lobes
+        warmup.warm_scene(scene).join()
+    assert "combined" in films[0] and films[1] - films[0] == {"guiding_lobes"}
+    scene.parallax.use_denoising = True  # F12 keeps the denoiser's inputs too
+    warmup.warm_scene(scene).join()
+    assert films[2] == final.film_passes(films[1], scene.parallax.engine_values())

@@ -43,14 +43,23 @@ WARM_CHILD = textwrap.dedent("""
     import parallax_core as pc
     from parallax_core import scenes
 
-    s = pc.Session(16, 16, "cpu")
-    s.update(scenes.cornell_box(16, 16))
-    s.set_params(method="nee", guiding=True)
+    def session():  # as the add-on's warm-up and its F12: the film of a default view layer
+        s = pc.Session(16, 16, "cpu")
+        s.passes = ["combined"]
+        s.update(scenes.cornell_box(16, 16))
+        s.set_params(method="nee", guiding=True, samples_per_frame=1)
+        return s
+
+    s = session()
     s.warm()
     started = pc.background_compiles()
     ready_at_once = s.pipeline_ready
     pc.wait_for_background_compiles()
-    print(json.dumps({"started": started, "ready_at_once": ready_at_once, "ready": s.pipeline_ready}))
+    f12 = session()
+    f12.background_compile = True
+    f12.render(1)
+    print(json.dumps({"started": started, "ready_at_once": ready_at_once, "ready": s.pipeline_ready,
+                      "f12_fallback_samples": f12.stats()["fallback_samples"]}))
 """)
 
 
@@ -83,3 +92,4 @@ def test_warm_compiles_in_the_background_and_returns_at_once():
     r = run_child(WARM_CHILD)
     assert r["started"] == 1 and not r["ready_at_once"]
     assert r["ready"]
+    assert r["f12_fallback_samples"] == 0  # the F12 after it found its pipeline warm
