@@ -59,6 +59,8 @@ def switch_frames(method: str, npz: str = "", width: int = 960, height: int = 60
     scene = SceneData.load(npz) if npz else scenes.cornell_box(width, height)
     session = pc.Session(scene.width, scene.height)
     session.background_compile = True
+    # The viewport's full-size film while it shows Combined (viewport.py, _film_passes).
+    session.passes = [p.name for p in pc.PASSES if p.core and p.name != "guiding_lobes"]
     session.update(scene)
     session.set_params(**{**converge.method_params("mis"), "samples_per_frame": 1, "seed": 0})
     for _ in range(3):

@@ -135,7 +135,8 @@ class _Worker(threading.Thread):
             if denoise is not False:
                 self._denoise = denoise
             if display is not None and display != self._display:
-                # Another pass of the same session: shown from the next frame on, samples kept.
+                # Another pass of the same session: shown from the next frame on, samples kept
+                # (Guiding Lobes aside: _film_passes).
                 self._display, self._display_changed = display, True
             if scene is not None:
                 self._scene = scene
@@ -254,6 +255,7 @@ class _Worker(threading.Thread):
                                       else _without_techniques(params)))
                 if edited:
                     session.update(scene, parts=None if session_parts is None else sorted(session_parts))
+        self._full.passes = self._film_passes()  # a change starts the film over
         with self._lock:  # a stop() before this returns here; one after it cancels these sessions
             if self._stopped:
                 return False
@@ -322,6 +324,16 @@ class _Worker(threading.Thread):
             if self._frame_seconds / (factor * factor) <= PREVIEW_SECONDS:
                 return factor
         return 8
+
+    def _film_passes(self):
+        """The full-size session's film: every pass, so that another Viewport Pass shows at
+        once with the samples kept, but Guiding Lobes only while it is shown. That pass has
+        pipelines of its own (TECH_GUIDING_LOBES: a ray into the regions' TLAS per pixel),
+        which every guided frame would pay for (lavapipe: twice the cold compile, frames
+        1.2x); showing it starts the film over, the trained field kept."""
+        display = self._display
+        return [p.name for p in core.load().PASSES
+                if p.core and (p.name != "guiding_lobes" or display == "guiding_lobes")]
 
     def _denoise_passes(self):
         """The film passes the viewport's denoiser reads (none with denoising off)."""

@@ -46,7 +46,8 @@ def test_viewport_pass_switches_without_a_restart(fresh):
 
 def test_viewport_worker_shows_a_guiding_pass_live():
     """The viewport worker publishes the chosen pass of its full-size session (RGBA, grey for one
-    channel), and switching back to Combined keeps the samples and the trained field."""
+    channel). Switching from Guiding Lobes, which has pipelines of its own, starts the film over
+    without it; switching between the other passes keeps the samples and the trained field."""
     import time
 
     from addon.engine import viewport
@@ -71,9 +72,11 @@ def test_viewport_worker_shows_a_guiding_pass_live():
         assert pixel_size == 1 and samples == 8 and lobes.shape == (16, 16, 4)
         np.testing.assert_array_equal(lobes[..., :3], session.read("guiding_lobes"))
         assert np.allclose(lobes[6, 6, :3], 1.0)  # the probe's cross
-        fits = session.stats()["guiding_region_fits"]
+        assert "guiding_lobes" in session.passes
         worker.submit(display="guiding_components")
         wait_done()
+        assert "guiding_lobes" not in session.passes and "guiding_regions" in session.passes
+        fits = session.stats()["guiding_region_fits"]
         components = worker.frame[0]
         np.testing.assert_array_equal(components[..., 0], session.read("guiding_components")[..., 0])
         assert np.array_equal(components[..., 0], components[..., 2]) and (components[..., 3] == 1).all()
