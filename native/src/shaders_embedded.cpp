@@ -12,6 +12,7 @@
 #include "miss.spv.h"
 #include "preview.spv.h"
 #include "raygen.spv.h"
+#include "raygen_split_loops.spv.h"
 #include "sampling_test.spv.h"
 #include "shadow_miss.spv.h"
 
@@ -22,6 +23,7 @@ namespace px {
         return code;                                                                        \
     }
 PX_SHADER(raygen)
+PX_SHADER(raygen_split_loops)
 PX_SHADER(preview)
 PX_SHADER(closesthit)
 PX_SHADER(self_skip_any_hit)

@@ -5,6 +5,7 @@
 
 namespace px {
 const std::vector<uint32_t>& shader_raygen();
+const std::vector<uint32_t>& shader_raygen_split_loops();  // raygen.rgen with PX_SPLIT_LOOPS (SPLIT_WALK 0)
 const std::vector<uint32_t>& shader_preview();
 const std::vector<uint32_t>& shader_closesthit();
 const std::vector<uint32_t>& shader_self_skip_any_hit();

@@ -24,6 +24,9 @@
 //   PAYLOAD_RESERVE     vec4s of the payload the raygen declares and never traces (integrator.glsl,
 //                       payload_reserve): NVIDIA's compiler makes different code by it; 1 on
 //                       lavapipe and where no other size measured faster
+//   SPLIT_WALK          which build of raygen.rgen the camera program runs (no GLSL reads it): 1,
+//                       ADRRS' split dispatch walks its queue through main()'s one trace_path call
+//                       (lavapipe); 0, PX_SPLIT_LOOPS: loops of its own with a second call (GPUs)
 #define PX_SPEC_CONSTANTS(X)                              \
     X(0, METHOD, method, METHOD_MIS)                      \
     X(1, MIS_HEURISTIC, heuristic, HEURISTIC_POWER)       \
@@ -32,8 +35,9 @@
     X(4, EMPTY_SHADOW_CALLS, empty_shadow_calls, 1u)      \
     X(5, LIGHT_PATH_LIMITS, light_path_limits, LIMIT_ALL) \
     X(6, FILTER_FROM_TABLE, filter_from_table, 1u)        \
-    X(7, ADAPTIVE_SAMPLING, adaptive_sampling, 1u)      \
-    X(8, PAYLOAD_RESERVE, payload_reserve, 1u)
+    X(7, ADAPTIVE_SAMPLING, adaptive_sampling, 1u)        \
+    X(8, PAYLOAD_RESERVE, payload_reserve, 1u)            \
+    X(9, SPLIT_WALK, split_walk, 1u)
 
 #ifdef __cplusplus
 #include <array>

@@ -125,6 +125,21 @@ def test_same_seed_same_image():
     assert s.read("adrrs_splits").max() > 0
 
 
+def test_split_walk_and_split_loops_trace_the_same_paths(monkeypatch):
+    """The split dispatch has two loop shapes, chosen per device (raygen.rgen, SPLIT_WALK): the
+    walk through the camera loop's trace_path call (lavapipe) and loops with a call of their own
+    (GPUs). They trace the same copies in the same order, bit for bit: the GPUs' shape is run
+    here on lavapipe through PARALLAX_SPLIT_WALK."""
+    scene = scenes.cornell_box(SIZE, SIZE)
+    images = []
+    for walk in ("1", "0"):
+        monkeypatch.setenv("PARALLAX_SPLIT_WALK", walk)
+        image, s = render(scene, "mis", spp=8, spp_per_frame=4, seed=3, **ADRRS)
+        assert s.read("adrrs_splits").max() > 0
+        images.append(image)
+    assert same_render(images[0], images[1], s.device_type)
+
+
 def test_max_splits_bounds_the_copies():
     scene = scenes.cornell_box(SIZE, SIZE)
     _, s = render(scene, "mis", spp=8, spp_per_frame=4, **ADRRS, adrrs_window=1.0, adrrs_max_splits=2)

@@ -283,16 +283,26 @@ static uint32_t gpu_payload_reserve(const SpecConstants& c) {
     return c.method == METHOD_PT ? 2u : 1u;
 }
 
+// ADRRS' split dispatch: lavapipe walks the queue through the camera loop's trace_path call,
+// GPUs loop over it with a call of their own (raygen.rgen). PARALLAX_SPLIT_WALK (0 or 1)
+// overrides it: the tests compare the two shapes on lavapipe, and benches measure them.
+static uint32_t split_walk(const Context& ctx) {
+    if (const char* env = std::getenv("PARALLAX_SPLIT_WALK"); env && (env == std::string("0") || env == std::string("1")))
+        return env[0] == '1' ? 1u : 0u;
+    return ctx.is_cpu() ? 1u : 0u;
+}
+
 // The program and its specialisation constants (shaders/shared/specialization.h); the preview
 // program uses the scene features only. A technique's bit may differ between render frames and
 // host frames (Technique::spec_bit). GPUs make empty shadow calls, lavapipe does not
-// (integrator.glsl, trace_pending_shadow). A one-pixel box filter needs no table. On GPUs a
+// (integrator.glsl, trace_pending_shadow); split_walk. A one-pixel box filter needs no table. On GPUs a
 // pipeline carries adaptive sampling only where it is on; lavapipe's always does (a variant
 // more is a slow cold compile there, for a gain not measured on it).
 PipelineKey Session::pipeline_key(uint32_t program, bool render_frame) const {
     SpecConstants c;
     c.features = scene_->host().features;
     c.empty_shadow_calls = ctx_->is_cpu() ? 0u : 1u;
+    c.split_walk = split_walk(*ctx_);
     if (program == PROGRAM_PREVIEW) {
         c.method = c.heuristic = c.techniques = c.light_path_limits = c.filter_from_table = c.adaptive_sampling = 0u;
         return {program, c};
@@ -435,7 +445,9 @@ Session::PipelineRecipe Session::pipeline_shaders(const PipelineKey& key) const 
     // (HIT_GROUP_*). A technique's shaders are left out of pipelines that never use it (less
     // to compile).
     PipelineShaders shaders;
-    const std::vector<uint32_t>* raygen = program == PROGRAM_PREVIEW ? &shader_preview() : &shader_raygen();
+    const std::vector<uint32_t>* raygen = program == PROGRAM_PREVIEW ? &shader_preview()
+                                          : key.second.split_walk ? &shader_raygen()
+                                                                  : &shader_raygen_split_loops();
     for (const auto& t : techniques_)
         if (const std::vector<uint32_t>* own = t->raygen(program)) raygen = own;
     shaders.add(VK_SHADER_STAGE_RAYGEN_BIT_KHR, *raygen);
