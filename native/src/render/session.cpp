@@ -287,17 +287,19 @@ static uint32_t gpu_payload_reserve(const SpecConstants& c) {
 // GPUs loop over it with a call of their own (raygen.rgen). PARALLAX_SPLIT_WALK (0 or 1)
 // overrides it: the tests compare the two shapes on lavapipe, and benches measure them.
 static uint32_t split_walk(const Context& ctx) {
-    if (const char* env = std::getenv("PARALLAX_SPLIT_WALK"); env && (env == std::string("0") || env == std::string("1")))
-        return env[0] == '1' ? 1u : 0u;
+    const char* env = std::getenv("PARALLAX_SPLIT_WALK");
+    const std::string value = env ? env : "";
+    if (value == "0" || value == "1") return value == "1" ? 1u : 0u;
     return ctx.is_cpu() ? 1u : 0u;
 }
 
 // The program and its specialisation constants (shaders/shared/specialization.h); the preview
 // program uses the scene features only. A technique's bit may differ between render frames and
 // host frames (Technique::spec_bit). GPUs make empty shadow calls, lavapipe does not
-// (integrator.glsl, trace_pending_shadow); split_walk. A one-pixel box filter needs no table. On GPUs a
-// pipeline carries adaptive sampling only where it is on; lavapipe's always does (a variant
-// more is a slow cold compile there, for a gain not measured on it).
+// (integrator.glsl, trace_pending_shadow), and they trace ADRRS' split queue in loops of
+// their own (split_walk). A one-pixel box filter needs no table. On GPUs a pipeline carries
+// adaptive sampling only where it is on; lavapipe's always does (a variant more is a slow
+// cold compile there, for a gain not measured on it).
 PipelineKey Session::pipeline_key(uint32_t program, bool render_frame) const {
     SpecConstants c;
     c.features = scene_->host().features;
