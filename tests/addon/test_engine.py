@@ -263,3 +263,37 @@ def test_warm_up_asks_for_the_film_of_f12(fresh, bpy, monkeypatch):
     scene.parallax.use_denoising = True  # F12 keeps the denoiser's inputs too
     warmup.warm_scene(scene).join()
     assert films[2] == final.film_passes(films[1], scene.parallax.engine_values())
+
+
+def test_warm_up_renders_a_frame_after_its_compiles(fresh, bpy, monkeypatch):
+    """lavapipe compiles a pipeline's code at its first dispatch: the warm-up session renders a
+    frame after warm(), so that the first F12 finds the code made, not only the pipeline."""
+    from addon import core
+    from addon.engine import warmup
+
+    calls, Session = [], core.load().Session
+
+    class Recording:  # a Session that lists what is called or set on it
+        def __init__(self, *args):
+            self.session = Session(*args)
+
+        def __getattr__(self, name):
+            attr = getattr(self.session, name)
+            if not callable(attr):
+                return attr
+
+            def call(*args, **kwargs):
+                calls.append(name)
+                return attr(*args, **kwargs)
+            return call
+
+        def __setattr__(self, name, value):
+            if name == "session":
+                object.__setattr__(self, name, value)
+            else:
+                calls.append(name)
+                setattr(self.session, name, value)
+
+    monkeypatch.setattr(core.load(), "Session", Recording)
+    warmup.warm_scene(bpy.context.scene).join()
+    assert calls[-2:] == ["warm", "render"], calls
