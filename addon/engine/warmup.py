@@ -46,15 +46,15 @@ def warm_scene(scene=None):
     try:
         depsgraph = bpy.context.evaluated_depsgraph_get()
         data, _ = sync.export_scene(depsgraph, WARM_PIXELS, WARM_PIXELS)
-        params = scene.parallax.render_params()
         settings = scene.parallax
+        params = settings.render_params()
         film = film_passes({p.core for p in passes.enabled(scene, bpy.context.view_layer)},
                            settings.engine_values() if settings.use_denoising else None)
     except Exception:  # noqa: BLE001 - an export error is reported by the render itself
         return None
     # Not a daemon: the interpreter's exit waits for its upload rather than unwinding it
     # inside a native call.
-    _thread = threading.Thread(target=_warm, args=(data, params, scene.parallax.device, film), name="parallax-warm")
+    _thread = threading.Thread(target=_warm, args=(data, params, settings.device, film), name="parallax-warm")
     _thread.start()
     return _thread
 
