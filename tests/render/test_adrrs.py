@@ -159,6 +159,21 @@ def test_toggle_resets_and_scene_edit_remakes_the_estimate():
     assert s.stats()["samples"] == 0 and s.stats()["adrrs_estimate_frames"] == 0
 
 
+def test_render_frames_leave_the_cache_alone():
+    """The cache ADRRS builds alone is done once prepared: its render frames queue no requests,
+    and refreshes would never reach the adjoint grid (remade when the entries grow). No host
+    step, no hemisphere job after the estimate frames."""
+    scene = scenes.cornell_box(SIZE, SIZE)
+    _, s = render(scene, "mis", spp=4, spp_per_frame=4, **ADRRS)
+    before = s.stats()
+    assert before["ic_entries"] > 0 and before["ic_jobs"] > 0 and before["adrrs_adjoint_builds"] > 0
+    s.render(4)
+    after = s.stats()
+    assert after["samples"] == before["samples"] + 16
+    for stat in ("ic_host_steps", "ic_jobs", "ic_entries", "adrrs_adjoint_builds"):
+        assert after[stat] == before[stat], (stat, before[stat], after[stat])
+
+
 @pytest.mark.parametrize("name,value", [("adrrs_window", 0.5), ("adrrs_rr_min", 0.0), ("adrrs_rr_min", 1.5),
                                         ("adrrs_max_splits", 65), ("adrrs_estimate_spp", 0),
                                         ("adrrs_estimate", "blur"), ("adrrs", 2), ("adrrs", "adrrs"),

@@ -331,8 +331,12 @@ void IrradianceCache::end_host_frame(TechniqueHost& host, const FrameParams& fra
 }
 
 bool IrradianceCache::steps_after_frame(uint64_t samples) const {
-    if (!enabled() || left_) return false;
-    if (!params_.shade || params_.mode != IC_MODE_CONSISTENT) return true;
+    // Built for ADRRS alone (no shade), the cache is done once prepared: render frames queue
+    // no requests (their pipelines lack TECH_IC), and ADRRS' adjoint grid is remade only when
+    // the entries grow (Adrrs::update_adjoint), which refreshes do not. Stepping after every
+    // frame refreshed entries nothing read: up to kMaxRefreshes hemisphere jobs per frame.
+    if (!enabled() || left_ || !params_.shade) return false;
+    if (params_.mode != IC_MODE_CONSISTENT) return true;
     return samples >= next_snapshot_ || samples >= stepped_samples_ + uint64_t(step_frames_) * samples_per_frame_;
 }
 

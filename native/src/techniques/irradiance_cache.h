@@ -100,7 +100,7 @@ public:
     bool needs_host_frame() const override { return enabled() && prepared_frames_ < params_.prepare_frames; }
     void begin_host_frame(FrameParams& frame) const override;
     void end_host_frame(TechniqueHost& host, const FrameParams& frame, double milliseconds) override;
-    // After every frame in thesis mode and where it is built for ADRRS alone. In consistent mode
+    // After every frame in thesis mode; never where it is built for ADRRS alone. In consistent mode
     // the host step (creation, refreshes, the grid) waits twice as many frames each time, up
     // to kMaxStepFrames, from one frame after preparation and after each camera move; the
     // snapshots (take_snapshot) come at their powers of two. None once `left_`.
