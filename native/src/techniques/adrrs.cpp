@@ -117,7 +117,7 @@ void Adrrs::write_params(TechniqueParams& params) const {
 
 void Adrrs::record_after_trace(const FrameParams& frame,
                                const std::function<void(const FrameParams&)>& retrace) const {
-    if (!enabled()) return;
+    if (!splits()) return;
     FrameParams splits = frame;
     splits.mode = FRAME_ADRRS_SPLITS;
     retrace(splits);

@@ -45,12 +45,12 @@ public:
     // H200: 1.5x a MIS frame with no split, bench/results/gpu_rrs). The copies stay within
     // the split budget (max_splits per sample); on the bench scenes a sample makes 0.01-0.3
     // of them on average, 1.1-1.4 through glass (bench/results/cpu_rrs).
-    uint64_t copies_per_sample() const override {
-        return enabled() && params_.splitting && params_.max_splits > 0 ? 2 : 1;
-    }
-    // Each camera dispatch starts with an empty split queue and is followed by the split
-    // dispatch (FRAME_ADRRS_SPLITS), which traces the copies, and the sums dispatch
-    // (FRAME_ADRRS_SPLIT_SUMS), which adds them to the film; both over the same launch size.
+    uint64_t copies_per_sample() const override { return splits() ? 2 : 1; }
+    // Whether paths may split (else the split queue stays empty and its dispatches are skipped).
+    bool splits() const { return enabled() && params_.splitting && params_.max_splits > 0; }
+    // Each camera dispatch starts with an empty split queue and, where paths may split, is
+    // followed by the split dispatch (FRAME_ADRRS_SPLITS), which traces the copies, and the sums
+    // dispatch (FRAME_ADRRS_SPLIT_SUMS), which adds them to the film; both over the same launch size.
     void record_before_trace(VkCommandBuffer cmd) const override;
     void record_after_trace(const FrameParams& frame,
                             const std::function<void(const FrameParams&)>& retrace) const override;
