@@ -143,3 +143,32 @@ def test_lavapipe_runs_four_lanes_with_the_same_images(tmp_path):
     _, chosen, wide = child("256", "wide")
     assert width == "128" and chosen == "256"
     assert ours == wide
+
+
+CACHE_PARTS = """
+import ctypes, parallax_core as pc
+getenv = ctypes.CDLL(None).getenv
+getenv.restype = ctypes.c_char_p
+s = pc.Session(8, 8)
+print(s.device_type, getenv(b"MESA_DISK_CACHE_DATABASE_NUM_PARTS").decode())
+"""
+
+
+def test_mesa_keeps_its_shader_cache_in_one_part(tmp_path):
+    # Mesa's cache database caps each of its 50 parts at 1/50 of the cache and fills one part
+    # at a time: about a hundred pipelines, then evictions. The core asks for one part (the
+    # whole cache) unless the user chose a number; Mesa lays the cache out so.
+    def child(parts, cache):
+        env = {k: v for k, v in os.environ.items() if k != "MESA_DISK_CACHE_DATABASE_NUM_PARTS"}
+        env["MESA_SHADER_CACHE_DIR"] = str(tmp_path / cache)
+        if parts:
+            env["MESA_DISK_CACHE_DATABASE_NUM_PARTS"] = parts
+        run = subprocess.run([sys.executable, "-c", CACHE_PARTS], capture_output=True, text=True, timeout=300, env=env)
+        assert run.returncode == 0, run.stderr
+        return run.stdout.split(), sorted(p.name for p in (tmp_path / cache / "mesa_shader_cache_db").glob("part*"))
+    (device, ours), ours_layout = child(None, "ours")
+    if device != "cpu":
+        pytest.skip("a GPU: no Mesa cache")
+    (_, chosen), chosen_layout = child("3", "chosen")
+    assert (ours, ours_layout) == ("1", ["part0"])
+    assert (chosen, chosen_layout) == ("3", ["part0", "part1", "part2"])

@@ -41,14 +41,20 @@ static const std::vector<const char*> kRequiredExtensions = {
 // Its shaders run 8 invocations per SIMD group at the default 256-bit vectors; rays diverge,
 // and the group runs its slowest lane's traversal and path to the end. At 128 bits (4 lanes)
 // whole renders take 5-9% less time, images bit for bit the same
-// (bench/results/lavapipe_vector_width). Both are set once, before the first instance,
-// unless the user chose a value (Mesa reads them once per process).
+// (bench/results/lavapipe_vector_width).
+// Mesa's shader cache (a database in 50 parts by default) writes into one part until another
+// process holds its lock, and caps each part at 1/50 of the cache's 1 GB: 21 MB, about a
+// hundred of our pipelines. Past that it evicts them, and they compile cold again (in a cold
+// `make test` the last third of them, and those of every later run). One part holds the
+// whole 1 GB. All three are set once, before the first instance, unless the user chose a
+// value (Mesa reads them once per process).
 static void tune_lavapipe() {
     static std::once_flag once;
     std::call_once(once, [] {
         unsigned threads = std::min(4u * std::max(1u, std::thread::hardware_concurrency()), 32u);
         setenv("LP_NUM_THREADS", std::to_string(threads).c_str(), 0);
         setenv("LP_NATIVE_VECTOR_WIDTH", "128", 0);
+        setenv("MESA_DISK_CACHE_DATABASE_NUM_PARTS", "1", 0);
     });
 }
 
