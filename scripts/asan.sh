@@ -5,7 +5,8 @@
 # sanitizers' logs, failing on any error and on any leak with a frame in the core.
 # Usage: scripts/asan.sh [PYTHON] [--ci] [pytest args...]
 #   default: .venv/bin/python, the unit and render tiers (`make asan`);
-#   --ci: the unit tier and CI_RENDER below, a render subset that runs every technique (.ci/run).
+#   --ci: the unit tier (but the bench tools' and the Mitsuba peer's tests) and CI_RENDER below,
+#         a render subset that runs every technique (.ci/run).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${1:-.venv/bin/python}
@@ -32,7 +33,12 @@ TESTS=("$@")
 if [ "${1:-}" = --ci ]; then
   # Two workers, as make test has: CI's whole run (make test, then this) took 29.6 min on
   # serial sanitizer tests on a slower 2-core machine (12.5 of them here).
-  TESTS=(-n 2 --dist loadfile tests/unit "${CI_RENDER[@]}" "${@:2}")
+  # The unit tier but the bench tools' and the Mitsuba peer's tests: they time or compare
+  # renders (Cycles and Mitsuba under the preloaded sanitizers, 2-3x their time) whose
+  # Parallax side is plain MIS, which the render subset runs. make asan runs them.
+  TESTS=(-n 2 --dist loadfile tests/unit --ignore=tests/unit/test_bench_converge.py
+         --ignore=tests/unit/test_bench_smoke.py --ignore=tests/unit/test_mitsuba_peer.py
+         "${CI_RENDER[@]}" "${@:2}")
 fi
 [ ${#TESTS[@]} -gt 0 ] || TESTS=(tests/unit tests/render)
 BUILD=build-asan
