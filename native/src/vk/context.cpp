@@ -44,8 +44,8 @@ static const std::vector<const char*> kRequiredExtensions = {
 // (bench/results/lavapipe_vector_width).
 // Mesa's shader cache (a database in 50 parts by default) writes into one part until another
 // process holds its lock, and caps each part at 1/50 of the cache's 1 GB: 21 MB, about a
-// hundred of our pipelines. Past that it evicts them, and they compile cold again (in a cold
-// `make test` the last third of them, and those of every later run). One part holds the
+// hundred of our pipelines. Past that it evicts them, and they compile cold again (after a
+// whole `make test`, an ADRRS test's pipelines did: README, Robustness). One part holds the
 // whole 1 GB. All three are set once, before the first instance, unless the user chose a
 // value (Mesa reads them once per process).
 static void tune_lavapipe() {
