@@ -126,21 +126,25 @@ print(s.device_type, getenv(b"LP_NATIVE_VECTOR_WIDTH").decode(), hashlib.sha256(
 """
 
 
+def run_with_mesa_setting(script, name, value, cache):
+    """stdout's words of `script` in a child process whose environment sets Mesa's `name` to
+    `value` (None: unset, the core's choice), with a shader cache of its own at `cache`."""
+    env = {k: v for k, v in os.environ.items() if k != name}
+    env["MESA_SHADER_CACHE_DIR"] = str(cache)
+    if value:
+        env[name] = value
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=600, env=env)
+    assert run.returncode == 0, run.stderr
+    return run.stdout.split()
+
+
 def test_lavapipe_runs_four_lanes_with_the_same_images(tmp_path):
     # The core sets LP_NATIVE_VECTOR_WIDTH=128 (fewer lanes idle per SIMD group: 5-9% faster
     # renders) unless the user chose a width; the images are bit for bit those of 256 bits.
-    def child(width, cache):
-        env = {k: v for k, v in os.environ.items() if k != "LP_NATIVE_VECTOR_WIDTH"}
-        env["MESA_SHADER_CACHE_DIR"] = str(tmp_path / cache)
-        if width:
-            env["LP_NATIVE_VECTOR_WIDTH"] = width
-        run = subprocess.run([sys.executable, "-c", VECTOR_WIDTH], capture_output=True, text=True, timeout=600, env=env)
-        assert run.returncode == 0, run.stderr
-        return run.stdout.split()
-    device, width, ours = child(None, "default")
+    device, width, ours = run_with_mesa_setting(VECTOR_WIDTH, "LP_NATIVE_VECTOR_WIDTH", None, tmp_path / "default")
     if device != "cpu":
         pytest.skip("a GPU: no lavapipe to tune")
-    _, chosen, wide = child("256", "wide")
+    _, chosen, wide = run_with_mesa_setting(VECTOR_WIDTH, "LP_NATIVE_VECTOR_WIDTH", "256", tmp_path / "wide")
     assert width == "128" and chosen == "256"
     assert ours == wide
 
@@ -159,13 +163,8 @@ def test_mesa_keeps_its_shader_cache_in_one_part(tmp_path):
     # at a time: about a hundred pipelines, then evictions. The core asks for one part (the
     # whole cache) unless the user chose a number; Mesa lays the cache out so.
     def child(parts, cache):
-        env = {k: v for k, v in os.environ.items() if k != "MESA_DISK_CACHE_DATABASE_NUM_PARTS"}
-        env["MESA_SHADER_CACHE_DIR"] = str(tmp_path / cache)
-        if parts:
-            env["MESA_DISK_CACHE_DATABASE_NUM_PARTS"] = parts
-        run = subprocess.run([sys.executable, "-c", CACHE_PARTS], capture_output=True, text=True, timeout=300, env=env)
-        assert run.returncode == 0, run.stderr
-        return run.stdout.split(), sorted(p.name for p in (tmp_path / cache / "mesa_shader_cache_db").glob("part*"))
+        words = run_with_mesa_setting(CACHE_PARTS, "MESA_DISK_CACHE_DATABASE_NUM_PARTS", parts, tmp_path / cache)
+        return words, sorted(p.name for p in (tmp_path / cache / "mesa_shader_cache_db").glob("part*"))
     (device, ours), ours_layout = child(None, "ours")
     if device != "cpu":
         pytest.skip("a GPU: no Mesa cache")
