@@ -7,7 +7,9 @@ per frame against plain path tracing on one device (the ratios, not the rates, c
 
 Methods are bench.converge's (its method_params: guiding keeps training, as in a guided
 render). Each gets a fresh session with the frame's samples (`--spp`), two warm-up frames,
-then as many frames as fit in `--seconds`. Scenes come from
+then as many frames as fit in `--seconds`. Beside the milliseconds: the rays a frame traced
+(the session's `rays` stat; a method that ends paths early traces fewer) and the rays per
+second, which tells a method's cost per ray from the work it saves. Scenes come from
 `bench.converge --export-only --npz DIR --width 320`. Against an older build (bench/regression.py)
 that lacks some technique's settings, a method that uses none of the techniques runs without them;
 a build from before the setting rrs (issue 34) takes rrs off / adrrs as its switch adrrs.
@@ -60,11 +62,14 @@ def frame_ms(scene, device, spp, params, seconds=1.0, passes=None):
     session.set_params(samples_per_frame=spp, max_depth=MAX_DEPTH, depth_leeway=0, seed=0, **params)
     session.update(scene)
     session.render(2)
+    rays_before = dict(session.stats()).get("rays", 0)
     frames, start = 0, time.perf_counter()
     while time.perf_counter() - start < seconds:
         session.render(1)
         frames += 1
-    return 1e3 * (time.perf_counter() - start) / frames, frames
+    elapsed = time.perf_counter() - start
+    rays = dict(session.stats()).get("rays", 0) - rays_before
+    return 1e3 * elapsed / frames, frames, rays / frames
 
 
 def main(argv=None):
@@ -93,17 +98,17 @@ def main(argv=None):
     if unknown:
         ap.error(f"unknown methods {unknown} (known: {', '.join(METHODS)})")
     table = {}
-    print("| scene | method | ms per frame | x PT |\n|---|---|---:|---:|")
+    print("| scene | method | ms per frame | x PT | M rays per frame | G rays/s |\n|---|---|---:|---:|---:|---:|")
     for name in args.scenes.split(","):
         scene = load_scene(name, 0, args.npz)
         pt = None
         for method in methods:
-            ms, frames = frame_ms(scene, args.device, args.spp, {**method_params(method), **overrides},
-                                 args.seconds, args.passes.split(",") if args.passes else None)
+            ms, frames, rays = frame_ms(scene, args.device, args.spp, {**method_params(method), **overrides},
+                                        args.seconds, args.passes.split(",") if args.passes else None)
             pt = ms if method == "pt" else pt
-            table[f"{name}/{method}"] = dict(ms=round(ms, 2), frames=frames)
+            table[f"{name}/{method}"] = dict(ms=round(ms, 2), frames=frames, rays_per_frame=round(rays))
             ratio = f"{ms / pt:.1f}" if pt else ""
-            print(f"| {name} | {method} | {ms:.1f} | {ratio} |", flush=True)
+            print(f"| {name} | {method} | {ms:.1f} | {ratio} | {rays / 1e6:.2f} | {rays / ms / 1e6:.3f} |", flush=True)
     if args.out:
         with open(args.out, "w") as f:
             json.dump(table, f, indent=1)
