@@ -68,7 +68,8 @@ THESIS_SUITE = ("atrium", "thesis_veach_mis", "cornell_dielectric", "clocks", "t
 # guiding_auto: MIS + path guiding at every guiding default (the row issue 35's goal is judged on).
 # mis_adaptive: MIS with adaptive sampling at its defaults (Cycles'; every other method: off).
 # mis_clean: F12's defaults (adaptive sampling and denoising on), the path length pinned.
-METHODS = ("pt", "nee", "mis", "ic", "ic_thesis", "ic_noupdate", "adrrs", "ears", "guiding", "guiding_pt",
+# ears_rr: MIS + EARS' roulette alone (adrrs_splitting off): what EARS' splits add.
+METHODS = ("pt", "nee", "mis", "ic", "ic_thesis", "ic_noupdate", "adrrs", "ears", "ears_rr", "guiding", "guiding_pt",
            "guiding_noparallax", "guiding_device", "guiding_pt_device", "guiding_auto", "mis_adaptive", "mis_clean")
 # cycles_clean: Cycles with its F12 defaults (adaptive sampling, OIDN), the path length pinned.
 PEERS = ("cycles", "cycles_guiding", "cycles_clean", "mitsuba")
@@ -271,6 +272,8 @@ def _method_params(method):
                     adaptive_min_samples=defaults.adaptive_min_samples)
     if method in ("adrrs", "ears"):  # MIS with the RRS method of that name
         return dict(off, method="mis", rrs=method)
+    if method == "ears_rr":
+        return dict(off, method="mis", rrs="ears", adrrs_splitting=False)
     if method == "guiding_auto":  # exactly guiding's defaults (training, fit, probability)
         return dict({k: v for k, v in off.items() if not k.startswith("guiding_")}, method="mis", guiding=True)
     if method.startswith("guiding"):
@@ -312,7 +315,7 @@ def render_parallax(scene, method, seconds, device, reference, label, seed=0):
     # reports, ADRRS' splits; mis_clean: what its denoiser reads as well). A technique that
     # shows no pass of its own may leave the pipeline once it stops paying.
     if method != "mis_clean":
-        session.passes = ["combined", "ray_depth"] + (["adrrs_splits"] if method in ("adrrs", "ears") else [])
+        session.passes = ["combined", "ray_depth"] + (["adrrs_splits"] if method in ("adrrs", "ears", "ears_rr") else [])
     params = dict(method_params(method), samples_per_frame=1, max_depth=MAX_DEPTH, depth_leeway=0, seed=seed)
     # Cache prepare, ADRRS estimate and guiding training frames first.
     prepares = params["ic"] or params["rrs"] != "off" or params["guiding"]

@@ -98,7 +98,7 @@ def main(argv=None):
     if unknown:
         ap.error(f"unknown methods {unknown} (known: {', '.join(METHODS)})")
     table = {}
-    print("| scene | method | ms per frame | x PT | M rays per frame | G rays/s |\n|---|---|---:|---:|---:|---:|")
+    print("| scene | method | ms per frame | x PT | M rays per frame | M rays/s |\n|---|---|---:|---:|---:|---:|")
     for name in args.scenes.split(","):
         scene = load_scene(name, 0, args.npz)
         pt = None
@@ -108,7 +108,7 @@ def main(argv=None):
             pt = ms if method == "pt" else pt
             table[f"{name}/{method}"] = dict(ms=round(ms, 2), frames=frames, rays_per_frame=round(rays))
             ratio = f"{ms / pt:.1f}" if pt else ""
-            print(f"| {name} | {method} | {ms:.1f} | {ratio} | {rays / 1e6:.2f} | {rays / ms / 1e6:.3f} |", flush=True)
+            print(f"| {name} | {method} | {ms:.1f} | {ratio} | {rays / 1e6:.3g} | {rays / ms / 1e3:.4g} |", flush=True)
     if args.out:
         with open(args.out, "w") as f:
             json.dump(table, f, indent=1)
