@@ -139,7 +139,8 @@ struct AdrrsParams {
     uint ears_active PX_DEFAULT(0);          // the factors hold statistics: paths decide by them
     float ears_scale PX_DEFAULT(1.0f);       // S: the image's mean luminance, the records' unit
     float ears_image_factor PX_DEFAULT(0.0f);  // sqrt(image cost / image relative variance)
-    float ears_pad0 PX_DEFAULT(0.0f), ears_pad1 PX_DEFAULT(0.0f), ears_pad2 PX_DEFAULT(0.0f);
+    uint ears_threads PX_DEFAULT(0);           // invocations with records in BINDING_EARS_RECORDS
+    float ears_pad1 PX_DEFAULT(0.0f), ears_pad2 PX_DEFAULT(0.0f);
 };
 
 // ---- EARS' statistics (BINDING_EARS_CELLS, BINDING_EARS_FACTORS) -----------------------------
@@ -151,8 +152,16 @@ PX_CONST float EARS_MAX_RECORD = 1e10;  // a record's (Lr/S)^2 is clamped here
 PX_CONST float EARS_MAX_VARIANCE = 1e4; // a pixel's relative variance per sample is clamped here
 // The metric EARS minimises is relMSE's, (x - I)^2 / (I^2 + EARS_EPSILON^2) per pixel: each
 // path weight and pixel variance is taken relative to sqrt(I^2 + EARS_EPSILON^2) (Rath et al.
-// take I + 1e-2; this is the relMSE of bench.converge and of Mueller et al.).
+// take I + 1e-2; this is Mueller et al.'s relMSE, I^2 + 0.01, not bench.converge's r^2 + 1e-3).
 PX_CONST float EARS_EPSILON = 0.1;
+// A path's open record (BINDING_EARS_RECORDS): kept in memory, not in the path's state across
+// its rays.
+struct EarsRecord {
+    uint slot;         // the cell's slot
+    float throughput;  // luminance of the throughput after the decision
+    float radiance;    // luminance of the path's radiance when its continuation started
+    uint rays;         // the path's rays then
+};
 // One cell of the learning table (BINDING_EARS_CELLS): this iteration's records summed as 64-bit
 // fixed point (lo, hi words: the shaders add with a carry, so sums are the same whatever the order).
 struct EarsCell {

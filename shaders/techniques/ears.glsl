@@ -22,6 +22,7 @@
 layout(set = 0, binding = BINDING_EARS_CELLS, scalar) buffer EarsCellBuffer { EarsCell ears_cells[]; };
 layout(set = 0, binding = BINDING_EARS_FACTORS, scalar) readonly buffer EarsFactorBuffer { EarsFactor ears_factors[]; };
 layout(set = 0, binding = BINDING_EARS_PIXELS, scalar) buffer EarsPixelBuffer { EarsPixel ears_pixels[]; };
+layout(set = 0, binding = BINDING_EARS_RECORDS, scalar) buffer EarsRecordBuffer { EarsRecord ears_records[]; };
 
 bool ears_on() { return USES(TECH_EARS) && tech.adrrs.mode == RRS_EARS; }
 
@@ -73,19 +74,19 @@ uint ears_slot(uint key, bool claim) {
 #ifdef PX_TRACE_LOOP
 // ---- hooks of the trace loop (lib/integrator.glsl via techniques.glsl, adrrs.glsl) ---------
 
-// A path's open records: the decisions it survived, waiting for its end. Kept by trace_path
-// itself (not in TechniquePath, which every hook copies).
+// A path's open records: the decisions it survived, waiting for its end. trace_path keeps
+// only their count; the records wait in the invocation's slots of BINDING_EARS_RECORDS (paths
+// of one invocation follow each other), not in the path's state across its rays.
 struct EarsPath {
+    uint base;      // the invocation's first record (NO_INDEX: none)
     uint count;
-    uint slot[EARS_PATH_VERTICES];
-    float throughput[EARS_PATH_VERTICES];  // luminance of the throughput after the decision
-    float radiance[EARS_PATH_VERTICES];    // luminance of the path's radiance when its continuation started
-    uint rays[EARS_PATH_VERTICES];         // the path's rays then
-    bool starting;                         // the last record's continuation starts at the next segment
+    bool starting;  // the last record's continuation starts at the next segment
 };
 
 EarsPath ears_path() {
     EarsPath e;
+    uint invocation = gl_LaunchIDEXT.y * gl_LaunchSizeEXT.x + gl_LaunchIDEXT.x;
+    e.base = invocation < tech.adrrs.ears_threads ? invocation * EARS_PATH_VERTICES : NO_INDEX;
     e.count = 0u;
     e.starting = false;
     return e;
@@ -117,9 +118,9 @@ bool ears_factor(vec3 throughput, vec3 p, vec3 n, float estimate, inout vec4 pas
 // The path survived a decision at `slot` with throughput v (after 1/q): its record opens; the
 // continuation starts with the next segment (ears_continuation_start).
 void ears_open(inout EarsPath e, uint slot, vec3 throughput) {
-    if (!ears_on() || slot == NO_INDEX || e.count >= EARS_PATH_VERTICES) return;
-    e.slot[e.count] = slot;
-    e.throughput[e.count] = luminance(throughput);
+    if (!ears_on() || slot == NO_INDEX || e.base == NO_INDEX || e.count >= EARS_PATH_VERTICES) return;
+    ears_records[e.base + e.count].slot = slot;
+    ears_records[e.base + e.count].throughput = luminance(throughput);
     e.count++;
     e.starting = true;
 }
@@ -127,8 +128,8 @@ void ears_open(inout EarsPath e, uint slot, vec3 throughput) {
 // Before the segment that starts a continuation (the vertex's own NEE is counted by then).
 void ears_continuation_start(inout EarsPath e, vec3 radiance, uint rays) {
     if (!ears_on() || !e.starting) return;
-    e.radiance[e.count - 1u] = luminance(radiance);
-    e.rays[e.count - 1u] = rays;
+    ears_records[e.base + e.count - 1u].radiance = luminance(radiance);
+    ears_records[e.base + e.count - 1u].rays = rays;
     e.starting = false;
 }
 
@@ -140,13 +141,14 @@ void ears_path_end(inout EarsPath e, vec3 radiance, uint rays, inout Rng rng) {
     if (isnan(total) || isinf(total)) return;
     uint n = e.starting ? e.count - 1u : e.count;  // a record whose continuation never started
     for (uint i = 0u; i < n; ++i) {
-        float lr = max(total - e.radiance[i], 0.0) / max(e.throughput[i], 1e-20) / tech.adrrs.ears_scale;
+        EarsRecord r = ears_records[e.base + i];
+        float lr = max(total - r.radiance, 0.0) / max(r.throughput, 1e-20) / tech.adrrs.ears_scale;
         lr = min(lr, sqrt(EARS_MAX_RECORD));
-        uint s = e.slot[i];
+        uint s = r.slot;
         atomicAdd(ears_cells[s].count, 1u);
         EARS_ADD_FIXED(ears_cells[s].lr_lo, ears_cells[s].lr_hi, lr, rnd(rng));
         EARS_ADD_FIXED(ears_cells[s].lr2_lo, ears_cells[s].lr2_hi, lr * lr, rnd(rng));
-        EARS_ADD_FIXED(ears_cells[s].cost_lo, ears_cells[s].cost_hi, float(rays - e.rays[i]), 0.0);
+        EARS_ADD_FIXED(ears_cells[s].cost_lo, ears_cells[s].cost_hi, float(rays - r.rays), 0.0);
     }
 }
 

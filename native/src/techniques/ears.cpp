@@ -22,6 +22,7 @@ EarsStatistics::EarsStatistics(Context& ctx) : ctx_(ctx) {
     cells_ = Buffer(ctx_, sizeof(EarsCell), kStorageUsage);
     factors_ = Buffer(ctx_, sizeof(EarsFactor), kStorageUsage);
     pixels_ = Buffer(ctx_, sizeof(EarsPixel), kStorageUsage);
+    records_ = Buffer(ctx_, sizeof(EarsRecord), kStorageUsage);
     reset();
 }
 
@@ -36,6 +37,10 @@ void EarsStatistics::configure(bool enabled, const SceneHost& scene, uint32_t wi
         factors_ = Buffer(ctx_, size_t(slots_) * sizeof(EarsFactor), kStorageUsage);
     const size_t pixel_bytes = (enabled ? size_t(width) * height : 1) * sizeof(EarsPixel);
     if (pixels_.size() != pixel_bytes) pixels_ = Buffer(ctx_, pixel_bytes, kStorageUsage);
+    // A dispatch has at most one invocation per pixel.
+    threads_ = enabled ? width * height : 0;
+    const size_t record_bytes = std::max<size_t>(1, size_t(threads_) * EARS_PATH_VERTICES) * sizeof(EarsRecord);
+    if (records_.size() != record_bytes) records_ = Buffer(ctx_, record_bytes, kStorageUsage);
     float lo[3], hi[3];
     scene_bounds(scene, lo, hi);
     const float extent = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 1e-6f});
@@ -61,6 +66,7 @@ void EarsStatistics::bind(DescriptorSet& set) const {
     set.bind_buffer(BINDING_EARS_CELLS, cells_);
     set.bind_buffer(BINDING_EARS_FACTORS, factors_);
     set.bind_buffer(BINDING_EARS_PIXELS, pixels_);
+    set.bind_buffer(BINDING_EARS_RECORDS, records_);
 }
 
 void EarsStatistics::write_params(AdrrsParams& params) const {
@@ -71,6 +77,7 @@ void EarsStatistics::write_params(AdrrsParams& params) const {
     params.ears_active = enabled_ && active_ ? 1u : 0u;
     params.ears_scale = scale_;
     params.ears_image_factor = image_factor_;
+    params.ears_threads = threads_;
 }
 
 // Rath et al. 2022, per cell: the factors are E[Lr^2] / C and Var[Lr] / C in absolute

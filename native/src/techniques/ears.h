@@ -37,7 +37,8 @@ public:
 private:
     Context& ctx_;
     bool enabled_ = false;
-    Buffer cells_, factors_, pixels_;
+    Buffer cells_, factors_, pixels_, records_;
+    uint32_t threads_ = 0;
     uint32_t slots_ = 1, min_records_ = 1;
     float grid_min_[3] = {0, 0, 0};
     float cell_ = 0.0f;
