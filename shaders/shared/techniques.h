@@ -146,7 +146,7 @@ struct AdrrsParams {
 // ---- EARS' statistics (BINDING_EARS_CELLS, BINDING_EARS_FACTORS) -----------------------------
 PX_CONST uint EARS_PROBES = 8;          // linear probes of the hash table
 PX_CONST uint EARS_PATH_VERTICES = 2;   // decisions of one path that record statistics (its first ones:
-                                        // lavapipe keeps longer record arrays in memory, 1.3x slower at 8)
+                                        // 8 made lavapipe 1.3x slower when they were arrays in the path's state)
 PX_CONST float EARS_FIXED_SCALE = 65536.0;  // sums are 64-bit fixed point (two uints) in 1/65536
 PX_CONST float EARS_MAX_RECORD = 1e10;  // a record's (Lr/S)^2 is clamped here
 PX_CONST float EARS_MAX_VARIANCE = 1e4; // a pixel's relative variance per sample is clamped here
