@@ -13,6 +13,11 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # once, on first use, so the layer is asked for before any test runs (subprocesses inherit
 # it). PARALLAX_VALIDATION=0 turns it off (a machine without vulkan-validationlayers).
 os.environ.setdefault("PARALLAX_VALIDATION", "1")
+# Mesa's shader cache in one part for every process of the run, not only for the core's (which
+# asks for it itself): Blender 3.4's OpenGL under Xvfb (tests/viewport) is Mesa's too, shares
+# CI's cache directory, and with Mesa's default 50 parts trims the part it writes to (ours) to
+# 21 MB, evicting pipelines that later tests then compile cold again.
+os.environ.setdefault("MESA_DISK_CACHE_DATABASE_NUM_PARTS", "1")
 
 
 @pytest.fixture(autouse=True)

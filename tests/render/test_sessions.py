@@ -171,3 +171,22 @@ def test_mesa_keeps_its_shader_cache_in_one_part(tmp_path):
     (_, chosen), chosen_layout = child("3", "chosen")
     assert (ours, ours_layout) == ("1", ["part0"])
     assert (chosen, chosen_layout) == ("3", ["part0", "part1", "part2"])
+
+
+def test_mesa_cache_of_our_own_unless_the_user_chose_one(tmp_path):
+    # Blender's OpenGL, where it is Mesa's, opens the default cache with 50 parts and trims the
+    # part it writes to to 21 MB: the core keeps its pipelines in XDG_CACHE_HOME/parallax.
+    env = {k: v for k, v in os.environ.items() if k not in ("MESA_SHADER_CACHE_DIR", "MESA_DISK_CACHE_DATABASE_NUM_PARTS")}
+    env["XDG_CACHE_HOME"] = str(tmp_path / "xdg")
+    script = CACHE_PARTS + 'print(getenv(b"MESA_SHADER_CACHE_DIR").decode())\n'
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=600, env=env)
+    assert run.returncode == 0, run.stderr
+    device, parts, cache = run.stdout.split()
+    if device != "cpu":
+        pytest.skip("a GPU: no Mesa cache")
+    assert (parts, cache) == ("1", str(tmp_path / "xdg" / "parallax"))
+    assert sorted(p.name for p in (tmp_path / "xdg" / "parallax" / "mesa_shader_cache_db").glob("part*")) == ["part0"]
+    env["MESA_SHADER_CACHE_DIR"] = str(tmp_path / "chosen")
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=600, env=env)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.split()[2] == str(tmp_path / "chosen")
