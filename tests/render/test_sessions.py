@@ -175,7 +175,7 @@ def test_mesa_keeps_its_shader_cache_in_one_part(tmp_path):
 
 def test_mesa_cache_of_our_own_unless_the_user_chose_one(tmp_path):
     # Blender's OpenGL, where it is Mesa's, opens the default cache with 50 parts and trims the
-    # part it writes to to 21 MB: the core keeps its pipelines in XDG_CACHE_HOME/parallax.
+    # part it writes to down to 21 MB: the core keeps its pipelines in XDG_CACHE_HOME/parallax.
     env = {k: v for k, v in os.environ.items() if k not in ("MESA_SHADER_CACHE_DIR", "MESA_DISK_CACHE_DATABASE_NUM_PARTS")}
     env["XDG_CACHE_HOME"] = str(tmp_path / "xdg")
     script = CACHE_PARTS + 'print(getenv(b"MESA_SHADER_CACHE_DIR").decode())\n'
