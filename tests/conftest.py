@@ -37,6 +37,18 @@ def no_validation_messages():
                     pytrace=False)
 
 
+@pytest.fixture(autouse=True)
+def compile_log_marks_the_test(request):
+    """With PARALLAX_COMPILE_LOG (the core's log of the pipelines it creates, a line each with
+    its process and parent), a line "test PID NODEID" before each test: the pipelines after it
+    with that process or parent are the test's."""
+    path = os.environ.get("PARALLAX_COMPILE_LOG")
+    if path:
+        with open(path, "a") as f:
+            f.write(f"test {os.getpid()} {request.node.nodeid}\n")
+    yield
+
+
 @pytest.fixture(scope="session")
 def core_wheel(tmp_path_factory):
     """The parallax_core wheel (cp311), built like `make extension` builds it."""

@@ -1,6 +1,7 @@
 """Several sessions at once (Blender has a viewport and an F12 render): they share the
 device, may run on different threads, and give the same images as one at a time."""
 import os
+import re
 import subprocess
 import sys
 import threading
@@ -190,3 +191,25 @@ def test_mesa_cache_of_our_own_unless_the_user_chose_one(tmp_path):
     run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=600, env=env)
     assert run.returncode == 0, run.stderr
     assert run.stdout.split()[2] == str(tmp_path / "chosen")
+
+
+def test_compile_log_names_each_pipeline_created(tmp_path):
+    # PARALLAX_COMPILE_LOG: "pipeline PID PPID MS STAGES" and the specialisation constants.
+    log = tmp_path / "compile.log"
+    script = """
+import parallax_core as pc
+from parallax_core import scenes
+s = pc.Session(8, 8)
+s.set_params(method="nee", samples_per_frame=1, seed=1)
+s.update(scenes.cornell_box(8, 8))
+s.render(1)
+"""
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=600,
+                         env={**os.environ, "PARALLAX_COMPILE_LOG": str(log)})
+    assert run.returncode == 0, run.stderr
+    lines = [line.split() for line in log.read_text().splitlines() if line.startswith("pipeline ")]
+    assert lines, log.read_text()
+    word, pid, ppid, ms, stages, *constants = lines[0]
+    assert int(ppid) == os.getpid() and int(ms) >= 0 and int(stages) >= 3
+    rows = re.findall(r"^\s*X\(\d+,", open(os.path.join(os.path.dirname(__file__), "..", "..", "shaders", "shared", "specialization.h")).read(), re.M)
+    assert len(constants) == len(rows) and all(c.isdigit() for c in constants)

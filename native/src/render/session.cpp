@@ -13,9 +13,11 @@
 #include <condition_variable>
 #include <thread>
 #include <cstdlib>
+#include <cstdio>
 #include <cstring>
 #include <limits>
 #include <stdexcept>
+#include <unistd.h>
 
 namespace px {
 
@@ -476,10 +478,29 @@ Session::PipelineRecipe Session::pipeline_shaders(const PipelineKey& key) const 
     return {shaders.stages, groups, key.second};
 }
 
+// PARALLAX_COMPILE_LOG=FILE appends a line per pipeline created: "pipeline", the process and its
+// parent, the milliseconds vkCreateRayTracingPipelinesKHR took (lavapipe finishes the compile at
+// the first dispatch: there it is a part), the shader stages and the specialisation constants
+// in constant_id order. It tells which variants a run compiles, and where (README, Robustness).
+static void log_pipeline(const SpecConstants& constants, size_t stages, double milliseconds) {
+    const char* path = std::getenv("PARALLAX_COMPILE_LOG");
+    if (!path || !*path) return;
+    std::string line = "pipeline " + std::to_string(getpid()) + " " + std::to_string(getppid()) + " " +
+                       std::to_string(int64_t(milliseconds)) + " " + std::to_string(stages);
+    for (uint v : constants.values()) line += " " + std::to_string(v);
+    if (FILE* f = std::fopen(path, "a")) {  // one write per line: processes append side by side
+        std::fputs((line + "\n").c_str(), f);
+        std::fclose(f);
+    }
+}
+
 std::unique_ptr<RayTracingPipeline> Session::create_pipeline(Context& ctx, VkDescriptorSetLayout layout,
                                                              const PipelineRecipe& recipe) {
-    return std::make_unique<RayTracingPipeline>(ctx, layout, uint32_t(sizeof(FrameParams)), recipe.stages,
-                                                recipe.groups, recipe.constants);
+    const auto start = std::chrono::steady_clock::now();
+    auto pipeline = std::make_unique<RayTracingPipeline>(ctx, layout, uint32_t(sizeof(FrameParams)), recipe.stages,
+                                                         recipe.groups, recipe.constants);
+    log_pipeline(recipe.constants, recipe.stages.size(), std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+    return pipeline;
 }
 
 FrameParams Session::frame_params(uint32_t frame) const {
