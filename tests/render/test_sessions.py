@@ -5,6 +5,7 @@ import re
 import subprocess
 import sys
 import threading
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -211,5 +212,5 @@ s.render(1)
     assert lines, log.read_text()
     word, pid, ppid, ms, stages, *constants = lines[0]
     assert int(ppid) == os.getpid() and int(ms) >= 0 and int(stages) >= 3
-    rows = re.findall(r"^\s*X\(\d+,", open(os.path.join(os.path.dirname(__file__), "..", "..", "shaders", "shared", "specialization.h")).read(), re.M)
+    rows = re.findall(r"^\s*X\(\d+,", Path(__file__).parents[2].joinpath("shaders", "shared", "specialization.h").read_text(), re.M)
     assert len(constants) == len(rows) and all(c.isdigit() for c in constants)
