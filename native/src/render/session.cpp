@@ -295,6 +295,17 @@ static uint32_t split_walk(const Context& ctx) {
     return ctx.is_cpu() ? 1u : 0u;
 }
 
+// The scene features a pipeline is specialised for: the scene's on GPUs, which compile fast and
+// trace faster with exactly those; on lavapipe also FEATURES_LAVAPIPE_ALWAYS (fewer variants,
+// fewer cold compiles of 2-30 s each). PARALLAX_SCENE_FEATURES=exact or folded overrides it:
+// tests/render/test_pipeline_variants.py renders both on lavapipe.
+static uint32_t pipeline_features(const Context& ctx, uint32_t scene_features) {
+    const char* env = std::getenv("PARALLAX_SCENE_FEATURES");
+    const std::string value = env ? env : "";
+    const bool folded = value == "folded" || (value != "exact" && ctx.is_cpu());
+    return scene_features | (folded ? FEATURES_LAVAPIPE_ALWAYS : 0u);
+}
+
 // The program and its specialisation constants (shaders/shared/specialization.h); the preview
 // program uses the scene features only. A technique's bit may differ between render frames and
 // host frames (Technique::spec_bit). GPUs make empty shadow calls, lavapipe does not
@@ -304,7 +315,7 @@ static uint32_t split_walk(const Context& ctx) {
 // cold compile there, for a gain not measured on it).
 PipelineKey Session::pipeline_key(uint32_t program, bool render_frame) const {
     SpecConstants c;
-    c.features = scene_->host().features;
+    c.features = pipeline_features(*ctx_, scene_->host().features);
     c.empty_shadow_calls = ctx_->is_cpu() ? 0u : 1u;
     c.split_walk = split_walk(*ctx_);
     if (program == PROGRAM_PREVIEW) {
