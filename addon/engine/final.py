@@ -28,6 +28,7 @@ class RenderReport:
         self.errors, self.warnings = [], []
         self.samples, self.cancelled = 0, False
         self.denoised, self.denoise_message = False, None  # Combined denoised; how, or why not
+        self.rendering_at = None  # time.time() when the first band of samples was in (compiled)
         self.finished_at = None  # time.time() when render() returned to Blender
         self.worker_running = False  # the worker thread still ran when render() returned
 
@@ -100,6 +101,7 @@ class _Worker(threading.Thread):
         self.denoised = False   # the last snapshot's Combined is denoised
         self.denoise_message = None  # why it is not (no OIDN, an OIDN error), or the denoiser used
         self.rows_per_band = max(1, session.height // 16)  # adapted to the measured band time
+        self.rendering_at = None  # time.time() when the first band was in
         self.snapshot = None  # (samples, seconds, rays per second, {core pass: image}, stats)
         self.error = None
         self._stop_event = threading.Event()
@@ -165,6 +167,7 @@ class _Worker(threading.Thread):
         while True:
             start = time.perf_counter()
             done = self.session.render_rows(rows)
+            self.rendering_at = self.rendering_at or time.time()
             rows = band_rows(rows, time.perf_counter() - start, self.session.height)
             self.rows_per_band = rows
             if done or self.session.converged:  # converged: no pixel left to sample
@@ -256,6 +259,7 @@ def render(engine, depsgraph):
     cancelled = denoising_shown = False
     while True:
         finished = not worker.is_alive()
+        report.rendering_at = worker.rendering_at
         snapshot = worker.snapshot
         if snapshot is not None and snapshot is not shown:
             shown = snapshot
