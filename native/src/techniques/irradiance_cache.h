@@ -84,9 +84,12 @@ public:
     void bind(DescriptorSet& set) const override;
     void write_params(TechniqueParams& params) const override { params.ic = params_; }
     // Render frames query the cache only where it shades (ic on) and has not left their
-    // pipeline (consistent mode, `left_`); host frames wherever it exists.
+    // pipeline (consistent mode, `left_`); host frames wherever it exists. On lavapipe the
+    // render frames of a cache built for ADRRS alone keep the bit: its hooks do nothing there
+    // (ic_camera_options), and their pipeline is then the host frames' (a cold compile of
+    // 5-20 s less when ADRRS is switched on).
     uint32_t spec_bit(bool render_frame) const override {
-        return enabled() && (!render_frame || (params_.shade && !left_)) ? TECH_IC : 0u;
+        return enabled() && (!render_frame || (params_.shade ? !left_ : ctx_.is_cpu())) ? TECH_IC : 0u;
     }
     const std::vector<uint32_t>* raygen(uint32_t program) const override;
     void compile(TechniqueHost& host) override;
