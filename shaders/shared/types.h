@@ -181,14 +181,13 @@ PX_CONST uint FEATURE_NODE_TEXTURES = 1u << 16;  // Noise, Voronoi, Wave, Brick
 PX_CONST uint FEATURE_NODE_SURFACE = 1u << 17;   // geometry, attributes, bump offsets, Bump, Normal Map, Fresnel
 PX_CONST uint FEATURE_NODE_COLOR = 1u << 18;     // Vector Math, Curves, Hue/Saturation/Value
 PX_CONST uint FEATURE_ALL = 0xffffffffu;
-// The features lavapipe's pipelines always carry, whatever the scene holds: light types,
-// vertex normals and UVs, conductors. Their code tests the scene data too (a light's type, a
-// mesh's has_normals), so it stays correct; lavapipe runs it as fast (bench/results/
-// lavapipe_folded_features), and each scene mix of its own would be a cold compile of 2-30 s
-// there: with these folded, a cold make test compiled 75 variants instead of 164.
-PX_CONST uint FEATURES_LAVAPIPE_ALWAYS = FEATURE_CONDUCTOR | FEATURE_SHADING_NORMALS | FEATURE_UVS |
-                                         FEATURE_TRIANGLE_LIGHTS | FEATURE_SPHERE_LIGHTS | FEATURE_AREA_LIGHTS |
-                                         FEATURE_SUN | FEATURE_ENV | FEATURE_ENV_MAP;
+// The features a folded pipeline carries whatever the scene holds (PARALLAX_SCENE_FEATURES=folded,
+// the test suite's setting): light types, vertex normals and UVs, conductors. Their code tests
+// the scene data too (a light's type, a mesh's has_normals), so the images stay the same, and a
+// cold make test compiles 75 variants instead of 164. Renders keep the scene's exact features:
+// folded, lavapipe's frames took 4-10% longer (bench/results/lavapipe_folded_features).
+PX_CONST uint FEATURES_FOLDED = FEATURE_CONDUCTOR | FEATURE_SHADING_NORMALS | FEATURE_UVS | FEATURE_TRIANGLE_LIGHTS |
+                                FEATURE_SPHERE_LIGHTS | FEATURE_AREA_LIGHTS | FEATURE_SUN | FEATURE_ENV | FEATURE_ENV_MAP;
 
 // The light-path limits a pipeline carries (LIGHT_PATH_LIMITS, tested by LIMITS()): only where
 // the settings can bind them (light_path_limits in render/params.h). Carrying them costs the

@@ -1,7 +1,8 @@
-"""Lavapipe's pipelines carry the features of FEATURES_LAVAPIPE_ALWAYS (light types, vertex
-normals and UVs, conductors) whatever the scene holds, so that a scene's mix of features is
-not a cold compile of its own (Session::pipeline_key, pipeline_features); GPUs specialise for
-exactly the scene's. Both must render the same images: PARALLAX_SCENE_FEATURES picks either."""
+"""With PARALLAX_SCENE_FEATURES=folded, the test suite's setting (conftest.py), pipelines carry
+the features of FEATURES_FOLDED (light types, vertex normals and UVs, conductors) whatever the
+scene holds, so that a scene's mix of features is not a cold compile of its own
+(Session::pipeline_key, pipeline_features); renders specialise for exactly the scene's. Both
+must render the same images."""
 import numpy as np
 import pytest
 
