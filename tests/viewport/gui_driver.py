@@ -244,7 +244,7 @@ def denoise_steps():
 def cancel_steps():
     scene = bpy.context.scene
     scene.parallax.samples, scene.parallax.samples_per_frame = 100000, int(os.environ.get("PX_SPF", 64))
-    # A frame of seconds on lavapipe, its first band well under one.
+    # A 64-spp frame of some seconds on lavapipe: the Esc lands inside one.
     scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 320, 240, 100
     bpy.ops.render.render("INVOKE_DEFAULT")
     from parallax.engine import final
