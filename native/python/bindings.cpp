@@ -196,47 +196,25 @@ NB_MODULE(_native, m) {
           "n_b times the variance of the mean of n_b samples of the cache's residual, from IC Residual's "
           "sums (rgb; w: sample count) at n_a and n_b > n_a samples (irradiance_cache.h); H x W, "
           "negative where a part has fewer than 4 samples.");
-    m.def("ic_sequence_covariance",
-          [copy](ImageRgba first_a, ImageRgba both_a, ImageRgba first_b, ImageRgba both_b) {
-              const uint32_t h = uint32_t(both_a.shape(0)), w = uint32_t(both_a.shape(1));
-              for (const auto* a : {&first_a, &first_b, &both_b})
-                  if (a->shape(0) != h || a->shape(1) != w)
-                      throw std::invalid_argument("ic_sequence_covariance: the snapshots differ in size");
-              std::vector<px::vec4> fa(size_t(w) * h), ba(fa.size()), fb(fa.size()), bb(fa.size());
-              copy(first_a, fa);
-              copy(both_a, ba);
-              copy(first_b, fb);
-              copy(both_b, bb);
-              return to_numpy(px::ic_sequence_covariance(fa, ba, fb, bb), {h, w});
-          }, "first_a"_a, "both_a"_a, "first_b"_a, "both_b"_a,
-          "n_b times the covariance of two estimators' means of n_b samples, from their sums (rgb; w: sample "
-          "count) at n_a and n_b > n_a samples (irradiance_cache.h); H x W, NaN where a part has fewer than 4.");
     m.def("ic_hand_over",
           [copy](nb::ndarray<const uint32_t, nb::shape<-1, -1>, nb::c_contig, nb::device::cpu> paths_only,
-                 ImageRgba residual, ImageScalar residual_variance, ImageScalar path_variance, ImageScalar covariance,
-                 ImageScalar means) {
+                 ImageScalar residual_variance, ImageScalar path_variance, ImageScalar means) {
               const uint32_t h = uint32_t(paths_only.shape(0)), w = uint32_t(paths_only.shape(1));
-              if (residual.shape(0) != h || residual.shape(1) != w)
-                  throw std::invalid_argument("ic_hand_over: the per-pixel arrays differ in size");
-              for (const auto* a : {&residual_variance, &path_variance, &covariance, &means})
+              for (const auto* a : {&residual_variance, &path_variance, &means})
                   if (a->shape(0) != h || a->shape(1) != w)
                       throw std::invalid_argument("ic_hand_over: the per-pixel arrays differ in size");
               const size_t n = size_t(w) * h;
               std::vector<uint32_t> flags(n);
-              std::vector<px::vec4> sums(n);
-              std::vector<float> residual_var(n), paths(n), cov(n), mean(n);
+              std::vector<float> residual(n), paths(n), mean(n);
               copy(paths_only, flags);
-              copy(residual, sums);
-              copy(residual_variance, residual_var);
+              copy(residual_variance, residual);
               copy(path_variance, paths);
-              copy(covariance, cov);
               copy(means, mean);
-              px::ic_hand_over(flags, sums, residual_var, paths, cov, mean, w, h);
+              px::ic_hand_over(flags, residual, paths, mean, w, h);
               return to_numpy(std::move(flags), {h, w});
-          }, "paths_only"_a, "residual"_a, "residual_variance"_a, "path_variance"_a, "covariance"_a, "means"_a,
+          }, "paths_only"_a, "residual_variance"_a, "path_variance"_a, "means"_a,
           "Consistent cache mode's pixel handover (irradiance_cache.h ic_hand_over): the flags (H x W uint32) "
-          "after one snapshot: IC Residual's sums (H x W x 4; w: sample count), the residual's and the paths' "
-          "variances and their covariance (ic_sequence_variance, ic_sequence_covariance) and the pixels' means.");
+          "after one snapshot's residual and path variances (ic_sequence_variance) and the pixels' means.");
     m.def("ic_grid",
           [](nb::ndarray<const float, nb::shape<-1, 3>, nb::c_contig, nb::device::cpu> positions,
              nb::ndarray<const float, nb::shape<-1>, nb::c_contig, nb::device::cpu> radii, float accuracy,

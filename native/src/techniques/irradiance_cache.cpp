@@ -4,13 +4,11 @@
 
 
 #include <algorithm>
-#include <array>
 #include <cassert>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <limits>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -35,6 +33,10 @@ constexpr double IC_COMBINE_MIN_SAMPLES = 4;
 // samples' variance (the same heavy tails), and the first snapshot's count (a power of two).
 constexpr double IC_COMBINE_MIN_HALF = 4;
 constexpr uint64_t kFirstSnapshot = 4;
+// A pixel whose residual carries less than this share of its paths' variance is handed back to
+// the paths: a query cost lavapipe 20-50% of a path on the direct-lit scenes, so a cache that
+// removes less than 20-25% of the variance cannot win at equal time there.
+constexpr double IC_HANDOVER_SHARE = 0.25;
 
 // Jobs per hemisphere dispatch (theta x phi paths each); a frame's jobs go in several.
 constexpr uint32_t kJobsPerDispatch = 2048;
@@ -232,68 +234,41 @@ void ic_combine(std::vector<float>& rgba, const std::vector<float>& samples, con
 // s^2/n1 and s^2/n2: E|m1 - m2|^2 = s^2 (1/n1 + 1/n2), so n_b Var(mean of n_b) = s^2 =
 // |m1 - m2|^2 n1 n2 / n_b. Our parts are each a run of a power of two of Sobol points, as
 // the whole is, so their difference sees how fast the sequence converges on this pixel.
-std::vector<float> ic_sequence_covariance(const std::vector<vec4>& first_a, const std::vector<vec4>& both_a,
-                                          const std::vector<vec4>& first_b, const std::vector<vec4>& both_b) {
-    if (first_a.size() != both_a.size() || first_b.size() != both_a.size() || both_b.size() != both_a.size())
-        throw std::invalid_argument("ic_sequence_covariance: the snapshots differ in size");
-    std::vector<float> out(both_a.size(), std::numeric_limits<float>::quiet_NaN());
-    for (size_t i = 0; i < both_a.size(); ++i) {
-        const double n1 = first_a[i].w, n2 = both_a[i].w - first_a[i].w;
+std::vector<float> ic_sequence_variance(const std::vector<vec4>& first, const std::vector<vec4>& both) {
+    if (first.size() != both.size()) throw std::invalid_argument("ic_sequence_variance: the snapshots differ in size");
+    std::vector<float> out(both.size(), -1.0f);
+    for (size_t i = 0; i < both.size(); ++i) {
+        const double n1 = first[i].w, n2 = both[i].w - first[i].w;
         if (!(n1 >= IC_COMBINE_MIN_HALF && n2 >= IC_COMBINE_MIN_HALF)) continue;
-        const auto difference = [&](const vec4& first, const vec4& both) {
-            return std::array<double, 3>{first.x / n1 - (both.x - first.x) / n2, first.y / n1 - (both.y - first.y) / n2,
-                                         first.z / n1 - (both.z - first.z) / n2};
-        };
-        const auto da = difference(first_a[i], both_a[i]), db = difference(first_b[i], both_b[i]);
-        out[i] = float((da[0] * db[0] + da[1] * db[1] + da[2] * db[2]) * n1 * n2 / (n1 + n2));
+        const double dx = first[i].x / n1 - (both[i].x - first[i].x) / n2;
+        const double dy = first[i].y / n1 - (both[i].y - first[i].y) / n2;
+        const double dz = first[i].z / n1 - (both[i].z - first[i].z) / n2;
+        out[i] = float((dx * dx + dy * dy + dz * dz) * n1 * n2 / (n1 + n2));
     }
     return out;
 }
 
-std::vector<float> ic_sequence_variance(const std::vector<vec4>& first, const std::vector<vec4>& both) {
-    std::vector<float> out = ic_sequence_covariance(first, both, first, both);
-    for (float& v : out)
-        if (std::isnan(v)) v = -1.0f;
-    return out;
-}
-
-// Gain that keeps a pixel on the cache: a query cost lavapipe 20-50% of a path on the direct-lit
-// scenes; a cache that takes away less than a quarter of the paths' error cannot win there.
-constexpr double IC_HANDOVER_GAIN = 4.0 / 3.0;
-
-void ic_hand_over(std::vector<uint32_t>& paths_only, const std::vector<vec4>& residual,
-                  const std::vector<float>& residual_variance, const std::vector<float>& path_variance,
-                  const std::vector<float>& covariance, const std::vector<float>& means, uint32_t width,
+void ic_hand_over(std::vector<uint32_t>& paths_only, const std::vector<float>& residual_variance,
+                  const std::vector<float>& path_variance, const std::vector<float>& means, uint32_t width,
                   uint32_t height) {
     const size_t pixels = size_t(width) * height;
-    if (paths_only.size() != pixels || residual.size() != pixels || residual_variance.size() != pixels ||
-        path_variance.size() != pixels || covariance.size() != pixels || means.size() != pixels)
+    if (paths_only.size() != pixels || residual_variance.size() != pixels || path_variance.size() != pixels ||
+        means.size() != pixels)
         throw std::invalid_argument("ic_hand_over: the per-pixel arrays differ in size");
-    // Of the means at each pixel's n samples, weighted as relMSE: V_R, V_B, C and |mean(A - B)|^2.
-    std::vector<double> residual_var(pixels, 0.0), path_var(pixels, 0.0), cov(pixels, 0.0), residual_sq(pixels, 0.0);
+    std::vector<double> residual(pixels, 0.0), paths(pixels, 0.0);
     for (size_t i = 0; i < pixels; ++i) {
-        const double n = residual[i].w;
-        if (paths_only[i] || !(n > 0) || !(residual_variance[i] >= 0) || !(path_variance[i] >= 0) ||
-            !std::isfinite(covariance[i]))
-            continue;
-        const double w = 1.0 / (double(means[i]) * means[i] + 1e-3) / n;
-        residual_var[i] = w * residual_variance[i];
-        path_var[i] = w * path_variance[i];
-        cov[i] = w * covariance[i];
-        const double mx = residual[i].x / n, my = residual[i].y / n, mz = residual[i].z / n;
-        residual_sq[i] = w * n * (mx * mx + my * my + mz * mz);
+        if (paths_only[i] || !(residual_variance[i] >= 0) || !(path_variance[i] >= 0)) continue;
+        const double w = 1.0 / (double(means[i]) * means[i] + 1e-3);
+        residual[i] = w * residual_variance[i];
+        paths[i] = w * path_variance[i];
     }
-    const WindowSums residual_sums(residual_var, width, height), path_sums(path_var, width, height);
-    const WindowSums cov_sums(cov, width, height), sq_sums(residual_sq, width, height);
+    const WindowSums residual_sums(residual, width, height), path_sums(paths, width, height);
     for (uint32_t y = 0; y < height; ++y)
         for (uint32_t x = 0; x < width; ++x) {
             const size_t i = size_t(y) * width + x;
-            const double v_b = path_sums(x, y), v_r = residual_sums(x, y), c = cov_sums(x, y);
-            if (!(residual_variance[i] >= 0) || !(v_b > 0)) continue;  // unknown: not yet
-            // E|mean(A - B)|^2 = V_R + bias^2: the window's V_R + bias^2 is the larger of the two.
-            const double spread = std::max(v_r, sq_sums(x, y));
-            const double best = spread > 0 ? std::max(v_b - c * c / spread, 0.0) : v_b;
-            if (best * IC_HANDOVER_GAIN > v_b) paths_only[i] = 1;
+            const double p = path_sums(x, y);
+            if (!(residual_variance[i] >= 0) || !(p > 0)) continue;  // unknown: not yet
+            if (residual_sums(x, y) < IC_HANDOVER_SHARE * p) paths_only[i] = 1;
         }
 }
 
@@ -389,9 +364,8 @@ void IrradianceCache::take_snapshot(TechniqueHost& host, uint64_t samples) {
         for (size_t i = 0; i < paths.size(); ++i)
             means[i] = paths[i].w > 0 ? (paths[i].x + paths[i].y + paths[i].z) / (3.0f * paths[i].w) : 0.0f;
         const size_t before = std::count(paths_only_.begin(), paths_only_.end(), 1u);
-        ic_hand_over(paths_only_, sums, sequence_variance_, ic_sequence_variance(snapshot_paths_, paths),
-                     ic_sequence_covariance(snapshot_paths_, paths, snapshot_, sums), means, width_,
-                     uint32_t(paths.size() / width_));
+        ic_hand_over(paths_only_, sequence_variance_, ic_sequence_variance(snapshot_paths_, paths), means,
+                     width_, uint32_t(paths.size() / width_));
         stats_.paths_only = std::count(paths_only_.begin(), paths_only_.end(), 1u);
         if (stats_.paths_only != before)
             paths_only_buffer_.upload(paths_only_.data(), paths_only_.size() * sizeof(uint32_t));

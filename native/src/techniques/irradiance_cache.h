@@ -35,24 +35,15 @@ void ic_combine(std::vector<float>& rgba, const std::vector<float>& samples, con
 // means of samples [0, n_a) and [n_a, n_b), as n_b times that variance at n_b (summed over rgb).
 // Negative where a part has fewer than IC_COMBINE_MIN_HALF samples. See ic_combine.
 std::vector<float> ic_sequence_variance(const std::vector<vec4>& first, const std::vector<vec4>& both);
-// The same for the covariance of two estimators' means (summed over rgb), from snapshots of
-// both taken at the same sample counts: the product of their two parts' differences.
-std::vector<float> ic_sequence_covariance(const std::vector<vec4>& first_a, const std::vector<vec4>& both_a,
-                                          const std::vector<vec4>& first_b, const std::vector<vec4>& both_b);
 
-// Consistent mode's pixel handover: which pixels to hand back to the paths for good (1). The
-// image is B + k mean(A - B); over k its error is at best V_B - C^2 / (V_R + bias^2), with V_B
-// and V_R the variances of the means of B and of A - B, C their covariance and bias the cache's
-// error, E[mean(A - B)]. Where, over the window around a pixel, that gains less than
-// IC_HANDOVER_GAIN on the paths' V_B, the cache cannot buy back its queries' cost there: its
-// residual carries little of the paths' noise (direct light), or the paths became better than
-// the cache is right (V_B falls as 1/n, the bias does not), so every pixel goes back in time.
-// `residual`: IC Residual's sums (rgb; w: sample count); the variances and the covariance per
-// sample from ic_sequence_variance / ic_sequence_covariance (negative variances: unknown); each
-// pixel's terms weighted by 1/(its mean^2 + 1e-3) as relMSE. Pixels set in `paths_only` stay set.
-void ic_hand_over(std::vector<uint32_t>& paths_only, const std::vector<vec4>& residual,
-                  const std::vector<float>& residual_variance, const std::vector<float>& path_variance,
-                  const std::vector<float>& covariance, const std::vector<float>& means, uint32_t width,
+// Consistent mode's pixel handover: which pixels to hand back to the paths for good (1). With
+// a perfect cache the image's variance would be the paths' less the residual's, so where, over
+// the window around a pixel, the residual's variance is below IC_HANDOVER_SHARE of the paths'
+// (both per sample from ic_sequence_variance, negative: unknown; each pixel's weighted by
+// 1/(its mean^2 + 1e-3) as relMSE) the cache cannot buy back its queries' cost there.
+// Pixels set in `paths_only` stay set.
+void ic_hand_over(std::vector<uint32_t>& paths_only, const std::vector<float>& residual_variance,
+                  const std::vector<float>& path_variance, const std::vector<float>& means, uint32_t width,
                   uint32_t height);
 
 // The cache's lookup grid over `entries` (IC_GRID_LEVELS, techniques.h): each entry listed in
