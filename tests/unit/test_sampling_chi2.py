@@ -1247,9 +1247,11 @@ def test_aperture_samples_are_uniform_on_the_aperture(session, blades, rotation,
     corners = aperture_corners(blades, rotation, ratio)
     # Inside every edge (counter-clockwise: the point is left of it), up to float rounding.
     edges = np.roll(corners, -1, axis=0) - corners
-    cross = edges[:, 0] * (points[:, None, 1] - corners[:, 1]) - edges[:, 1] * (points[:, None, 0] - corners[:, 0])
+    # Edge by edge: all points against all 720 edges at once took 46 s (a 1.7 GB array).
+    lowest = min(float((e[0] * (points[:, 1] - c[1]) - e[1] * (points[:, 0] - c[0])).min())
+                 for e, c in zip(edges, corners))
     slack = 1e-5 if blades >= 3 else 2e-5 + 1.0 - math.cos(math.pi / 720)  # the 720-gon's chords
-    assert cross.min() >= -slack
+    assert lowest >= -slack
     cells = 24
     xs, ys = np.linspace(-1.0 / ratio, 1.0 / ratio, cells + 1), np.linspace(-1.0, 1.0, cells + 1)
     counts, _, _ = np.histogram2d(points[:, 0], points[:, 1], bins=[xs, ys])
