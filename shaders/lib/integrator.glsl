@@ -541,13 +541,14 @@ bool roulette_stage(inout PathState ps, PathOptions opt, inout Rng rng) {
     return true;
 }
 
-// One path from (origin, dir) over [t_min, t_max]; `tp` returns what the techniques recorded
-// on it (the cache's value at its first diffuse vertex).
+// One path from (origin, dir) over [t_min, t_max]; `tp` comes from technique_path or the
+// pixel's previous path, and returns what the techniques recorded on this one (the cache's
+// value at its first diffuse vertex).
 PathResult trace_path(vec3 origin, vec3 dir, float t_min, float t_max, PathOptions opt, TechniqueOptions topt,
-                      out TechniquePath tp, inout Rng rng) {
+                      inout TechniquePath tp, inout Rng rng) {
     PathResult res = path_result();
     PathState ps = path_state(origin, dir, t_min, t_max, opt);
-    tp = technique_path(topt);
+    tp = technique_next_path(topt, tp);
     EarsPath ears = ears_path();  // EARS' records of the path's decisions
     for (;;) {
         // No vertex precedes the first ray, so no shadow ray can be pending: every path of a

@@ -66,6 +66,10 @@ PX_CONST uint IC_GRID_HEADER = 2 * IC_GRID_LEVELS;
 PX_CONST uint IC_MODE_CONSISTENT = 0;  // paths go on past the cache; the image shrinks them toward it (ic_combine)
 PX_CONST uint IC_MODE_THESIS = 1;      // paths end at cached vertices (thesis 4.4): biased, smooth
 PX_CONST uint IC_QUERY_MAX_ENTRIES = 4;  // consistent mode: a query ends after this many usable entries
+// Consistent mode: a pixel's sample reuses its previous query within this share of the nearest
+// entry's reach, at normals this close (cosine; irradiance_cache.glsl, IcReuse).
+PX_CONST float IC_REUSE_REACH = 0.25;
+PX_CONST float IC_REUSE_COS = 0.99;
 
 struct IcParams {
     uint enabled;                           // ic
@@ -89,6 +93,7 @@ struct IcParams {
     float prepare_create_prob PX_DEFAULT(0);  // derived by the host: create_prob in prepare frames
     uint theta PX_DEFAULT(IC_THETA);        // derived by the host: the entries' hemisphere strata
     uint phi PX_DEFAULT(IC_PHI);            // ... in theta and phi (IC_THETA_CONSISTENT ...)
+    uint reuse_stamp PX_DEFAULT(0);         // derived by the host: IcReuseRecord.stamp while the entries stay
 };
 
 // The lookup grid's bucket of cell (x, y, z) in a level's table of bucket_mask + 1 buckets: a
@@ -233,6 +238,17 @@ struct IcCandidate {
     vec3 position;
     float reach;  // accuracy * R, the sphere's radius
     uint slot;    // in BINDING_IC_ENTRIES
+};
+
+// Consistent mode: a pixel's last query (BINDING_IC_REUSE), which its next samples reuse near
+// it until the entries change (irradiance_cache.glsl, IcReuse).
+struct IcReuseRecord {
+    vec3 position;
+    float radius;    // the nearest entry's reach; 0: none
+    vec3 normal;
+    uint stamp;      // IcParams.reuse_stamp when it was made
+    vec3 irradiance;
+    uint gradients;  // packHalf2x16 of the entries' mean |g_t|, |g_r|
 };
 
 // One cache entry. Its influence sphere (centre position, radius accuracy * radius) decides

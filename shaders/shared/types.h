@@ -77,7 +77,8 @@ PX_CONST uint BINDING_EARS_FACTORS = 46;  // EarsFactor[adrrs.ears_slots] (the l
 PX_CONST uint BINDING_EARS_PIXELS = 47;   // EarsPixel per pixel (the iteration being learnt)
 PX_CONST uint BINDING_IC_PATHS_ONLY = 48; // uint per pixel: 1 = consistent mode no longer asks the cache there
 PX_CONST uint BINDING_EARS_RECORDS = 49;  // EarsRecord[EARS_PATH_VERTICES] per invocation (adrrs.ears_threads)
-PX_CONST uint BINDING_COUNT = 50;
+PX_CONST uint BINDING_IC_REUSE = 50;      // IcReuseRecord per pixel: consistent mode's last query there
+PX_CONST uint BINDING_COUNT = 51;
 
 // ---- shader binding table: miss shaders and hit groups (RayTracingPipeline group order) -
 PX_CONST uint MISS_SCENE = 0;         // miss.rmiss: the world

@@ -76,7 +76,12 @@ struct TechniquePath {
 };
 
 TechniquePath technique_path(TechniqueOptions o) {
-    return TechniquePath(ic_path(), guiding_path(o.guiding), vec4(0.0));
+    return TechniquePath(ic_first_path(o.ic), guiding_path(o.guiding), vec4(0.0));
+}
+
+// The next path of the same pixel (or walk): what a technique carries from path to path kept.
+TechniquePath technique_next_path(TechniqueOptions o, TechniquePath previous) {
+    return TechniquePath(ic_next_path(previous.ic), guiding_path(o.guiding), vec4(0.0));
 }
 
 // The techniques at a vertex: the guiding mixture there, and the cached (or adjoint)
@@ -110,6 +115,11 @@ void techniques_add_sample(inout TechniquePixel px, TechniqueOptions o, Techniqu
     ic_add_sample(px.ic, path.ic, radiance);
     guiding_add_sample(px.guiding, o.guiding, s, pixel, origin, dir, first_t);
     if (ears_on()) px.ears += path.ears;
+}
+
+// After the pixel's (or walk's) last path.
+void techniques_end_pixel(TechniqueOptions o, TechniquePath last) {
+    ic_end_pixel(o.ic, last.ic);
 }
 
 void techniques_write_passes(TechniquePixel px, uint pixel_index) {

@@ -272,7 +272,8 @@ void ic_hand_over(std::vector<uint32_t>& paths_only, const std::vector<float>& r
         }
 }
 
-IrradianceCache::IrradianceCache(Context& ctx) : ctx_(ctx), paths_only_buffer_(ctx, 16, kStorageUsage) {
+IrradianceCache::IrradianceCache(Context& ctx)
+    : ctx_(ctx), paths_only_buffer_(ctx, 16, kStorageUsage), reuse_buffer_(ctx, 16, kStorageUsage) {
     setup(IcParams{}, SceneInfo{}, 0);
 }
 
@@ -289,6 +290,14 @@ void IrradianceCache::configure(const RenderParams& params, const TechniqueSetup
     if (paths_only_buffer_.size() != flag_bytes) {
         paths_only_buffer_ = Buffer();
         paths_only_buffer_ = Buffer(ctx_, flag_bytes, kStorageUsage);
+    }
+    // The pixels' reuse records (48 B each), where paths combine with the cache.
+    const bool combine = params.ic.enabled && params.ic.mode == IC_MODE_CONSISTENT;
+    const size_t reuse_bytes = combine ? size_t(pixels_) * sizeof(IcReuseRecord) : 16;
+    if (reuse_buffer_.size() != reuse_bytes) {
+        reuse_buffer_ = Buffer();
+        reuse_buffer_ = Buffer(ctx_, reuse_bytes, kStorageUsage);
+        reuse_buffer_.fill_zero();  // stamp 0: no record (reuse_stamp_ starts at 1)
     }
     samples_per_frame_ = std::max(1u, params.samples_per_frame);
     const bool batched = cache.shade && cache.mode == IC_MODE_CONSISTENT;
@@ -378,6 +387,7 @@ void IrradianceCache::take_snapshot(TechniqueHost& host, uint64_t samples) {
 }
 
 void IrradianceCache::clear_snapshots() {
+    ++reuse_stamp_;  // a new view (or none of the old entries): the pixels query afresh
     snapshot_.clear();
     snapshot_paths_.clear();
     sequence_variance_.clear();
@@ -578,6 +588,7 @@ void IrradianceCache::bind(DescriptorSet& set) const {
     set.bind_buffer(BINDING_IC_JOBS, jobs_);
     set.bind_buffer(BINDING_IC_SAMPLES, samples_);
     set.bind_buffer(BINDING_IC_PATHS_ONLY, paths_only_buffer_);
+    set.bind_buffer(BINDING_IC_REUSE, reuse_buffer_);
 }
 
 std::vector<IcEntry> IrradianceCache::download_entries() const {
@@ -593,6 +604,7 @@ void IrradianceCache::make_entries(TechniqueHost& host, FrameParams frame, uint6
     const ComputePipeline& finish = finish_pipeline(host);
     DescriptorSet& set = host.descriptors();
     ++frame_counter_;
+    ++reuse_stamp_;  // the entries change: no pixel reuses a query of the old ones
     if (prepare) ++prepared_frames_;
 
     // The frame's creation requests, in a fixed order (the queue's is the threads'). The

@@ -82,7 +82,10 @@ public:
     void configure(const RenderParams& params, const TechniqueSetup& setup, bool needed) override;
     bool enabled() const override { return params_.enabled != 0; }
     void bind(DescriptorSet& set) const override;
-    void write_params(TechniqueParams& params) const override { params.ic = params_; }
+    void write_params(TechniqueParams& params) const override {
+        params.ic = params_;
+        params.ic.reuse_stamp = reuse_stamp_;
+    }
     // Render frames query the cache only where it shades (ic on) and has not left their
     // pipeline (consistent mode, `left_`); host frames wherever it exists. On lavapipe the
     // render frames of a cache built for ADRRS alone keep the bit: its hooks do nothing there
@@ -156,6 +159,10 @@ private:
     std::vector<float> sequence_variance_; // from the last two snapshots (ic_combine)
     std::vector<uint32_t> paths_only_;     // per pixel: handed back to the paths (ic_hand_over)
     Buffer paths_only_buffer_;             // its copy for the shaders (BINDING_IC_PATHS_ONLY)
+    // Consistent mode: each pixel's last query (IcReuseRecord, BINDING_IC_REUSE), valid while
+    // its stamp is reuse_stamp_, which every change of the entries or the view moves on.
+    Buffer reuse_buffer_;
+    uint32_t reuse_stamp_ = 1;
     uint64_t next_snapshot_ = 0;           // samples per pixel of the next snapshot
     uint32_t samples_per_frame_ = 1;
     uint32_t step_frames_ = 1;             // consistent mode: render frames per host step now
