@@ -151,7 +151,7 @@ IcOptions ic_hemisphere_options() { return IcOptions(true, false, false, false, 
 // Consistent mode: a pixel's last query, which its next samples reuse where their first
 // diffuse vertex lies within IC_REUSE_REACH of its nearest entry's reach and faces the same
 // way (ic_lookup_first), in this frame and the next ones until a host step changes the entries
-// (BINDING_IC_REUSE). A query cost the H100 65-80% of an MIS path at 1280 px; the cache's value
+// (BINDING_IC_REUSE). A query cost the H100 50-80% of an MIS path at 1280 px; the cache's value
 // varies little across a pixel's footprint, and any A keeps the image consistent (ic_combine).
 struct IcReuse {
     vec3 position;
