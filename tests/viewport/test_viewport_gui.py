@@ -19,7 +19,7 @@ from xwd import read_xwd
 TOOLS = gui_tools.TOOLS
 pytestmark = pytest.mark.skipif(not all(shutil.which(t) for t in TOOLS),
                                 reason=f"needs {', '.join(TOOLS)} (make setup installs them)")
-WIDTH, HEIGHT = 960, 600  # sample counts are small: the test waits on events, not on speed
+WIDTH, HEIGHT = 640, 400  # small for CI time (960x600 cost 40% more); the test waits on events, not on speed
 
 
 @pytest.fixture(scope="module")
