@@ -22,6 +22,9 @@ from bench import shared_scenes  # noqa: E402
 # The thesis' mode (paths end at the cache) unless a test says otherwise.
 FAST_IC = dict(ic=True, ic_mode="thesis", ic_prepare_frames=12, ic_create_prob=0.05)
 CONSISTENT_IC = {**FAST_IC, "ic_mode": "consistent"}
+# The light paths helpers.render sets: tests with sessions of their own set them too, so the file
+# compiles one cache pipeline, not a second for the default (Cycles') light paths.
+LIGHT_PATHS = pc.UNBIASED_LIGHT_PATHS
 
 
 def block_rel_mse(img, ref, k=8):
@@ -230,7 +233,7 @@ def test_next_frame_finds_new_entries():
     unbuilt found none: IC Irradiance 0 everywhere, and every point asked again)."""
     s = pc.Session(32, 32)
     s.set_params(method="mis", ic=True, ic_mode="thesis", ic_prepare_frames=0, ic_create_prob=0.3,
-                 samples_per_frame=1, seed=1)
+                 samples_per_frame=1, seed=1, **LIGHT_PATHS)
     s.update(scenes.cornell_box(32, 32))
     s.render(1)
     first = s.stats()["ic_entries"]
@@ -248,7 +251,8 @@ def test_prepare_frames_fill_before_accumulation():
     s = pc.Session(32, 32)
     s.update(sc)
     for limit in (3, 200):
-        s.set_params(samples_per_frame=1, **{**FAST_IC, "ic_prepare_frames": limit, "ic_create_prob": 0.3})
+        s.set_params(samples_per_frame=1, **{**FAST_IC, "ic_prepare_frames": limit, "ic_create_prob": 0.3},
+                     **LIGHT_PATHS)
         calls = 0
         while not s.render_rows(32):
             calls += 1
@@ -295,7 +299,7 @@ def test_consistent_mode_host_steps_wait_longer_each_time():
     and the image are those of a fixed seed (two sessions agree), however the frames are split
     into render() calls."""
     sc = scenes.cornell_box(24, 24)
-    params = dict(**{**CONSISTENT_IC, "ic_create_prob": 0.2}, samples_per_frame=1, seed=2)
+    params = dict(**{**CONSISTENT_IC, "ic_create_prob": 0.2}, samples_per_frame=1, seed=2, **LIGHT_PATHS)
     runs = []
     for calls in ((96,), (1,) * 40 + (56,)):
         s = pc.Session(24, 24)
@@ -318,7 +322,7 @@ def test_entries_hemisphere_by_mode():
     sc = scenes.cornell_box(24, 24)
     for params, strata in ((CONSISTENT_IC, 6 * 12), (FAST_IC, 10 * 20)):
         s = pc.Session(24, 24)
-        s.set_params(**params, samples_per_frame=1, seed=2)
+        s.set_params(**params, samples_per_frame=1, seed=2, **LIGHT_PATHS)
         s.update(sc)
         s.render(32)
         st = s.stats()
@@ -334,7 +338,7 @@ def test_consistent_mode_leaves_the_pipeline_where_the_paths_need_no_cache():
     is MIS' estimator: with the same seed the image is MIS' (measured equal to 4 digits)."""
     sc = scenes.veach_mis(32, 24)
     s = pc.Session(32, 24)
-    s.set_params(**CONSISTENT_IC, samples_per_frame=1, seed=4)
+    s.set_params(**CONSISTENT_IC, samples_per_frame=1, seed=4, **LIGHT_PATHS)
     s.update(sc)
     s.render(8)
     st = s.stats()
@@ -343,7 +347,7 @@ def test_consistent_mode_leaves_the_pipeline_where_the_paths_need_no_cache():
     s.render(24)
     assert s.stats()["ic_host_steps"] == steps
     mis = pc.Session(32, 24)
-    mis.set_params(method="mis", samples_per_frame=1, seed=4)
+    mis.set_params(method="mis", samples_per_frame=1, seed=4, **LIGHT_PATHS)
     mis.update(sc)
     mis.render(32)
     img, ref = s.read("combined")[..., :3], mis.read("combined")[..., :3]
