@@ -3,7 +3,8 @@ frames render with the techniques off while their pipelines compile on a worker 
 
 Each check runs in a child process: pipelines are shared process-wide, so only a new process
 is sure to meet a technique's pipelines uncompiled (its first frame then always falls back:
-the compile starts in that very call)."""
+the compile starts in that very call). The first two set helpers.render's light paths: the
+pipelines the render tier compiles anyway (CI time)."""
 import json
 import os
 import subprocess
@@ -20,13 +21,13 @@ CHILD = textwrap.dedent("""
     scene = scenes.cornell_box(24, 24)
     s = pc.Session(24, 24, "cpu")
     s.update(scene)
-    s.set_params(method="mis", rrs="adrrs", samples_per_frame=2)
+    s.set_params(method="mis", rrs="adrrs", samples_per_frame=2, **pc.UNBIASED_LIGHT_PATHS)
     s.background_compile = background
     s.render(1)
     first = s.stats()
     plain = pc.Session(24, 24, "cpu")
     plain.update(scene)
-    plain.set_params(method="mis", samples_per_frame=2)
+    plain.set_params(method="mis", samples_per_frame=2, **pc.UNBIASED_LIGHT_PATHS)
     plain.render(1)
     same_as_plain = bool(np.array_equal(s.read("combined"), plain.read("combined")))
     pc.wait_for_background_compiles()
