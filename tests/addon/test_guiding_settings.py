@@ -55,7 +55,8 @@ def test_viewport_worker_shows_a_guiding_pass_live():
 
     params = {**dataclasses.asdict(parallax_core.RenderParams()), "method": "mis", "samples_per_frame": 4,
               "guiding": True, "guiding_min_samples": 32, "guiding_region_splits": 3,
-              "guiding_probe_x": 6, "guiding_probe_y": 6}
+              "guiding_probe_x": 6, "guiding_probe_y": 6,
+              **parallax_core.UNBIASED_LIGHT_PATHS}  # the F12 test's pipelines: no compile of their own
     worker = viewport._Worker("auto", params, 8, 1, display="guiding_lobes")
     worker.submit(scenes.cornell_box(16, 16), parts={"geometry"}, size=(16, 16))
     worker.start()
