@@ -12,12 +12,13 @@ cd "$(dirname "$0")/.."
 PY=${1:-.venv/bin/python}
 shift || true
 # The render tests of --ci: each method (pt, nee, mis; on one session, 11 s where the glass
-# furnace's 16 NEE batches took 31-42 s), the irradiance cache, ADRRS (which
-# needs the cache), guiding with the CPU and the device fit, a partial update of each scene part
-# and concurrent sessions (the host code the sanitizers watch). Small images, seconds each
-# without ASan. Left out as repeats of host code the list already runs: ADRRS' same-seed test
-# (its toggle test renders ADRRS, the cache and a scene edit, and now pays the cold compile), the
-# specular furnaces, 14 of the 20 partial-update edits.
+# furnace's 16 NEE batches took 31-42 s), the irradiance cache, ADRRS (which needs the cache),
+# guiding with the CPU fit (lavapipe's "auto": the same-seed test) and the device fit, a partial
+# update of each scene part and concurrent sessions (the host code the sanitizers watch). Small
+# images, seconds each without ASan. Left out as repeats of host code the list already runs:
+# ADRRS' same-seed test (its toggle test renders ADRRS, the cache and a scene edit, and now pays
+# the cold compile), the specular furnaces, 14 of the 20 partial-update edits, the
+# refined-regions test's CPU-fit case (the same-seed test's fit; 50 s under the sanitizers).
 PARTIAL=tests/render/test_partial_update.py::test_partial_update_matches_a_full_one
 CI_RENDER=(
   tests/render/test_integrator.py::test_pt_nee_mis_agree_on_cornell_box
@@ -25,7 +26,7 @@ CI_RENDER=(
   tests/render/test_irradiance_cache.py::test_scene_edit_drops_stale_irradiance
   tests/render/test_adrrs.py::test_toggle_resets_and_scene_edit_remakes_the_estimate
   tests/render/test_guiding.py::test_same_seed_same_image_fit_included
-  tests/render/test_guiding.py::test_refined_regions_reach_the_shaders
+  "tests/render/test_guiding.py::test_refined_regions_reach_the_shaders[device]"
   "$PARTIAL[camera-orbit]" "$PARTIAL[instances-move-emitter]" "$PARTIAL[materials-texture]"
   "$PARTIAL[lights-world-map]" "$PARTIAL[geometry-scale]" "$PARTIAL[several-parts]"
   tests/render/test_sessions.py::test_concurrent_sessions_match_sequential
