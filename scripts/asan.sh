@@ -18,7 +18,7 @@ shift || true
 # images, seconds each without ASan. Left out as repeats of host code the list already runs:
 # ADRRS' same-seed test (its toggle test renders ADRRS, the cache and a scene edit, and now pays
 # the cold compile), the specular furnaces, 14 of the 20 partial-update edits, the
-# refined-regions test's CPU-fit case (the same-seed test's fit; 50 s under the sanitizers).
+# refined-regions test's CPU-fit case (the same-seed test's fit).
 PARTIAL=tests/render/test_partial_update.py::test_partial_update_matches_a_full_one
 CI_RENDER=(
   tests/render/test_integrator.py::test_pt_nee_mis_agree_on_cornell_box
