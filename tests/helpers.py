@@ -15,6 +15,12 @@ import numpy as np
 import parallax_core as pc
 
 
+# render()'s light paths as CLI --set arguments: a CLI render with them reuses the render
+# tier's pipelines instead of compiling variants of its own (CI time).
+UNBIASED_LIGHT_PATH_SETS = tuple(arg for name, value in pc.UNBIASED_LIGHT_PATHS.items()
+                                 for arg in ("--set", f"{name}={value}"))
+
+
 def render(scene, method="mis", spp=64, spp_per_frame=None, seed=0, session=None, **params):
     """Render `scene` with `spp` samples; returns (combined rgb, session)."""
     s = session or pc.Session(scene.width, scene.height)

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from addon import passes, properties, ui
 from addon.cli import CommandError, apply_settings
+from helpers import UNBIASED_LIGHT_PATH_SETS
 from blender_helpers import SCENES, FakeDepsgraph, FakeWorker, read_layers, save_and_reopen
 
 import parallax_core
@@ -283,7 +284,7 @@ def test_npz_render_with_every_technique_row_set(tmp_path, monkeypatch):
     scenes.cornell_box(16, 16).save(str(npz))
     sets = [a for row in TECHNIQUE_ROWS for a in ("--set", f"{row.name}={as_text(changed(row))}")]
     # The light paths of blender_scenes/cornell_box.blend: the pipeline the test above compiled.
-    sets += [a for name, value in parallax_core.UNBIASED_LIGHT_PATHS.items() for a in ("--set", f"{name}={as_text(value)}")]
+    sets += UNBIASED_LIGHT_PATH_SETS
     assert cli.main(["render", str(npz), "-o", str(exr), "--spp", "2", *sets]) == 0
     for row in TECHNIQUE_ROWS:
         assert same(calls[-1][row.name], changed(row)), row.name

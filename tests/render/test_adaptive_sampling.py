@@ -14,7 +14,7 @@ import parallax_core as pc
 from parallax_core import scenes
 from parallax_core.scene import Camera, Light, Material, SceneData, World
 
-from helpers import batches, means_agree, z_scores
+from helpers import UNBIASED_LIGHT_PATH_SETS, batches, means_agree, z_scores
 
 SIZE = 24
 # Quick to converge on the sky; the glass' caustic stays hard.
@@ -186,11 +186,9 @@ def test_cli_set_for_npz(tmp_path, scene):
         "use_adaptive_sampling": False, "adaptive_threshold": 0.05}
     path = tmp_path / "scene.npz"
     scene.save(str(path))
-    # helpers.render's light paths: the pipeline the tests above compiled (CI time)
-    light_paths = [a for name, value in pc.UNBIASED_LIGHT_PATHS.items() for a in ("--set", f"{name}={value}")]
     for value in ("false", "true"):
         out = tmp_path / f"out_{value}.exr"
         assert cli.main(["render", str(path), "-o", str(out), "--device", "cpu", "--spp", "48", "--spp-per-frame", "16",
                          "--set", f"use_adaptive_sampling={value}", "--set", "adaptive_min_samples=16",
-                         "--set", "use_preview_adaptive_sampling=false", *light_paths]) == 0
+                         "--set", "use_preview_adaptive_sampling=false", *UNBIASED_LIGHT_PATH_SETS]) == 0
         assert out.exists()

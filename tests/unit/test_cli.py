@@ -6,13 +6,11 @@ import sys
 import numpy as np
 import pytest
 
-from parallax_core import UNBIASED_LIGHT_PATHS as UNBIASED
 from parallax_core.cli import parse_params
+from helpers import UNBIASED_LIGHT_PATH_SETS
 from parallax_core.exr import read_exr, write_exr
 
 PARALLAX = [sys.executable, "-m", "parallax_core"]
-# --set for helpers.render's light paths: the pipelines the render tier compiled before (CI time).
-UNBIASED_LIGHT_PATHS = tuple(a for name, value in UNBIASED.items() for a in ("--set", f"{name}={value}"))
 
 
 def run(*args, check=True):
@@ -119,7 +117,7 @@ def test_npz_render_with_the_irradiance_cache(tmp_path):
     run("scene", "cornell_box", "-o", str(npz), "--width", "16", "--height", "12")
     r = run("render", str(npz), "-o", str(exr), "--spp", "2", "--set", "ic=1", "--set", "ic_gradients=yes",
             "--set", "ic_prepare_frames=2", "--set", "ic_capacity=5000", "--set", "ic_accuracy=0.3",
-            *UNBIASED_LIGHT_PATHS)
+            *UNBIASED_LIGHT_PATH_SETS)
     found = re.search(r"IC (\d+)/5000 entries, (\d+) dropped", r.stdout)
     assert found and int(found.group(1)) > 0, r.stdout
     channels = read_exr(str(exr))
@@ -136,7 +134,7 @@ def test_npz_render_with_rrs_and_its_synonym_adrrs(tmp_path):
     with an error naming the setting."""
     npz = tmp_path / "cb.npz"
     run("scene", "cornell_box", "-o", str(npz), "--width", "16", "--height", "12")
-    short = ("--set", "ic_prepare_frames=2", "--set", "adrrs_estimate_spp=2", *UNBIASED_LIGHT_PATHS)
+    short = ("--set", "ic_prepare_frames=2", "--set", "adrrs_estimate_spp=2", *UNBIASED_LIGHT_PATH_SETS)
     layers = {"ADRRS Estimate.R", "ADRRS Splits.X", "RRS Factor.X", "RRS Cost.X"}
     for name, sets, cache in (("ears", ("rrs=ears",), False), ("adrrs", ("adrrs=1",), True),
                               ("synonym_off", ("rrs=ears", "adrrs=0"), False)):
