@@ -29,27 +29,12 @@ const SettingTable& ic_table();
 void ic_combine(std::vector<float>& rgba, const std::vector<float>& samples, const std::vector<vec4>& residual,
                 uint32_t width, uint32_t height, const std::vector<float>& sequence_variance = {},
                 const std::vector<uint32_t>& paths_only = {});
-// The James-Stein weight of B per pixel that ic_combine applies (1: the pixel shows B).
-std::vector<float> ic_keep_weights(const std::vector<float>& rgba, const std::vector<float>& samples,
-                                   const std::vector<vec4>& residual, uint32_t width, uint32_t height,
-                                   const std::vector<float>& sequence_variance = {},
-                                   const std::vector<uint32_t>& paths_only = {});
 
 // The variance of the mean of A - B from two snapshots of the IC Residual pass' sums (rgb; w:
 // the pixel's sample count) taken at n_a and n_b > n_a samples: the squared difference of the
 // means of samples [0, n_a) and [n_a, n_b), as n_b times that variance at n_b (summed over rgb).
 // Negative where a part has fewer than IC_COMBINE_MIN_HALF samples. See ic_combine.
 std::vector<float> ic_sequence_variance(const std::vector<vec4>& first, const std::vector<vec4>& both);
-
-// Consistent mode's leave rule: the combined image's error against the paths' alone, as relMSE
-// (each pixel weighted by 1/(B's mean^2 + 1e-3), B of the first snapshot), from two snapshots of the IC Residual and
-// Combined sums (rgb; w: the pixel's sample count). Per sample the image is the mean of
-// B + (1 - keep)(A - B), so its variance comes from the snapshots' halves as B's does
-// (ic_sequence_variance), and A's bias adds (1 - keep)^2 (|mean(A - B)|^2 - Var(mean(A - B))).
-// 1: the cache lowers the error by nothing. Negative where no pixel has both halves.
-double ic_error_ratio(const std::vector<float>& keep, const std::vector<vec4>& residual_first,
-                      const std::vector<vec4>& residual_both, const std::vector<vec4>& paths_first,
-                      const std::vector<vec4>& paths_both);
 
 // Consistent mode's pixel handover: which pixels to hand back to the paths for good (1). With
 // a perfect cache the image's variance would be the paths' less the residual's, so where, over
@@ -82,9 +67,6 @@ struct IcStats {
     uint64_t paths_only = 0;  // consistent mode: pixels handed back to the paths (ic_hand_over)
     uint64_t host_steps = 0;  // after render frames (consistent mode: several frames each)
     uint64_t left = 0;        // 1: the render frames left the cache's pipeline (consistent mode)
-    // Consistent mode, at the last snapshot: the image's relMSE with the cache over the paths'
-    // alone (ic_error_ratio), in thousandths; 0 until measured.
-    uint64_t error_ratio_permille = 0;
     uint64_t jobs = 0;      // hemisphere estimates computed (creations + refreshes)
     uint64_t job_rays = 0;  // their hemisphere rays (theta x phi each)
     double job_milliseconds = 0;    // hemisphere + finish dispatches
@@ -187,11 +169,9 @@ private:
     uint64_t stepped_samples_ = 0;         // samples per pixel at the last host step
     mutable bool queue_read_ = true;       // the host took the queue's requests: clear it
     bool needed_ = false;                  // another technique reads the cache (ADRRS' adjoint)
-    // Consistent mode: three quarters of the pixels went back to the paths, or the cache lowers
-    // the image's error by less than its frames cost over the paths' (IC_LEAVE_ERROR_RATIO), so
-    // the render frames trace without the cache (its pipeline costs every pixel, not only those
-    // that ask); the other pixels' residual then fades as 1/n. Until the view or the settings
-    // change.
+    // Consistent mode: three quarters of the pixels went back to the paths, so the render
+    // frames trace without the cache (its pipeline costs every pixel, not only those that ask);
+    // the other pixels' residual then fades as 1/n. Until the view or the settings change.
     bool left_ = false;
 };
 
