@@ -192,3 +192,41 @@ def test_pixels_the_cache_cannot_help_go_back_to_the_paths():
     out = combine(rgba, np.full((h, w), 8, np.float32), sums, None, flags)
     np.testing.assert_array_equal(out[flags == 1], rgba[flags == 1])
     assert np.abs(out[flags == 0] - rgba[flags == 0]).max() > 0.01
+
+
+def test_error_sums_measure_what_the_cache_takes_away():
+    """ic_error_sums, the leave rule's measure: the combined image's relMSE over the paths' alone,
+    (paths + cross + residual) / paths, from two snapshots (halves of the samples). Against the
+    exact ratio over 40 draws of independent samples: 1 where the image is B (keep 1),
+    Var(A)/Var(B) for a noisy but unbiased cache, its bias counted for a cache that is off."""
+    rng = np.random.default_rng(10)
+    truth = smooth_image(rng, 32, 32)
+    n, sigma = 32, 0.6
+
+    def sums(values):
+        return np.concatenate([values.sum(0), np.full(values.shape[1:3] + (1,), values.shape[0])], -1).astype(np.float32)
+
+    for keep_value, cache_noise, cache_error in ((1.0, 0.2, 0.0), (0.0, 0.2, 0.0), (0.0, 0.0, 0.05), (0.5, 0.2, 0.02)):
+        keep = np.full(truth.shape[:2], keep_value, np.float32)
+        estimates, errors, paths_errors = [], [], []
+        for _ in range(40):
+            common = rng.normal(0.0, sigma, (n,) + truth.shape)
+            paths = truth + common
+            # A: the cache's value plus the part of the path before its first diffuse vertex,
+            # which A and B share (their noise is correlated).
+            cached = truth * (1 + cache_error) + common * (cache_noise / sigma)
+            residual = cached - paths
+            p, c, r = pc._native.ic_error_sums(keep, sums(residual[: n // 2]), sums(residual), sums(paths[: n // 2]),
+                                               sums(paths))
+            estimates.append((p + c + r) / p)
+            image = paths.mean(0) + (1 - keep[..., None]) * residual.mean(0)
+            weight = 1 / (truth.mean(-1) ** 2 + 1e-3)  # relMSE's
+            errors.append(float((weight[..., None] * (image - truth) ** 2).sum()))
+            paths_errors.append(float((weight[..., None] * (paths.mean(0) - truth) ** 2).sum()))
+        exact = np.mean(errors) / np.mean(paths_errors)
+        measured = float(np.mean(estimates))
+        print(f"keep {keep_value}, cache noise {cache_noise}, error {cache_error}: measured {measured:.3f}, "
+              f"exact {exact:.3f}")
+        assert abs(measured / exact - 1) < 0.15, (measured, exact)
+    with pytest.raises(ValueError, match="differ in size"):
+        pc._native.ic_error_sums(keep, sums(residual), sums(residual), sums(paths), np.zeros((4, 4, 4), np.float32))
