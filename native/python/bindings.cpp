@@ -196,27 +196,6 @@ NB_MODULE(_native, m) {
           "n_b times the variance of the mean of n_b samples of the cache's residual, from IC Residual's "
           "sums (rgb; w: sample count) at n_a and n_b > n_a samples (irradiance_cache.h); H x W, "
           "negative where a part has fewer than 4 samples.");
-    m.def("ic_error_sums",
-          [copy](ImageScalar keep, ImageRgba residual_first, ImageRgba residual_both, ImageRgba paths_first,
-                 ImageRgba paths_both) {
-              const uint32_t h = uint32_t(keep.shape(0)), w = uint32_t(keep.shape(1));
-              for (const auto* a : {&residual_first, &residual_both, &paths_first, &paths_both})
-                  if (a->shape(0) != h || a->shape(1) != w)
-                      throw std::invalid_argument("ic_error_sums: the per-pixel arrays differ in size");
-              const size_t n = size_t(w) * h;
-              std::vector<float> weights(n);
-              std::vector<px::vec4> r1(n), r2(n), p1(n), p2(n);
-              copy(keep, weights);
-              copy(residual_first, r1);
-              copy(residual_both, r2);
-              copy(paths_first, p1);
-              copy(paths_both, p2);
-              const px::IcErrorSums sums = px::ic_error_sums(weights, r1, r2, p1, p2);
-              return nb::make_tuple(sums.paths, sums.cross, sums.residual);
-          }, "keep"_a, "residual_first"_a, "residual_both"_a, "paths_first"_a, "paths_both"_a,
-          "Consistent cache mode's leave rule (irradiance_cache.h ic_error_sums): (paths, cross, residual), the "
-          "relMSE-weighted sums of B's variance, 2 t Cov(B, A - B) and t^2 |mean(A - B)|^2 for the weights of B "
-          "`keep` (H x W), from two snapshots of the sums of A - B and of B (H x W x 4, rgb; w: sample count).");
     m.def("ic_hand_over",
           [copy](nb::ndarray<const uint32_t, nb::shape<-1, -1>, nb::c_contig, nb::device::cpu> paths_only,
                  ImageScalar residual_variance, ImageScalar path_variance, ImageScalar means) {

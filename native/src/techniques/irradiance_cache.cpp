@@ -37,17 +37,6 @@ constexpr uint64_t kFirstSnapshot = 4;
 // the paths: a query cost lavapipe 20-50% of a path on the direct-lit scenes, so a cache that
 // removes less than 20-25% of the variance cannot win at equal time there.
 constexpr double IC_HANDOVER_SHARE = 0.25;
-// The render frames leave the cache's pipeline once, at a snapshot, the cache lowers the
-// image's relMSE to no less than this share of the paths' alone (ic_error_ratio): its frames
-// cost 1.3-1.45x MIS' per sample (the thesis' irradiance-cache scene, 320 px on lavapipe: 1.44;
-// the H100 at 1280 px after the query reuse: 1.28-1.41), so from there its samples cost more
-// than the error they remove. The ratio only grows with the samples (the James-Stein weights
-// tend to B's), so the cache does not pay later either.
-constexpr double IC_LEAVE_ERROR_RATIO = 0.6;
-// ... from the snapshot at this many samples on: before it the ratio comes from halves of 4-8
-// samples and young entries (atrium at 320 px on lavapipe: 0.92 at 8 spp, 0.62-0.67 from 32 to
-// 512 spp, where the cache pays).
-constexpr double IC_LEAVE_MIN_SAMPLES = 32;
 
 // Jobs per hemisphere dispatch (theta x phi paths each); a frame's jobs go in several.
 constexpr uint32_t kJobsPerDispatch = 2048;
@@ -193,10 +182,9 @@ private:
 // cache long after the paths were better. Where the sequence's own convergence has been
 // measured (ic_sequence_variance: the first half of the samples up to a power of two against
 // the second), carried to n as 1/n, each window takes the smaller of the two.
-std::vector<float> ic_keep_weights(const std::vector<float>& rgba, const std::vector<float>& samples,
-                                   const std::vector<vec4>& residual, uint32_t width, uint32_t height,
-                                   const std::vector<float>& sequence_variance,
-                                   const std::vector<uint32_t>& paths_only) {
+void ic_combine(std::vector<float>& rgba, const std::vector<float>& samples, const std::vector<vec4>& residual,
+                uint32_t width, uint32_t height, const std::vector<float>& sequence_variance,
+                const std::vector<uint32_t>& paths_only) {
     const size_t pixels = size_t(width) * height;
     if (residual.size() != pixels || samples.size() != pixels || rgba.size() != pixels * 4 ||
         (!sequence_variance.empty() && sequence_variance.size() != pixels) ||
@@ -221,7 +209,6 @@ std::vector<float> ic_keep_weights(const std::vector<float>& rgba, const std::ve
     }
     const WindowSums sq_sums(sq, width, height), var_sums(var, width, height), dims_sums(dims, width, height);
     const WindowSums sequence_var_sums(sequence_var, width, height);
-    std::vector<float> keep(pixels, 1.0f);
     for (uint32_t y = 0; y < height; ++y)
         for (uint32_t x = 0; x < width; ++x) {
             const size_t i = size_t(y) * width + x;
@@ -234,76 +221,29 @@ std::vector<float> ic_keep_weights(const std::vector<float>& rgba, const std::ve
             const double s = sq_sums(x, y), v = std::min(var_sums(x, y), sequence_var_sums(x, y));
             const double d = dims_sums(x, y);
             // Weight of B: 0 (the cache's A) until this pixel has enough samples.
-            double k = 0;
-            if (n >= IC_COMBINE_MIN_SAMPLES && d > 2) k = s > 0 ? std::clamp(1.0 - (d - 2) / d * v / s, 0.0, 1.0) : 1.0;
-            keep[i] = float(k);
+            double keep = 0;
+            if (n >= IC_COMBINE_MIN_SAMPLES && d > 2) keep = s > 0 ? std::clamp(1.0 - (d - 2) / d * v / s, 0.0, 1.0) : 1.0;
+            const float toward_cache = float(1.0 - keep);
+            rgba[i * 4 + 0] += toward_cache * residual[i].x / n;
+            rgba[i * 4 + 1] += toward_cache * residual[i].y / n;
+            rgba[i * 4 + 2] += toward_cache * residual[i].z / n;
         }
-    return keep;
-}
-
-void ic_combine(std::vector<float>& rgba, const std::vector<float>& samples, const std::vector<vec4>& residual,
-                uint32_t width, uint32_t height, const std::vector<float>& sequence_variance,
-                const std::vector<uint32_t>& paths_only) {
-    const std::vector<float> keep =
-        ic_keep_weights(rgba, samples, residual, width, height, sequence_variance, paths_only);
-    for (size_t i = 0; i < keep.size(); ++i) {
-        const float n = samples[i], toward_cache = 1.0f - keep[i];
-        if (!(n > 0) || toward_cache == 0.0f) continue;
-        rgba[i * 4 + 0] += toward_cache * residual[i].x / n;
-        rgba[i * 4 + 1] += toward_cache * residual[i].y / n;
-        rgba[i * 4 + 2] += toward_cache * residual[i].z / n;
-    }
 }
 
 // For parts of n1 and n2 samples with means m1 and m2 and independent errors of variance
 // s^2/n1 and s^2/n2: E|m1 - m2|^2 = s^2 (1/n1 + 1/n2), so n_b Var(mean of n_b) = s^2 =
 // |m1 - m2|^2 n1 n2 / n_b. Our parts are each a run of a power of two of Sobol points, as
 // the whole is, so their difference sees how fast the sequence converges on this pixel.
-// From the sums of the first part and of both (rgb, w: samples) of two quantities, their
-// covariance so (summed over rgb; with a = b the variance); negative where a part has fewer
-// than IC_COMBINE_MIN_HALF samples.
-static double halves_covariance(const vec4& first_a, const vec4& both_a, const vec4& first_b, const vec4& both_b) {
-    const double n1 = first_a.w, n2 = both_a.w - first_a.w;
-    if (!(n1 >= IC_COMBINE_MIN_HALF && n2 >= IC_COMBINE_MIN_HALF)) return -1.0;
-    const auto difference = [n1, n2](const vec4& first, const vec4& both) {
-        return vec3{float(first.x / n1 - (both.x - first.x) / n2), float(first.y / n1 - (both.y - first.y) / n2),
-                    float(first.z / n1 - (both.z - first.z) / n2)};
-    };
-    const vec3 da = difference(first_a, both_a), db = difference(first_b, both_b);
-    return (double(da.x) * db.x + double(da.y) * db.y + double(da.z) * db.z) * n1 * n2 / (n1 + n2);
-}
-
 std::vector<float> ic_sequence_variance(const std::vector<vec4>& first, const std::vector<vec4>& both) {
     if (first.size() != both.size()) throw std::invalid_argument("ic_sequence_variance: the snapshots differ in size");
     std::vector<float> out(both.size(), -1.0f);
-    for (size_t i = 0; i < both.size(); ++i) out[i] = float(halves_covariance(first[i], both[i], first[i], both[i]));
-    return out;
-}
-
-IcErrorSums ic_error_sums(const std::vector<float>& keep, const std::vector<vec4>& residual_first,
-                          const std::vector<vec4>& residual_both, const std::vector<vec4>& paths_first,
-                          const std::vector<vec4>& paths_both) {
-    const size_t pixels = keep.size();
-    if (residual_first.size() != pixels || residual_both.size() != pixels || paths_first.size() != pixels ||
-        paths_both.size() != pixels)
-        throw std::invalid_argument("ic_error_sums: the per-pixel arrays differ in size");
-    IcErrorSums out;
-    for (size_t i = 0; i < pixels; ++i) {
-        // The image is B + t mean(A - B), t = 1 - keep: its error is B's, plus 2 t Cov(B, A - B),
-        // plus t^2 |mean(A - B)|^2, which the film gives directly (A's bias and noise alike).
-        const double n = paths_both[i].w, t = 1.0 - keep[i];
-        const double paths_var = halves_covariance(paths_first[i], paths_both[i], paths_first[i], paths_both[i]);
-        if (!(paths_var >= 0)) continue;
-        const double cov = halves_covariance(paths_first[i], paths_both[i], residual_first[i], residual_both[i]);
-        const vec4& r = residual_both[i];
-        const double residual_sq = (double(r.x) * r.x + double(r.y) * r.y + double(r.z) * r.z) / (n * n);
-        // relMSE's weight with A's brightness, as ic_keep_weights (B's would follow B's noise,
-        // and so |mean(A - B)|^2: 25% too much on a cache 5% off in the unit test).
-        const double mean = (paths_both[i].x + r.x + paths_both[i].y + r.y + paths_both[i].z + r.z) / (3.0 * n);
-        const double w = 1.0 / (mean * mean + 1e-3);
-        out.paths += w * paths_var / n;
-        out.cross += w * 2.0 * t * cov / n;
-        out.residual += w * t * t * residual_sq;
+    for (size_t i = 0; i < both.size(); ++i) {
+        const double n1 = first[i].w, n2 = both[i].w - first[i].w;
+        if (!(n1 >= IC_COMBINE_MIN_HALF && n2 >= IC_COMBINE_MIN_HALF)) continue;
+        const double dx = first[i].x / n1 - (both[i].x - first[i].x) / n2;
+        const double dy = first[i].y / n1 - (both[i].y - first[i].y) / n2;
+        const double dz = first[i].z / n1 - (both[i].z - first[i].z) / n2;
+        out[i] = float((dx * dx + dy * dy + dz * dz) * n1 * n2 / (n1 + n2));
     }
     return out;
 }
@@ -426,38 +366,15 @@ void IrradianceCache::take_snapshot(TechniqueHost& host, uint64_t samples) {
     std::vector<vec4> sums = host.film_sums(PASS_IC_RESIDUAL);
     std::vector<vec4> paths = host.film_sums(PASS_COMBINED);  // w: the pixels' sample counts
     if (sums.empty() || paths.size() != sums.size() || paths_only_.size() != sums.size()) return;
-    const std::vector<vec4> residual = sums;  // w: the sums of |A - B|^2 (ic_keep_weights)
     for (size_t i = 0; i < sums.size(); ++i) sums[i].w = paths[i].w;
     if (snapshot_.size() == sums.size()) {
         sequence_variance_ = ic_sequence_variance(snapshot_, sums);
-        std::vector<float> means(paths.size()), image(4 * paths.size()), counts(paths.size());
-        for (size_t i = 0; i < paths.size(); ++i) {
-            const float n = paths[i].w;
-            means[i] = n > 0 ? (paths[i].x + paths[i].y + paths[i].z) / (3.0f * n) : 0.0f;
-            if (n > 0) {
-                image[4 * i] = paths[i].x / n, image[4 * i + 1] = paths[i].y / n, image[4 * i + 2] = paths[i].z / n;
-            }
-            counts[i] = n;
-        }
-        const uint32_t height = uint32_t(paths.size() / width_);
+        std::vector<float> means(paths.size());
+        for (size_t i = 0; i < paths.size(); ++i)
+            means[i] = paths[i].w > 0 ? (paths[i].x + paths[i].y + paths[i].z) / (3.0f * paths[i].w) : 0.0f;
         const size_t before = std::count(paths_only_.begin(), paths_only_.end(), 1u);
-        ic_hand_over(paths_only_, sequence_variance_, ic_sequence_variance(snapshot_paths_, paths), means, width_,
-                     height);
-        // The whole image: where the cache no longer pays for its frames, every pixel goes back
-        // to the paths and shows B, MIS' estimator (a residual kept from the samples so far and
-        // faded as 1/n cost the H100 about 20% of error on the thesis' scene against B alone).
-        const std::vector<float> keep =
-            ic_keep_weights(image, counts, residual, width_, height, sequence_variance_, paths_only_);
-        const IcErrorSums errors = ic_error_sums(keep, snapshot_, sums, snapshot_paths_, paths);
-        // Var(mean of n) ~ n^-alpha: the halves give about Var(mean of n/2) / 2, 2^(alpha - 1)
-        // times Var(mean of n), and alpha comes from the paths' term at the last two snapshots.
-        const double sequence_gain =
-            last_paths_error_ > 0 && errors.paths > 0 ? std::max(1.0, last_paths_error_ / (2 * errors.paths)) : 1.0;
-        last_paths_error_ = errors.paths;
-        const double error_ratio = errors.ratio(sequence_gain);
-        stats_.error_ratio_permille = error_ratio >= 0 ? uint64_t(std::lround(1000 * error_ratio)) : 0;
-        if (!needed_ && samples >= IC_LEAVE_MIN_SAMPLES && error_ratio >= IC_LEAVE_ERROR_RATIO)
-            std::fill(paths_only_.begin(), paths_only_.end(), 1u);
+        ic_hand_over(paths_only_, sequence_variance_, ic_sequence_variance(snapshot_paths_, paths), means,
+                     width_, uint32_t(paths.size() / width_));
         stats_.paths_only = std::count(paths_only_.begin(), paths_only_.end(), 1u);
         if (stats_.paths_only != before)
             paths_only_buffer_.upload(paths_only_.data(), paths_only_.size() * sizeof(uint32_t));
@@ -479,8 +396,6 @@ void IrradianceCache::clear_snapshots() {
     step_frames_ = 1;
     left_ = false;
     stats_.left = 0;
-    stats_.error_ratio_permille = 0;
-    last_paths_error_ = 0;
     std::fill(paths_only_.begin(), paths_only_.end(), 0u);
     stats_.paths_only = 0;
     if (paths_only_buffer_.valid()) paths_only_buffer_.fill_zero();
@@ -512,7 +427,6 @@ void IrradianceCache::stats(StatList& out) const {
                            {"ic_paths_only", stats_.paths_only},
                            {"ic_host_steps", stats_.host_steps},
                            {"ic_left", stats_.left},
-                           {"ic_error_ratio_permille", stats_.error_ratio_permille},
                            {"ic_jobs", stats_.jobs},
                            {"ic_job_rays", stats_.job_rays},
                            {"ic_job_milliseconds", stats_.job_milliseconds},

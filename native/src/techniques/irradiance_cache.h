@@ -29,37 +29,12 @@ const SettingTable& ic_table();
 void ic_combine(std::vector<float>& rgba, const std::vector<float>& samples, const std::vector<vec4>& residual,
                 uint32_t width, uint32_t height, const std::vector<float>& sequence_variance = {},
                 const std::vector<uint32_t>& paths_only = {});
-// The James-Stein weight of B per pixel that ic_combine applies (1: the pixel shows B).
-std::vector<float> ic_keep_weights(const std::vector<float>& rgba, const std::vector<float>& samples,
-                                   const std::vector<vec4>& residual, uint32_t width, uint32_t height,
-                                   const std::vector<float>& sequence_variance = {},
-                                   const std::vector<uint32_t>& paths_only = {});
 
 // The variance of the mean of A - B from two snapshots of the IC Residual pass' sums (rgb; w:
 // the pixel's sample count) taken at n_a and n_b > n_a samples: the squared difference of the
 // means of samples [0, n_a) and [n_a, n_b), as n_b times that variance at n_b (summed over rgb).
 // Negative where a part has fewer than IC_COMBINE_MIN_HALF samples. See ic_combine.
 std::vector<float> ic_sequence_variance(const std::vector<vec4>& first, const std::vector<vec4>& both);
-
-// Consistent mode's leave rule: the combined image's relMSE against the paths' alone, from two
-// snapshots of the IC Residual and Combined sums (rgb; w: the pixel's sample count), each pixel
-// weighted by 1/(A^2 + 1e-3) as ic_keep_weights, and `keep` the weights of B that
-// ic_combine applies. The image is B + t mean(A - B), t = 1 - keep, so its error is B's plus the
-// two sums below; the variance and covariance come from the snapshots' halves
-// (ic_sequence_variance), |mean(A - B)|^2 from the film itself.
-struct IcErrorSums {
-    double paths = 0;     // w Var(mean B), the paths' image alone
-    double cross = 0;     // w 2 t Cov(mean B, mean(A - B))
-    double residual = 0;  // w t^2 |mean(A - B)|^2
-    // `sequence_gain` (>= 1): how much the halves overstate the variance of a sequence whose mean
-    // converges faster than 1/n; it divides the halves' terms, i.e. multiplies the film's.
-    double ratio(double sequence_gain = 1.0) const {
-        return paths > 0 ? (paths + cross + sequence_gain * residual) / paths : -1.0;
-    }
-};
-IcErrorSums ic_error_sums(const std::vector<float>& keep, const std::vector<vec4>& residual_first,
-                          const std::vector<vec4>& residual_both, const std::vector<vec4>& paths_first,
-                          const std::vector<vec4>& paths_both);
 
 // Consistent mode's pixel handover: which pixels to hand back to the paths for good (1). With
 // a perfect cache the image's variance would be the paths' less the residual's, so where, over
@@ -92,9 +67,6 @@ struct IcStats {
     uint64_t paths_only = 0;  // consistent mode: pixels handed back to the paths (ic_hand_over)
     uint64_t host_steps = 0;  // after render frames (consistent mode: several frames each)
     uint64_t left = 0;        // 1: the render frames left the cache's pipeline (consistent mode)
-    // Consistent mode, at the last snapshot: the image's relMSE with the cache over the paths'
-    // alone (ic_error_ratio), in thousandths; 0 until measured.
-    uint64_t error_ratio_permille = 0;
     uint64_t jobs = 0;      // hemisphere estimates computed (creations + refreshes)
     uint64_t job_rays = 0;  // their hemisphere rays (theta x phi each)
     double job_milliseconds = 0;    // hemisphere + finish dispatches
@@ -192,17 +164,14 @@ private:
     Buffer reuse_buffer_;
     uint32_t reuse_stamp_ = 1;
     uint64_t next_snapshot_ = 0;           // samples per pixel of the next snapshot
-    double last_paths_error_ = 0;          // IcErrorSums::paths at the last snapshot
     uint32_t samples_per_frame_ = 1;
     uint32_t step_frames_ = 1;             // consistent mode: render frames per host step now
     uint64_t stepped_samples_ = 0;         // samples per pixel at the last host step
     mutable bool queue_read_ = true;       // the host took the queue's requests: clear it
     bool needed_ = false;                  // another technique reads the cache (ADRRS' adjoint)
-    // Consistent mode: three quarters of the pixels went back to the paths, or the cache lowers
-    // the image's error by less than its frames cost over the paths' (IC_LEAVE_ERROR_RATIO), so
-    // the render frames trace without the cache (its pipeline costs every pixel, not only those
-    // that ask); the other pixels' residual then fades as 1/n. Until the view or the settings
-    // change.
+    // Consistent mode: three quarters of the pixels went back to the paths, so the render
+    // frames trace without the cache (its pipeline costs every pixel, not only those that ask);
+    // the other pixels' residual then fades as 1/n. Until the view or the settings change.
     bool left_ = false;
 };
 
