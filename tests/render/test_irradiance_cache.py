@@ -22,9 +22,8 @@ from bench import shared_scenes  # noqa: E402
 # The thesis' mode (paths end at the cache) unless a test says otherwise.
 FAST_IC = dict(ic=True, ic_mode="thesis", ic_prepare_frames=12, ic_create_prob=0.05)
 CONSISTENT_IC = {**FAST_IC, "ic_mode": "consistent"}
-# The light paths helpers.render sets: tests with sessions of their own set them too, so the file
-# compiles one cache pipeline, not a second for the default (Cycles') light paths.
-LIGHT_PATHS = pc.UNBIASED_LIGHT_PATHS
+# Tests with sessions of their own set helpers.render's light paths (pc.UNBIASED_LIGHT_PATHS) too,
+# so the file compiles one cache pipeline, not a second for the default (Cycles') light paths.
 
 
 def block_rel_mse(img, ref, k=8):
@@ -233,7 +232,7 @@ def test_next_frame_finds_new_entries():
     unbuilt found none: IC Irradiance 0 everywhere, and every point asked again)."""
     s = pc.Session(32, 32)
     s.set_params(method="mis", ic=True, ic_mode="thesis", ic_prepare_frames=0, ic_create_prob=0.3,
-                 samples_per_frame=1, seed=1, **LIGHT_PATHS)
+                 samples_per_frame=1, seed=1, **pc.UNBIASED_LIGHT_PATHS)
     s.update(scenes.cornell_box(32, 32))
     s.render(1)
     first = s.stats()["ic_entries"]
@@ -252,7 +251,7 @@ def test_prepare_frames_fill_before_accumulation():
     s.update(sc)
     for limit in (3, 200):
         s.set_params(samples_per_frame=1, **{**FAST_IC, "ic_prepare_frames": limit, "ic_create_prob": 0.3},
-                     **LIGHT_PATHS)
+                     **pc.UNBIASED_LIGHT_PATHS)
         calls = 0
         while not s.render_rows(32):
             calls += 1
@@ -299,7 +298,7 @@ def test_consistent_mode_host_steps_wait_longer_each_time():
     and the image are those of a fixed seed (two sessions agree), however the frames are split
     into render() calls."""
     sc = scenes.cornell_box(24, 24)
-    params = dict(**{**CONSISTENT_IC, "ic_create_prob": 0.2}, samples_per_frame=1, seed=2, **LIGHT_PATHS)
+    params = dict(**{**CONSISTENT_IC, "ic_create_prob": 0.2}, samples_per_frame=1, seed=2, **pc.UNBIASED_LIGHT_PATHS)
     runs = []
     for calls in ((96,), (1,) * 40 + (56,)):
         s = pc.Session(24, 24)
@@ -322,7 +321,7 @@ def test_entries_hemisphere_by_mode():
     sc = scenes.cornell_box(24, 24)
     for params, strata in ((CONSISTENT_IC, 6 * 12), (FAST_IC, 10 * 20)):
         s = pc.Session(24, 24)
-        s.set_params(**params, samples_per_frame=1, seed=2, **LIGHT_PATHS)
+        s.set_params(**params, samples_per_frame=1, seed=2, **pc.UNBIASED_LIGHT_PATHS)
         s.update(sc)
         s.render(32)
         st = s.stats()
@@ -338,7 +337,7 @@ def test_consistent_mode_leaves_the_pipeline_where_the_paths_need_no_cache():
     is MIS' estimator: with the same seed the image is MIS' (measured equal to 4 digits)."""
     sc = scenes.veach_mis(32, 24)
     s = pc.Session(32, 24)
-    s.set_params(**CONSISTENT_IC, samples_per_frame=1, seed=4, **LIGHT_PATHS)
+    s.set_params(**CONSISTENT_IC, samples_per_frame=1, seed=4, **pc.UNBIASED_LIGHT_PATHS)
     s.update(sc)
     s.render(8)
     st = s.stats()
@@ -347,7 +346,7 @@ def test_consistent_mode_leaves_the_pipeline_where_the_paths_need_no_cache():
     s.render(24)
     assert s.stats()["ic_host_steps"] == steps
     mis = pc.Session(32, 24)
-    mis.set_params(method="mis", samples_per_frame=1, seed=4, **LIGHT_PATHS)
+    mis.set_params(method="mis", samples_per_frame=1, seed=4, **pc.UNBIASED_LIGHT_PATHS)
     mis.update(sc)
     mis.render(32)
     img, ref = s.read("combined")[..., :3], mis.read("combined")[..., :3]

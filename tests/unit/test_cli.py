@@ -6,8 +6,8 @@ import sys
 import numpy as np
 import pytest
 
-from parallax_core.cli import parse_params
 from helpers import UNBIASED_LIGHT_PATH_SETS
+from parallax_core.cli import parse_params
 from parallax_core.exr import read_exr, write_exr
 
 PARALLAX = [sys.executable, "-m", "parallax_core"]
