@@ -1,5 +1,6 @@
 """Several sessions at once (Blender has a viewport and an F12 render): they share the
 device, may run on different threads, and give the same images as one at a time."""
+import json
 import os
 import re
 import subprocess
@@ -194,9 +195,10 @@ def test_mesa_cache_of_our_own_unless_the_user_chose_one(tmp_path):
     assert run.stdout.split()[2] == str(tmp_path / "chosen")
 
 
-def test_compile_log_names_each_pipeline_created(tmp_path):
+def test_compile_log_and_pipeline_statistics_name_each_pipeline_created(tmp_path):
     # PARALLAX_COMPILE_LOG: "pipeline PID PPID MS STAGES" and the specialisation constants.
-    log = tmp_path / "compile.log"
+    # PARALLAX_PIPELINE_STATS: a JSON line per pipeline (bench/pipeline_stats.py reads it).
+    log, stats = tmp_path / "compile.log", tmp_path / "stats.jsonl"
     script = """
 import parallax_core as pc
 from parallax_core import scenes
@@ -206,7 +208,7 @@ s.update(scenes.cornell_box(8, 8))
 s.render(1)
 """
     run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=600,
-                         env={**os.environ, "PARALLAX_COMPILE_LOG": str(log)})
+                         env={**os.environ, "PARALLAX_COMPILE_LOG": str(log), "PARALLAX_PIPELINE_STATS": str(stats)})
     assert run.returncode == 0, run.stderr
     lines = [line.split() for line in log.read_text().splitlines() if line.startswith("pipeline ")]
     assert lines, log.read_text()
@@ -214,3 +216,11 @@ s.render(1)
     assert int(ppid) == os.getpid() and int(ms) >= 0 and int(stages) >= 3
     rows = re.findall(r"^\s*X\(\d+,", Path(__file__).parents[2].joinpath("shaders", "shared", "specialization.h").read_text(), re.M)
     assert len(constants) == len(rows) and all(c.isdigit() for c in constants)
+    # The same pipelines, in the same order, with their constants by name and a stack size per
+    # shader group (raygen, misses, hits); lavapipe reports no executables.
+    entries = [json.loads(line) for line in stats.read_text().splitlines()]
+    assert [[e["constants"][name] for name in e["constants"]] for e in entries] == [[int(c) for c in line[5:]] for line in lines]
+    assert entries[0]["program"] == 0 and "method" in entries[0]["constants"]  # PROGRAM_CAMERA
+    stack = entries[0]["driver"]["stack"]
+    assert "general" in stack[0] and any("closest_hit" in group for group in stack[1:])
+    assert all(v >= 0 for group in stack for v in group.values())

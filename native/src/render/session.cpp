@@ -485,7 +485,7 @@ Session::PipelineRecipe Session::pipeline_shaders(const PipelineKey& key) const 
     for (const auto* slots : {&shaders.misses, &shaders.hits})
         for (uint32_t slot = 0; slot <= slots->rbegin()->first; ++slot)
             groups.push_back(slots->lower_bound(slot)->second);
-    return {shaders.stages, groups, key.second};
+    return {shaders.stages, groups, key.second, program};
 }
 
 // PARALLAX_COMPILE_LOG=FILE appends a line per pipeline created: "pipeline", the process and its
@@ -504,12 +504,36 @@ static void log_pipeline(const SpecConstants& constants, size_t stages, double m
     }
 }
 
+// PARALLAX_PIPELINE_STATS=FILE appends a JSON line per pipeline created: its program, its
+// specialisation constants by name and what the driver says of it (RayTracingPipeline::
+// statistics_json: stack sizes, and the driver's statistics where it reports them).
+// bench/pipeline_stats.py tabulates them: registers and stack of one variant against another.
+static void log_pipeline_statistics(const RayTracingPipeline& pipeline, uint32_t program, const SpecConstants& constants) {
+    const char* path = std::getenv("PARALLAX_PIPELINE_STATS");
+    if (!path || !*path) return;
+    std::string line = "{\"program\": " + std::to_string(program) + ", \"constants\": {";
+    const auto values = constants.values();
+    const char* names[] = {
+#define PX_SPEC_NAME(id, NAME, member, value) #member,
+        PX_SPEC_CONSTANTS(PX_SPEC_NAME)
+#undef PX_SPEC_NAME
+    };
+    for (size_t i = 0; i < values.size(); ++i)
+        line += std::string(i ? ", \"" : "\"") + names[i] + "\": " + std::to_string(values[i]);
+    line += "}, \"driver\": " + pipeline.statistics_json() + "}\n";
+    if (FILE* f = std::fopen(path, "a")) {
+        std::fputs(line.c_str(), f);
+        std::fclose(f);
+    }
+}
+
 std::unique_ptr<RayTracingPipeline> Session::create_pipeline(Context& ctx, VkDescriptorSetLayout layout,
                                                              const PipelineRecipe& recipe) {
     const auto start = std::chrono::steady_clock::now();
     auto pipeline = std::make_unique<RayTracingPipeline>(ctx, layout, uint32_t(sizeof(FrameParams)), recipe.stages,
                                                          recipe.groups, recipe.constants);
     log_pipeline(recipe.constants, recipe.stages.size(), std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+    log_pipeline_statistics(*pipeline, recipe.program, recipe.constants);
     return pipeline;
 }
 

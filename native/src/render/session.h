@@ -165,6 +165,7 @@ private:
         std::vector<ShaderStage> stages;
         std::vector<ShaderGroup> groups;
         SpecConstants constants;
+        uint32_t program;  // PROGRAM_*
     };
     PipelineRecipe pipeline_shaders(const PipelineKey& key) const;
     static std::unique_ptr<RayTracingPipeline> create_pipeline(Context& ctx, VkDescriptorSetLayout layout,

@@ -184,6 +184,14 @@ struct Features {
     }
 };
 
+static bool has_extension(VkPhysicalDevice pd, const char* name) {
+    uint32_t n = 0;
+    vkEnumerateDeviceExtensionProperties(pd, nullptr, &n, nullptr);
+    std::vector<VkExtensionProperties> exts(n);
+    vkEnumerateDeviceExtensionProperties(pd, nullptr, &n, exts.data());
+    return std::any_of(exts.begin(), exts.end(), [&](const VkExtensionProperties& e) { return !strcmp(e.extensionName, name); });
+}
+
 static DeviceReport inspect(VkPhysicalDevice pd, uint32_t index) {
     VkPhysicalDeviceProperties props;
     vkGetPhysicalDeviceProperties(pd, &props);
@@ -198,15 +206,8 @@ static DeviceReport inspect(VkPhysicalDevice pd, uint32_t index) {
         default: rep.type = "other";
     }
     if (props.apiVersion < VK_API_VERSION_1_2) rep.missing.push_back("Vulkan 1.2");
-    uint32_t n = 0;
-    vkEnumerateDeviceExtensionProperties(pd, nullptr, &n, nullptr);
-    std::vector<VkExtensionProperties> exts(n);
-    vkEnumerateDeviceExtensionProperties(pd, nullptr, &n, exts.data());
-    for (const char* req : kRequiredExtensions) {
-        bool found = std::any_of(exts.begin(), exts.end(),
-                                 [&](const VkExtensionProperties& e) { return !strcmp(e.extensionName, req); });
-        if (!found) rep.missing.push_back(req);
-    }
+    for (const char* req : kRequiredExtensions)
+        if (!has_extension(pd, req)) rep.missing.push_back(req);
     if (rep.missing.empty()) {
         Features f;
         vkGetPhysicalDeviceFeatures2(pd, &f.base);
@@ -337,12 +338,23 @@ Context::Context(const DeviceReport& report) : report_(report) {
     vkGetPhysicalDeviceFeatures2(physical_, &supported);
     f.base.features.shaderInt64 = supported.features.shaderInt64;
 
+    std::vector<const char*> extensions = kRequiredExtensions;
+    VkPhysicalDevicePipelineExecutablePropertiesFeaturesKHR executable_info{
+        VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PIPELINE_EXECUTABLE_PROPERTIES_FEATURES_KHR};
+    const char* stats_log = std::getenv("PARALLAX_PIPELINE_STATS");
+    if (stats_log && *stats_log && has_extension(physical_, VK_KHR_PIPELINE_EXECUTABLE_PROPERTIES_EXTENSION_NAME)) {
+        extensions.push_back(VK_KHR_PIPELINE_EXECUTABLE_PROPERTIES_EXTENSION_NAME);
+        executable_info.pipelineExecutableInfo = VK_TRUE;
+        f.rt.pNext = &executable_info;
+        pipeline_statistics_ = true;
+    }
+
     VkDeviceCreateInfo dinfo{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
     dinfo.pNext = &f.base;
     dinfo.queueCreateInfoCount = 1;
     dinfo.pQueueCreateInfos = &qinfo;
-    dinfo.enabledExtensionCount = uint32_t(kRequiredExtensions.size());
-    dinfo.ppEnabledExtensionNames = kRequiredExtensions.data();
+    dinfo.enabledExtensionCount = uint32_t(extensions.size());
+    dinfo.ppEnabledExtensionNames = extensions.data();
     VK_CHECK(vkCreateDevice(physical_, &dinfo, nullptr, &device_));
     vkGetDeviceQueue(device_, queue_family_, 0, &queue_);
 
@@ -355,6 +367,11 @@ Context::Context(const DeviceReport& report) : report_(report) {
     PX_LOAD(create_rt_pipelines, vkCreateRayTracingPipelinesKHR);
     PX_LOAD(get_group_handles, vkGetRayTracingShaderGroupHandlesKHR);
     PX_LOAD(cmd_trace_rays, vkCmdTraceRaysKHR);
+    PX_LOAD(get_group_stack_size, vkGetRayTracingShaderGroupStackSizeKHR);
+    if (pipeline_statistics_) {
+        PX_LOAD(get_executable_properties, vkGetPipelineExecutablePropertiesKHR);
+        PX_LOAD(get_executable_statistics, vkGetPipelineExecutableStatisticsKHR);
+    }
 #undef PX_LOAD
 
     rt_props_.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_RAY_TRACING_PIPELINE_PROPERTIES_KHR;

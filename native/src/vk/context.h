@@ -59,6 +59,10 @@ struct RayTracingFunctions {
     PFN_vkCreateRayTracingPipelinesKHR create_rt_pipelines = nullptr;
     PFN_vkGetRayTracingShaderGroupHandlesKHR get_group_handles = nullptr;
     PFN_vkCmdTraceRaysKHR cmd_trace_rays = nullptr;
+    PFN_vkGetRayTracingShaderGroupStackSizeKHR get_group_stack_size = nullptr;
+    // VK_KHR_pipeline_executable_properties, loaded where pipeline_statistics() is on
+    PFN_vkGetPipelineExecutablePropertiesKHR get_executable_properties = nullptr;
+    PFN_vkGetPipelineExecutableStatisticsKHR get_executable_statistics = nullptr;
 };
 
 class Context {
@@ -86,6 +90,10 @@ public:
     const VkPhysicalDeviceRayTracingPipelinePropertiesKHR& rt_properties() const { return rt_props_; }
     const DeviceReport& report() const { return report_; }
     bool is_cpu() const { return report_.type == "cpu"; }
+    // PARALLAX_PIPELINE_STATS=FILE (read when the device is created), on a device with
+    // VK_KHR_pipeline_executable_properties: pipelines capture the driver's statistics
+    // (registers, stack, instructions: whatever it reports) for Session's log of them.
+    bool pipeline_statistics() const { return pipeline_statistics_; }
 
     uint32_t memory_type(uint32_t type_bits, VkMemoryPropertyFlags flags) const;
 
@@ -127,6 +135,7 @@ private:
     std::string hung_;         // why the device is taken for hung ("": it is not)
     std::atomic<bool> hung_flag_{false};  // !hung_.empty(), for destructors on any thread
     RayTracingFunctions rt_{};
+    bool pipeline_statistics_ = false;
     VkPhysicalDeviceRayTracingPipelinePropertiesKHR rt_props_{};
     VkPhysicalDeviceMemoryProperties memory_props_{};
     DeviceReport report_;

@@ -123,7 +123,7 @@ RayTracingPipeline::RayTracingPipeline(Context& ctx, VkDescriptorSetLayout set_l
                                        const std::vector<ShaderStage>& stages,
                                        const std::vector<ShaderGroup>& groups,
                                        const SpecConstants& constants)
-    : ctx_(ctx) {
+    : ctx_(ctx), groups_(groups) {
     layout_ = make_layout(ctx, set_layout, push_size);
     Specialization spec(constants);
     std::vector<VkPipelineShaderStageCreateInfo> stage_infos;
@@ -160,6 +160,7 @@ RayTracingPipeline::RayTracingPipeline(Context& ctx, VkDescriptorSetLayout set_l
     info.pGroups = group_infos.data();
     info.maxPipelineRayRecursionDepth = 1;
     info.layout = layout_;
+    if (ctx.pipeline_statistics()) info.flags |= VK_PIPELINE_CREATE_CAPTURE_STATISTICS_BIT_KHR;
     VkResult r = ctx.rt().create_rt_pipelines(ctx.device(), VK_NULL_HANDLE, VK_NULL_HANDLE, 1, &info, nullptr,
                                               &pipeline_);
     for (auto m : modules) vkDestroyShaderModule(ctx.device(), m, nullptr);
@@ -189,6 +190,72 @@ RayTracingPipeline::RayTracingPipeline(Context& ctx, VkDescriptorSetLayout set_l
     raygen_ = {base, raygen_size, raygen_size};
     miss_ = {base + raygen_size, stride, stride * miss_count};
     hit_ = {base + raygen_size + miss_size, stride, stride * hit_count};
+}
+
+static std::string json_string(const char* text) {
+    std::string out = "\"";
+    for (const char* c = text; *c; ++c) {
+        if (*c == '"' || *c == '\\') out += '\\';
+        out += (unsigned char)(*c) < 0x20 ? ' ' : *c;
+    }
+    return out + "\"";
+}
+
+std::string RayTracingPipeline::statistics_json() const {
+    const VkDevice device = ctx_.device();
+    std::string stack = "[";
+    for (uint32_t g = 0; g < groups_.size(); ++g) {
+        const ShaderGroup& group = groups_[g];
+        const std::pair<uint32_t, VkShaderGroupShaderKHR> shaders[] = {
+            {group.general, VK_SHADER_GROUP_SHADER_GENERAL_KHR},
+            {group.closest_hit, VK_SHADER_GROUP_SHADER_CLOSEST_HIT_KHR},
+            {group.any_hit, VK_SHADER_GROUP_SHADER_ANY_HIT_KHR},
+            {group.intersection, VK_SHADER_GROUP_SHADER_INTERSECTION_KHR}};
+        const char* names[] = {"general", "closest_hit", "any_hit", "intersection"};
+        stack += g ? ", {" : "{";
+        bool first = true;
+        for (int k = 0; k < 4; ++k) {
+            if (shaders[k].first == VK_SHADER_UNUSED_KHR) continue;
+            VkDeviceSize bytes = ctx_.rt().get_group_stack_size(device, pipeline_, g, shaders[k].second);
+            stack += (first ? "\"" : ", \"") + std::string(names[k]) + "\": " + std::to_string(bytes);
+            first = false;
+        }
+        stack += "}";
+    }
+    std::string out = "{\"stack\": " + stack + "]";
+    if (!ctx_.pipeline_statistics()) return out + "}";
+    VkPipelineInfoKHR pinfo{VK_STRUCTURE_TYPE_PIPELINE_INFO_KHR};
+    pinfo.pipeline = pipeline_;
+    uint32_t count = 0;
+    VK_CHECK(ctx_.rt().get_executable_properties(device, &pinfo, &count, nullptr));
+    std::vector<VkPipelineExecutablePropertiesKHR> executables(count, {VK_STRUCTURE_TYPE_PIPELINE_EXECUTABLE_PROPERTIES_KHR});
+    VK_CHECK(ctx_.rt().get_executable_properties(device, &pinfo, &count, executables.data()));
+    out += ", \"executables\": [";
+    for (uint32_t e = 0; e < count; ++e) {
+        VkPipelineExecutableInfoKHR einfo{VK_STRUCTURE_TYPE_PIPELINE_EXECUTABLE_INFO_KHR};
+        einfo.pipeline = pipeline_;
+        einfo.executableIndex = e;
+        uint32_t n = 0;
+        VK_CHECK(ctx_.rt().get_executable_statistics(device, &einfo, &n, nullptr));
+        std::vector<VkPipelineExecutableStatisticKHR> stats(n, {VK_STRUCTURE_TYPE_PIPELINE_EXECUTABLE_STATISTIC_KHR});
+        VK_CHECK(ctx_.rt().get_executable_statistics(device, &einfo, &n, stats.data()));
+        out += std::string(e ? ", " : "") + "{\"name\": " + json_string(executables[e].name) +
+               ", \"stages\": " + std::to_string(executables[e].stages) +
+               ", \"subgroup_size\": " + std::to_string(executables[e].subgroupSize) + ", \"statistics\": {";
+        for (uint32_t i = 0; i < n; ++i) {
+            const VkPipelineExecutableStatisticKHR& st = stats[i];
+            std::string value;
+            switch (st.format) {
+                case VK_PIPELINE_EXECUTABLE_STATISTIC_FORMAT_BOOL32_KHR: value = st.value.b32 ? "true" : "false"; break;
+                case VK_PIPELINE_EXECUTABLE_STATISTIC_FORMAT_INT64_KHR: value = std::to_string(st.value.i64); break;
+                case VK_PIPELINE_EXECUTABLE_STATISTIC_FORMAT_UINT64_KHR: value = std::to_string(st.value.u64); break;
+                default: value = std::to_string(st.value.f64);
+            }
+            out += std::string(i ? ", " : "") + json_string(st.name) + ": " + value;
+        }
+        out += "}}";
+    }
+    return out + "]}";
 }
 
 RayTracingPipeline::~RayTracingPipeline() {

@@ -6,6 +6,7 @@
 #include "../../../shaders/shared/specialization.h"
 
 #include <memory>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -58,11 +59,17 @@ public:
     ~RayTracingPipeline();
     void trace(VkCommandBuffer cmd, VkDescriptorSet set, const void* push, uint32_t push_size,
                uint32_t width, uint32_t height) const;
+    // What the driver says of the compiled pipeline, as a JSON object: "stack", the stack size of
+    // each group's shaders in bytes (vkGetRayTracingShaderGroupStackSizeKHR: where it spills
+    // what stays live across a trace call), and, where Context::pipeline_statistics() is on,
+    // "executables": each one's name and the driver's statistics (registers, ...).
+    std::string statistics_json() const;
 
 private:
     Context& ctx_;
     VkPipelineLayout layout_ = VK_NULL_HANDLE;
     VkPipeline pipeline_ = VK_NULL_HANDLE;
+    std::vector<ShaderGroup> groups_;
     Buffer sbt_;
     VkStridedDeviceAddressRegionKHR raygen_{}, miss_{}, hit_{}, callable_{};
 };
