@@ -1,5 +1,5 @@
-"""What the driver compiled: per pipeline a method creates, the stack size of each shader group
-(bytes: what stays live across a trace call goes there) and, where the driver has
+"""What the driver compiled: per pipeline a method creates, the stack size the driver reports for
+each shader group (bytes) and, where the driver has
 VK_KHR_pipeline_executable_properties (NVIDIA; not lavapipe), its statistics per executable
 (registers, spills, instructions: whatever it reports). Issue 32's and issue 34's residual GPU
 costs come from the shape of the compiled megakernel; this reads that shape instead of guessing.
@@ -49,9 +49,10 @@ def collect(scene, device, params):
 def summary(entry):
     """One row's cells: program, techniques, the raygen's stack, then each executable's stats."""
     driver = entry["driver"]
-    stack = driver["stack"][0].get("general", 0)
-    hits = max((g.get("closest_hit", 0) for g in driver["stack"][1:]), default=0)
-    executables = "; ".join(
+    groups = driver["stack"] or [{}]
+    stack = groups[0].get("general", 0)
+    hits = max((g.get("closest_hit", 0) for g in groups[1:]), default=0)
+    executables = driver.get("error", "") or "; ".join(
         f"{e['name']}: " + ", ".join(f"{k} {v}" for k, v in e["statistics"].items())
         for e in driver.get("executables", []))
     return (PROGRAMS.get(entry["program"], str(entry["program"])), entry["constants"]["techniques"],

@@ -520,7 +520,15 @@ static void log_pipeline_statistics(const RayTracingPipeline& pipeline, uint32_t
     };
     for (size_t i = 0; i < values.size(); ++i)
         line += std::string(i ? ", \"" : "\"") + names[i] + "\": " + std::to_string(values[i]);
-    line += "}, \"driver\": " + pipeline.statistics_json() + "}\n";
+    std::string driver;
+    try {  // a diagnostic: a driver that fails the queries must not fail the pipeline
+        driver = pipeline.statistics_json();
+    } catch (const std::exception& e) {
+        std::string why = e.what();
+        std::replace_if(why.begin(), why.end(), [](char c) { return c == '"' || c == '\\' || (unsigned char)c < 0x20; }, '\'');
+        driver = "{\"stack\": [], \"error\": \"" + why + "\"}";
+    }
+    line += "}, \"driver\": " + driver + "}\n";
     if (FILE* f = std::fopen(path, "a")) {
         std::fputs(line.c_str(), f);
         std::fclose(f);

@@ -59,10 +59,10 @@ public:
     ~RayTracingPipeline();
     void trace(VkCommandBuffer cmd, VkDescriptorSet set, const void* push, uint32_t push_size,
                uint32_t width, uint32_t height) const;
-    // What the driver says of the compiled pipeline, as a JSON object: "stack", the stack size of
-    // each group's shaders in bytes (vkGetRayTracingShaderGroupStackSizeKHR: where it spills
-    // what stays live across a trace call), and, where Context::pipeline_statistics() is on,
-    // "executables": each one's name and the driver's statistics (registers, ...).
+    // What the driver says of the compiled pipeline, as a JSON object: "stack", the stack size in
+    // bytes it reports for each group's shaders (vkGetRayTracingShaderGroupStackSizeKHR), and,
+    // where Context::pipeline_statistics() is on, "executables": each one's name and the
+    // driver's statistics (registers, ...). Throws VulkanError where a query fails.
     std::string statistics_json() const;
 
 private:
