@@ -5,8 +5,9 @@ refactor left the images bit for bit the same (issue 32: "images stay the same")
         [--device cpu] [--list]
 
 Each case renders one built-in scene (parallax_core.scenes) with one method or technique at a
-fixed seed, then hashes Session.read(name) for every name in Session.pass_names() and
-stats()["rays"]. Save the JSON before a change (--out) and compare after it (--compare):
+fixed seed, then hashes Session.read(name) for every pass the film holds (Session.passes; a
+build from before it: Session.pass_names()) and stats()["rays"]. Save the JSON before a change
+(--out) and compare after it (--compare):
 the exit status is 1 when any hash differs, and the differing arrays are named. The hashes
 hold for one device and driver (lavapipe by default); they are not meant to match across
 devices.
@@ -91,7 +92,9 @@ def run_case(scene, settings, frames, device, seed=3):
     session.set_params(**{**params, **for_build(settings, params)})  # (a build before rrs: adrrs)
     session.update(scene)
     session.render(frames)
-    out = {name: _digest(session.read(name)) for name in session.pass_names()}
+    # The film's passes (not the engine's, such as the denoiser's Noisy Image, which read() refuses).
+    names = session.passes if hasattr(session, "passes") else session.pass_names()
+    out = {name: _digest(session.read(name)) for name in names}
     out["rays"] = int(session.stats()["rays"])
     return out
 
