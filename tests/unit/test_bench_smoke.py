@@ -1,6 +1,8 @@
-"""Smoke test of bench/throughput.py: tiny settings, runs in a few seconds on lavapipe.
-Checks the benchmark works and that primitive ordering does not change the image; timings
-are never pass/fail (DESIGN: timings belong in bench/)."""
+"""Smoke tests of bench/throughput.py, bench/image_hashes.py and bench/pipeline_stats.py: tiny
+settings, a few seconds each on lavapipe. They check the tools work (and that primitive ordering
+does not change the image); timings are never pass/fail (DESIGN: timings belong in bench/)."""
+import json
+import os
 import sys
 from pathlib import Path
 
@@ -36,3 +38,31 @@ def test_throughput_smoke():
     assert max(means) / min(means) < 1.05, means
     # Markdown table: header, separator, one line per row.
     assert len(throughput.markdown_table(rows, info).splitlines()) == 2 + len(rows)
+
+
+def test_image_hashes_round_trip(tmp_path, capsys):
+    # bench.image_hashes: a case hashed, then compared with itself (exit 0), every film pass in it.
+    from bench import image_hashes
+
+    out = tmp_path / "hashes.json"
+    assert image_hashes.main(["--cases", "cornell/mis", "--out", str(out)]) in (0, None)
+    hashes = json.loads(out.read_text())["cornell/mis"]
+    assert "combined" in hashes and hashes["rays"] > 0
+    assert image_hashes.main(["--cases", "cornell/mis", "--compare", str(out)]) in (0, None)
+    assert "cornell/mis: rays" in capsys.readouterr().out
+
+
+def test_pipeline_stats_table(tmp_path):
+    # bench.pipeline_stats reads the core's PARALLAX_PIPELINE_STATS lines: the device was made
+    # before this test, so the log is set in a fresh process.
+    import subprocess
+
+    log = tmp_path / "stats.jsonl"
+    run = subprocess.run([sys.executable, "-m", "bench.pipeline_stats", "--soup", "1000", "--methods", "nee",
+                          "--device", "cpu", "--out", str(tmp_path / "rows.json")],
+                         cwd=Path(__file__).resolve().parents[2], capture_output=True, text=True, timeout=600,
+                         env={**os.environ, "PARALLAX_PIPELINE_STATS": str(log)})
+    assert run.returncode == 0, run.stderr
+    rows = json.loads((tmp_path / "rows.json").read_text())
+    assert rows and rows[0]["method"] == "nee" and rows[0]["constants"]["techniques"] == 0
+    assert "| soup1000 | nee | camera | 0 |" in run.stdout
