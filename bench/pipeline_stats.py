@@ -1,8 +1,8 @@
 """What the driver compiled: per pipeline a method creates, the stack size the driver reports for
-each shader group (bytes) and, where the driver has
-VK_KHR_pipeline_executable_properties (NVIDIA; not lavapipe), its statistics per executable
-(registers, spills, instructions: whatever it reports). Issue 32's and issue 34's residual GPU
-costs come from the shape of the compiled megakernel; this reads that shape instead of guessing.
+each shader group (bytes) and, where the driver has VK_KHR_pipeline_executable_properties
+(NVIDIA; not lavapipe), its statistics per executable (registers, spills, instructions: whatever
+it reports). Issue 32's and issue 34's residual GPU costs come from the shape of the compiled
+megakernel; this reads that shape instead of guessing.
 
     python -m bench.pipeline_stats [--npz DIR --scenes cornell_box,sun_room | --soup 1000]
         [--methods nee,mis,ears] [--device gpu] [--set NAME=VALUE ...] [--out FILE.json]
@@ -41,6 +41,7 @@ def collect(scene, device, params):
     session.update(scene)
     session.render(1)
     del session
+    getattr(pc, "wait_for_background_compiles", lambda: None)()  # every pipeline logged
     with open(path) as f:
         f.seek(start)
         return [json.loads(line) for line in f if line.strip()]
