@@ -524,9 +524,7 @@ static void log_pipeline_statistics(const RayTracingPipeline& pipeline, uint32_t
     try {  // a diagnostic: a driver that fails the queries must not fail the pipeline
         driver = pipeline.statistics_json();
     } catch (const std::exception& e) {
-        std::string why = e.what();
-        std::replace_if(why.begin(), why.end(), [](char c) { return c == '"' || c == '\\' || (unsigned char)c < 0x20; }, '\'');
-        driver = "{\"stack\": [], \"error\": \"" + why + "\"}";
+        driver = "{\"stack\": [], \"error\": " + json_string(e.what()) + "}";
     }
     line += "}, \"driver\": " + driver + "}\n";
     if (FILE* f = std::fopen(path, "a")) {

@@ -192,7 +192,7 @@ RayTracingPipeline::RayTracingPipeline(Context& ctx, VkDescriptorSetLayout set_l
     hit_ = {base + raygen_size + miss_size, stride, stride * hit_count};
 }
 
-static std::string json_string(const char* text) {
+std::string json_string(const char* text) {
     std::string out = "\"";
     for (const char* c = text; *c; ++c) {
         if (*c == '"' || *c == '\\') out += '\\';

@@ -50,6 +50,9 @@ private:
 // and its specialisation constants.
 using PipelineKey = std::pair<uint32_t, SpecConstants>;
 
+// `text` as a JSON string literal (quotes and backslashes escaped, control characters as spaces).
+std::string json_string(const char* text);
+
 class RayTracingPipeline {
 public:
     // Groups must be ordered: one raygen, then the miss groups, then the hit groups.
